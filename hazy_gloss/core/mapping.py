@@ -1,0 +1,623 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The haze mapping of Barla, Pacanowski & Vangorp 2018 ("A Composite BRDF Model for Hazy
+Gloss"), perceptual -> physical and back, in numpy (no bpy).
+
+Every function broadcasts: colours are shaped (..., 3) (a scalar means grey), scalar maps (...).
+The computation runs in float32 when every array input is float32, else in float64.
+
+Equation numbers refer to the paper.  Where the implementation deviates from a printed formula
+the comment says why; docs/mapping.md derives each stable form.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = (
+    "DISTRIBUTIONS",
+    "HazeMapping",
+    "PerceptualParameters",
+    "haze_mapping",
+    "inverse_haze_mapping",
+    "wide_roughness",
+    "peak_ratio",
+    "haze_intensity",
+    "gulbrandsen_ior",
+    "gulbrandsen_inverse",
+    "dielectric_ior",
+)
+
+#: Lobe distributions the add-on offers, spelled as Blender's node enums.
+DISTRIBUTIONS = ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY")
+
+#: Cycles clamps Ashikhmin-Shirley roughness to [1e-4, 1] (bsdf_ashikhmin_shirley_setup).
+_AS_ALPHA_RANGE = (1e-4, 1.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HazeMapping:
+    """Physical parameters of Eq. 1 produced by :func:`haze_mapping`.
+
+    Arrays have the texel shape ``S`` of the broadcast inputs (``()`` for a scalar call), colours
+    ``S + (3,)``.  Paper symbols in brackets.
+    """
+
+    #: [β] mixture ratio of the wide lobe, Eq. 4: β = k̂_h / r̂.  Shape S, in [0, 1].
+    beta: np.ndarray
+    #: [r] global reflectivity F_r(0), RGB, Eq. 5 with the core's chroma: r = r_c + (1-p) k̂_h c.
+    reflectivity: np.ndarray
+    #: [η] real refractive index per channel (Gulbrandsen 2014 from r and g).  > 0.
+    ior: np.ndarray
+    #: [κ] extinction per channel (Gulbrandsen 2014); exactly 0 where g = 0 (dielectric).
+    extinction: np.ndarray
+    #: [α_n^x, α_n^y] narrow (core) roughness, as given (clamped only if invalid).
+    alpha: tuple
+    #: [α_w^x, α_w^y] wide roughness, Eq. 8 (limited to ``alpha_max`` if one was given).
+    alpha_wide: tuple
+    #: [p] peak ratio f_w(n,n)/f_n(n,n) (Table 2 as Blender implements the distribution).
+    peak_ratio: np.ndarray
+    #: [1 - p] computed without cancellation (p -> 1 as λ_h -> 0).
+    peak_complement: np.ndarray
+    #: [k̂_h] halo intensity at θ_d = 0 for the max channel (Eq. 7 or Eq. 15).
+    halo_intensity: np.ndarray
+    #: [r̂] max channel of r (Eq. 5 applied to r̂_c).
+    reflectivity_max: np.ndarray
+    #: [r_c] core reflectivity RGB actually used (after clamping bad texels).
+    core_reflectivity: np.ndarray
+    #: [g] edge tint RGB actually used.
+    edge_tint: np.ndarray
+    #: [β_h] haziness actually used.
+    haziness: np.ndarray
+    #: [λ_h^x, λ_h^y] haze extent actually used.
+    haze_extent: tuple
+    #: [k_n = (1-β) r] legacy (no Fresnel) narrow weight, RGB.
+    weight_narrow: np.ndarray
+    #: [k_w = β r] legacy (no Fresnel) wide weight, RGB.
+    weight_wide: np.ndarray
+    #: [η from r̂] scalar dielectric index of the max channel, (1+√r̂)/(1-√r̂) (paper §2.4).
+    dielectric_ior: np.ndarray
+    #: Lobe distribution the peak ratio was computed for.
+    distribution: str
+    #: Bézier weight w, or None for the piecewise-linear Eq. 7.
+    smoothness: object
+    #: Counts of clamped texels per reason, e.g. ``{"haziness >= 1": 12}``.
+    clamped: dict = field(default_factory=dict)
+
+    @property
+    def warnings(self) -> tuple:
+        """Plain-language messages, one per clamp reason, with the number of texels."""
+        return tuple(f"{reason}: {count} texel{'s' if count != 1 else ''} clamped"
+                     for reason, count in self.clamped.items())
+
+    @property
+    def anisotropic(self) -> bool:
+        ax, ay = self.alpha_wide
+        return bool(np.any(ax != ay))
+
+
+@dataclass(frozen=True)
+class PerceptualParameters:
+    """Perceptual parameters recovered by :func:`inverse_haze_mapping`."""
+
+    core_reflectivity: np.ndarray  #: [r_c] RGB
+    edge_tint: np.ndarray  #: [g] RGB
+    alpha: tuple  #: [α_n^x, α_n^y]
+    haziness: np.ndarray  #: [β_h]
+    haze_extent: tuple  #: [λ_h^x, λ_h^y]
+    #: True where the physical input is reproduced exactly by the forward mapping of the result.
+    exact: np.ndarray
+    clamped: dict = field(default_factory=dict)
+
+    @property
+    def warnings(self) -> tuple:
+        return tuple(f"{reason}: {count} texel{'s' if count != 1 else ''} not representable"
+                     for reason, count in self.clamped.items())
+
+
+# --------------------------------------------------------------------------------------------
+# Input handling
+# --------------------------------------------------------------------------------------------
+
+
+def _working_dtype(*values):
+    """float32 if every floating ndarray input is float32 (or float16), else float64."""
+    kinds = [np.asarray(v).dtype for v in values
+             if isinstance(v, (np.ndarray, np.generic)) and np.asarray(v).dtype.kind == "f"]
+    if kinds and all(np.dtype(k).itemsize <= 4 for k in kinds):
+        return np.dtype(np.float32)
+    return np.dtype(np.float64)
+
+
+def _pair(value, name):
+    """``alpha``/``haze_extent``: a tuple or list of two entries is (x, y), else isotropic."""
+    if isinstance(value, (tuple, list)):
+        if len(value) != 2:
+            raise ValueError(f"{name} must be a scalar/array or an (x, y) pair, got {len(value)} items")
+        return value[0], value[1]
+    return value, value
+
+
+def _colour(value, dtype, name):
+    arr = np.asarray(value, dtype=dtype)
+    if arr.ndim == 0:
+        arr = np.broadcast_to(arr, (3,))
+    elif arr.shape[-1] == 1:
+        arr = np.broadcast_to(arr, arr.shape[:-1] + (3,))
+    elif arr.shape[-1] != 3:
+        raise ValueError(f"{name} must be a scalar (grey) or shaped (..., 3), got shape {arr.shape}")
+    return arr
+
+
+class _Validator:
+    """Clamps invalid entries to the nearest valid value and counts them (texture mode), or
+    raises ValueError on the first one (scalar mode)."""
+
+    def __init__(self, strict):
+        self.strict = strict
+        self.clamped = {}
+
+    def _count(self, reason, bad):
+        n = int(np.count_nonzero(bad))
+        if n:
+            if self.strict:
+                raise ValueError(reason)
+            self.clamped[reason] = self.clamped.get(reason, 0) + n
+
+    def check(self, arr, name, lo, hi, *, hi_open=False, lo_open=False, texel_axis=None):
+        """Return ``arr`` with NaN -> lo, below -> lo, above -> hi; inf counts as out of range.
+
+        ``texel_axis=-1`` counts a colour texel once however many channels are bad."""
+        def per_texel(mask):
+            return mask.any(axis=-1) if texel_axis is not None and mask.ndim else mask
+
+        dtype = arr.dtype
+        lo_v = dtype.type(lo)
+        hi_v = dtype.type(hi)
+        nan = np.isnan(arr)
+        self._count(f"{name} is NaN (set to {lo:g})", per_texel(nan))
+        below = (arr <= lo_v) if lo_open else (arr < lo_v)
+        below &= ~nan
+        if lo_open:
+            lo_v = np.nextafter(lo_v, dtype.type(np.inf))
+        self._count(f"{name} {'<=' if lo_open else '<'} {lo:g}", per_texel(below))
+        above = (arr >= hi_v) if hi_open else (arr > hi_v)
+        if hi_open:
+            hi_v = np.nextafter(hi_v, dtype.type(-np.inf))
+        self._count(f"{name} {'>=' if hi_open else '>'} {hi:g}", per_texel(above))
+        if not (nan.any() or below.any() or above.any()):
+            return arr
+        out = np.where(nan | below, lo_v, arr)
+        return np.where(above, hi_v, out).astype(dtype, copy=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Building blocks (each usable on its own; all broadcast)
+# --------------------------------------------------------------------------------------------
+
+
+def wide_roughness(alpha_x, alpha_y, extent_x, extent_y):
+    """Eq. 8: α_w = α_n + λ_h sqrt(α_n^x α_n^y), per axis.  Returns (α_w^x, α_w^y, g) with
+    g = sqrt(α_n^x α_n^y) (computed as a product of square roots: no underflow)."""
+    g = np.sqrt(alpha_x) * np.sqrt(alpha_y)
+    with np.errstate(over="ignore"):
+        wx = alpha_x + extent_x * g
+        wy = alpha_y + extent_y * g
+    big = np.finfo(np.result_type(wx)).max
+    return np.minimum(wx, big), np.minimum(wy, big), g
+
+
+def _axis_ratio(an, aw, spread, distribution):
+    """Peak ratio along one axis and its complement (p_axis, 1 - p_axis), both accurate.
+
+    ``spread`` = α_w - α_n computed without cancellation by the caller."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if distribution == "ASHIKHMIN_SHIRLEY":
+            # Cycles: n = 2/α² - 2, peak ∝ sqrt((n_x+1)(n_y+1)), n+1 = (2-α²)/α²  (Table 2 AS row).
+            p2 = (an * an * (2.0 - aw * aw)) / (aw * aw * (2.0 - an * an))
+            one_minus_p2 = 2.0 * spread * (aw + an) / (aw * aw * (2.0 - an * an))
+            px = np.sqrt(p2)
+            qx = one_minus_p2 / (1.0 + px)
+        else:
+            # GGX / Beckmann: D(0) = 1/(π α_x α_y)  (Table 2, Cook-Torrance/Ward rows).
+            px = an / aw
+            qx = spread / aw
+    return px, qx
+
+
+def peak_ratio(alpha_x, alpha_y, alpha_wide_x, alpha_wide_y, distribution="GGX"):
+    """p = f_w(n,n) / f_n(n,n) from the roughnesses the renderer uses (Table 2).
+
+    Returns (p, 1 - p), the complement computed without cancellation (p -> 1 as λ_h -> 0)."""
+    px, qx = _axis_ratio(alpha_x, alpha_wide_x, alpha_wide_x - alpha_x, distribution)
+    py, qy = _axis_ratio(alpha_y, alpha_wide_y, alpha_wide_y - alpha_y, distribution)
+    return px * py, qx + px * qy
+
+
+def haze_intensity(core_max, p, q, haziness, smoothness=None):
+    """k̂_h from r̂_c, p (and q = 1-p), β_h: Eq. 7, or the rational Bézier of Eqs. 12-15.
+
+    Returns (k̂_h, β) where β = k̂_h / r̂ (Eq. 4) is computed in a form that has no 0/0 at
+    r̂_c = 0 (its limit there is β_h / (p + (1-p) β_h)).
+
+    The Bézier is evaluated through the conic's implicit equation (docs/mapping.md):
+        t = 2 r_c (1 - r_c) / (r_c q + p (1 - r_c) + hypot(r_c - p, sqrt(r_c (1 - r_c)) / w)),
+        k_h = β_h t.
+    Deviation from the paper: Eqs. 12-14 invert for u with a root that is 0/0 at b = 1 and a
+    Taylor window; this closed form is the same root with no division by b - 1 and no
+    cancellation anywhere, and reduces exactly to Eq. 7 at w = ∞.
+    """
+    rc = core_max
+    omr = 1.0 - rc
+    dtype = np.result_type(rc)
+    zero = dtype.type(0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if smoothness is None or np.all(np.isinf(smoothness)):
+            lower = rc <= p
+            # Eq. 7, branch by branch; σ = r̂_c / k̂_h·β_h is the per-branch "cost" of a unit of haze.
+            kh = np.where(lower, haziness * rc / np.where(p > 0, p, 1),
+                          haziness * omr / np.where(q > 0, q, 1))
+            sigma = np.where(lower, p, rc * q / omr)
+            den = sigma + q * haziness
+            beta = np.where(den > 0, haziness / den, zero)
+        else:
+            m = 1.0 / np.asarray(smoothness, dtype=dtype)
+            # rc - p without cancellation: near 1 subtract the complements instead.
+            d = np.where(p <= 0.5, rc - p, q - omr)
+            s = np.sqrt(rc * omr)
+            ms = np.where(s > 0, m * s, zero)
+            den = rc * q + p * omr + np.hypot(d, ms)
+            t = np.where(den > 0, 2.0 * rc * omr / den, zero)
+            t = np.where(np.isinf(m), zero, t)
+            kh = haziness * t
+            two_omr_bh = 2.0 * omr * haziness
+            den_b = den + q * two_omr_bh
+            beta = np.where(den_b > 0, two_omr_bh / den_b, np.where(omr > 0, dtype.type(1), zero))
+            beta = np.where(np.isinf(m), zero, beta)
+            if np.any(np.isinf(smoothness)):  # mixed per-texel w with some w = ∞: Eq. 7 there
+                kh7, beta7 = haze_intensity(rc, p, q, haziness, None)
+                inf = np.isinf(smoothness)
+                kh = np.where(inf, kh7, kh)
+                beta = np.where(inf, beta7, beta)
+    return kh.astype(dtype, copy=False), np.clip(beta, 0, 1).astype(dtype, copy=False)
+
+
+def gulbrandsen_ior(reflectivity, edge_tint):
+    """Gulbrandsen 2014, "Artist Friendly Metallic Fresnel": (r, g) -> (η, κ), per channel.
+
+    Printed form: η = g (1-r)/(1+r) + (1-g)(1+√r)/(1-√r), κ = sqrt((r(η+1)² - (η-1)²)/(1-r)).
+    Deviation: κ is rewritten (docs/mapping.md) as
+        κ = 2√r sqrt( g/(1+r) · ( g/(1+r) + 2 (1-g) / (1-√r)² ) ),
+    a sum of non-negative terms: the printed numerator cancels catastrophically as r -> 1.
+    1 - √r is computed as (1-r)/(1+√r).  r must be < 1 (the caller limits it)."""
+    r = reflectivity
+    g = edge_tint
+    s = np.sqrt(r)
+    omr = 1.0 - r
+    ops = 1.0 + s
+    one_minus_s = omr / ops
+    n_dielectric = ops / one_minus_s
+    n_metal = omr / (1.0 + r)
+    eta = g * n_metal + (1.0 - g) * n_dielectric
+    gr = g / (1.0 + r)
+    kappa = 2.0 * s * np.sqrt(gr * (gr + 2.0 * (1.0 - g) / (one_minus_s * one_minus_s)))
+    return eta, kappa
+
+
+def gulbrandsen_inverse(ior, extinction):
+    """(η, κ) -> (r, g): r = ((η-1)² + κ²)/((η+1)² + κ²); g from η = g n_m(r) + (1-g) n_d(r).
+
+    g lies in [0, 1] only for (η, κ) on Gulbrandsen's manifold; returned unclamped."""
+    eta = ior
+    k2 = extinction * extinction
+    r = ((eta - 1.0) ** 2 + k2) / ((eta + 1.0) ** 2 + k2)
+    s = np.sqrt(r)
+    omr = 1.0 - r
+    with np.errstate(divide="ignore", invalid="ignore"):
+        n_d = (1.0 + s) ** 2 / omr
+        n_m = omr / (1.0 + r)
+        g = np.where(n_d > n_m, (n_d - eta) / (n_d - n_m), 0.0)
+    return r, g
+
+
+def dielectric_ior(reflectivity):
+    """η = (1+√r)/(1-√r) (paper, footnote of §2.3 and §2.4), as (1+√r)²/(1-r)."""
+    s = np.sqrt(reflectivity)
+    return (1.0 + s) ** 2 / (1.0 - reflectivity)
+
+
+# --------------------------------------------------------------------------------------------
+# HAZEMAPPING (paper §2.4, Algorithm)
+# --------------------------------------------------------------------------------------------
+
+
+def _normalise_distribution(distribution):
+    d = str(distribution).upper().replace("-", "_").replace(" ", "_")
+    if d in ("MULTISCATTER_GGX", "MULTI_SCATTER_GGX"):
+        d = "MULTI_GGX"
+    if d in ("ASHIKHMIN", "AS"):
+        d = "ASHIKHMIN_SHIRLEY"
+    if d not in DISTRIBUTIONS:
+        raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {distribution!r}")
+    return d
+
+
+def _broadcast_shape(named_shapes):
+    try:
+        return np.broadcast_shapes(*[s for _, s in named_shapes])
+    except ValueError:
+        desc = ", ".join(f"{n} {s}" for n, s in named_shapes)
+        raise ValueError(f"input shapes do not broadcast to one texel grid: {desc}") from None
+
+
+def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
+                 distribution="GGX", smoothness=None, alpha_max=None, strict=None) -> HazeMapping:
+    """Perceptual -> physical parameters (the paper's HAZEMAPPING).
+
+    core_reflectivity  [r_c]  colour in [0, 1], scalar (grey) or (..., 3)
+    edge_tint          [g]    colour in [0, 1]; 0 = dielectric (κ = 0), scalar or (..., 3)
+    alpha              [α_n]  narrow roughness >= 0 (α, not Blender's R = √α); scalar/array or
+                              an (x, y) tuple of them
+    haziness           [β_h]  in [0, 1)
+    haze_extent        [λ_h]  >= 0, in units of sqrt(α_n^x α_n^y); scalar/array or (x, y) tuple
+    distribution       "GGX" (default), "BECKMANN", "MULTI_GGX" (GGX peak; see docs), or
+                       "ASHIKHMIN_SHIRLEY" (Cycles' exponent n = 2/α² - 2, α in [1e-4, 1])
+    smoothness         None: Eq. 7.  A number w > 0 (or per-texel array): the rational Bézier of
+                       Eqs. 12-15; w = inf is exactly Eq. 7.
+    alpha_max          None: Eq. 8 unbounded (the paper).  A number (Blender: 1.0): α_w is
+                       limited to it and p computed from the limited α — what the renderer uses.
+    strict             None: raise ValueError on bad input for a scalar call (every input one
+                       texel), clamp and count for textures.  True/False forces either.
+    """
+    distribution = _normalise_distribution(distribution)
+    ax_in, ay_in = _pair(alpha, "alpha")
+    lx_in, ly_in = _pair(haze_extent, "haze_extent")
+    dtype = _working_dtype(core_reflectivity, edge_tint, ax_in, ay_in, haziness, lx_in, ly_in)
+    one = dtype.type(1)
+
+    rc = _colour(core_reflectivity, dtype, "core_reflectivity")
+    g = _colour(edge_tint, dtype, "edge_tint")
+    ax = np.asarray(ax_in, dtype=dtype)
+    ay = np.asarray(ay_in, dtype=dtype)
+    bh = np.asarray(haziness, dtype=dtype)
+    lx = np.asarray(lx_in, dtype=dtype)
+    ly = np.asarray(ly_in, dtype=dtype)
+    w = None if smoothness is None else np.asarray(smoothness, dtype=dtype)
+
+    named = [("core_reflectivity", rc.shape[:-1]), ("edge_tint", g.shape[:-1]),
+             ("alpha.x", ax.shape), ("alpha.y", ay.shape), ("haziness", bh.shape),
+             ("haze_extent.x", lx.shape), ("haze_extent.y", ly.shape)]
+    if w is not None:
+        named.append(("smoothness", w.shape))
+    shape = _broadcast_shape(named)
+    if strict is None:
+        strict = shape == ()
+
+    v = _Validator(strict)
+    big = float(np.finfo(dtype).max)
+    rc = v.check(np.broadcast_to(rc, shape + (3,)), "core_reflectivity", 0.0, 1.0, texel_axis=-1)
+    g = v.check(np.broadcast_to(g, shape + (3,)), "edge_tint", 0.0, 1.0, texel_axis=-1)
+    ax = v.check(np.broadcast_to(ax, shape), "alpha.x", 0.0, big)
+    ay = v.check(np.broadcast_to(ay, shape), "alpha.y", 0.0, big)
+    bh = v.check(np.broadcast_to(bh, shape), "haziness", 0.0, 1.0, hi_open=True)
+    lx = v.check(np.broadcast_to(lx, shape), "haze_extent.x", 0.0, big)
+    ly = v.check(np.broadcast_to(ly, shape), "haze_extent.y", 0.0, big)
+    if w is not None:
+        w = np.broadcast_to(w, shape)
+        nan_or_low = np.isnan(w) | (w <= 0)
+        if np.any(nan_or_low):
+            if strict:
+                raise ValueError("smoothness (Bézier weight w) must be > 0 (None selects Eq. 7)")
+            v.clamped["smoothness <= 0 or NaN"] = int(np.count_nonzero(nan_or_low))
+            w = np.where(nan_or_low, np.finfo(dtype).tiny, w).astype(dtype)
+    if alpha_max is not None and not (alpha_max > 0 and math.isfinite(alpha_max)):
+        raise ValueError(f"alpha_max must be a finite positive number, got {alpha_max!r}")
+
+    # -- wide roughness (Eq. 8) and the roughness the renderer will really use ---------------
+    wx, wy, gm = wide_roughness(ax, ay, lx, ly)
+    if np.any(wx == big) or np.any(wy == big):
+        v.clamped["alpha_wide overflow"] = int(np.count_nonzero((wx == big) | (wy == big)))
+    # spread = α_w - α_n exactly as Eq. 8 defines it (no cancellation).
+    sx = lx * gm
+    sy = ly * gm
+    nx, ny = ax, ay
+    lo, hi = (None, alpha_max)
+    if distribution == "ASHIKHMIN_SHIRLEY":
+        lo, hi = _AS_ALPHA_RANGE[0], min(_AS_ALPHA_RANGE[1], alpha_max or _AS_ALPHA_RANGE[1])
+    if lo is not None or hi is not None:
+        lo_v = dtype.type(lo if lo is not None else 0.0)
+        hi_v = dtype.type(hi if hi is not None else big)
+        cnx, cny = np.clip(nx, lo_v, hi_v), np.clip(ny, lo_v, hi_v)
+        cwx, cwy = np.clip(wx, lo_v, hi_v), np.clip(wy, lo_v, hi_v)
+        limited = (wx > hi_v) | (wy > hi_v)
+        if np.any(limited):
+            v.clamped[f"alpha_wide > {float(hi_v):g} (renderer limit)"] = int(np.count_nonzero(limited))
+        sx = np.where((cnx != nx) | (cwx != wx), cwx - cnx, sx)
+        sy = np.where((cny != ny) | (cwy != wy), cwy - cny, sy)
+        nx, ny, wx, wy = cnx, cny, cwx, cwy
+
+    # -- peak ratio (Table 2) -------------------------------------------------------------------
+    px, qx = _axis_ratio(nx, wx, sx, distribution)
+    py, qy = _axis_ratio(ny, wy, sy, distribution)
+    # α_n = 0 on an axis: the ratio is the limit along the isotropic scaling path.
+    px, qx = _zero_alpha_limit(ax, ay, lx, px, qx, distribution)
+    py, qy = _zero_alpha_limit(ay, ax, ly, py, qy, distribution)
+    p = np.clip(px * py, 0, 1)
+    q = np.clip(qx + px * qy, 0, 1)
+
+    # -- haze intensity (Eq. 7 / Eqs. 12-15) on the max channel --------------------------------
+    rc_max = rc.max(axis=-1)
+    kh, beta = haze_intensity(rc_max, p, q, bh, w)
+
+    # -- Eq. 5 with the core's chroma: r = r_c + (1-p) k̂_h c,  c = r_c / r̂_c ------------------
+    with np.errstate(divide="ignore", invalid="ignore"):
+        chroma = np.where(rc_max[..., None] > 0, rc / rc_max[..., None], one)
+    halo = (q * kh)[..., None]
+    r = np.minimum(rc + halo * chroma, one)
+    r_max = np.minimum(rc_max + q * kh, one)
+
+    # -- Fresnel parameters --------------------------------------------------------------------
+    eps = np.finfo(dtype).eps
+    r_fresnel = np.minimum(r, one - eps)
+    if np.any(r > one - eps):
+        v.clamped["reflectivity at 1 (η, κ use 1 - ε)"] = int(np.count_nonzero((r > one - eps).any(-1)))
+    eta, kappa = gulbrandsen_ior(r_fresnel, g)
+    eta_d = dielectric_ior(np.minimum(r_max, one - eps))
+
+    out = HazeMapping(
+        beta=beta.astype(dtype, copy=False),
+        reflectivity=r.astype(dtype, copy=False),
+        ior=eta.astype(dtype, copy=False),
+        extinction=kappa.astype(dtype, copy=False),
+        alpha=(nx if distribution == "ASHIKHMIN_SHIRLEY" else ax,
+               ny if distribution == "ASHIKHMIN_SHIRLEY" else ay),
+        alpha_wide=(wx.astype(dtype, copy=False), wy.astype(dtype, copy=False)),
+        peak_ratio=p.astype(dtype, copy=False),
+        peak_complement=q.astype(dtype, copy=False),
+        halo_intensity=kh,
+        reflectivity_max=r_max.astype(dtype, copy=False),
+        core_reflectivity=rc,
+        edge_tint=g,
+        haziness=bh,
+        haze_extent=(lx, ly),
+        weight_narrow=((1.0 - beta)[..., None] * r).astype(dtype, copy=False),
+        weight_wide=(beta[..., None] * r).astype(dtype, copy=False),
+        dielectric_ior=eta_d.astype(dtype, copy=False),
+        distribution=distribution,
+        smoothness=smoothness,
+        clamped=v.clamped,
+    )
+    return out
+
+
+def _zero_alpha_limit(a_this, a_other, extent, p_axis, q_axis, distribution):
+    """Where α_n is 0 the per-axis ratio α_n/α_w is 0/0; use its limit.
+
+    Both axes 0: isotropic limit 1/(1+λ).  Only this axis 0: p_axis -> 0 (λ > 0) or 1 (λ = 0)."""
+    if distribution == "ASHIKHMIN_SHIRLEY":  # α >= 1e-4 there
+        return p_axis, q_axis
+    zero = a_this == 0
+    if not np.any(zero):
+        return p_axis, q_axis
+    both = zero & (a_other == 0)
+    lim_p = np.where(both, 1.0 / (1.0 + extent), np.where(extent > 0, 0.0, 1.0))
+    lim_q = np.where(both, extent / (1.0 + extent), np.where(extent > 0, 1.0, 0.0))
+    return (np.where(zero, lim_p, p_axis).astype(p_axis.dtype),
+            np.where(zero, lim_q, q_axis).astype(q_axis.dtype))
+
+
+# --------------------------------------------------------------------------------------------
+# Inverse: physical -> perceptual
+# --------------------------------------------------------------------------------------------
+
+
+def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None, extinction=None,
+                         distribution="GGX", smoothness=None, alpha_max=None) -> PerceptualParameters:
+    """Physical (β, α_n, α_w and r, or η and κ) -> perceptual (r_c, g, β_h, λ_h).
+
+    Give either ``reflectivity`` (legacy / Schlick form, then g = 0) or ``ior`` and
+    ``extinction`` (conductor Fresnel, Gulbrandsen inverse).  Entries that no perceptual
+    parameter reproduces are clamped to the nearest representable value, flagged in ``exact``
+    and counted in ``clamped``: α_w < α_n, g outside [0, 1], β_h >= 1 (outside the bounds of
+    Eq. 6, or outside the Bézier's reachable set), β or r outside [0, 1], α_w at ``alpha_max``
+    (its extent beyond the limit is lost), r_c = 1 (β_h has no effect, so it is not recoverable).
+    """
+    distribution = _normalise_distribution(distribution)
+    ax_in, ay_in = _pair(alpha, "alpha")
+    wx_in, wy_in = _pair(alpha_wide, "alpha_wide")
+    if (reflectivity is None) == (ior is None):
+        raise ValueError("give either reflectivity or ior (+ extinction)")
+    values = [beta, ax_in, ay_in, wx_in, wy_in, reflectivity, ior, extinction]
+    dtype = _working_dtype(*[x for x in values if x is not None])
+    v = _Validator(strict=False)
+
+    if reflectivity is not None:
+        r = _colour(reflectivity, dtype, "reflectivity")
+        g = np.zeros_like(r)
+    else:
+        eta = _colour(ior, dtype, "ior")
+        kap = _colour(0.0 if extinction is None else extinction, dtype, "extinction")
+        r, g = gulbrandsen_inverse(eta, kap)
+        r = r.astype(dtype)
+        g = g.astype(dtype)
+    b = np.asarray(beta, dtype=dtype)
+    ax, ay = np.asarray(ax_in, dtype=dtype), np.asarray(ay_in, dtype=dtype)
+    wx, wy = np.asarray(wx_in, dtype=dtype), np.asarray(wy_in, dtype=dtype)
+    shape = _broadcast_shape([("beta", b.shape), ("alpha.x", ax.shape), ("alpha.y", ay.shape),
+                              ("alpha_wide.x", wx.shape), ("alpha_wide.y", wy.shape),
+                              ("reflectivity", r.shape[:-1]), ("edge_tint", g.shape[:-1])])
+    r = np.broadcast_to(r, shape + (3,))
+    g = np.broadcast_to(g, shape + (3,))
+    b, ax, ay, wx, wy = (np.broadcast_to(x, shape) for x in (b, ax, ay, wx, wy))
+    inexact = np.zeros(shape, dtype=bool)
+
+    def flag(reason, mask):
+        nonlocal inexact
+        mask = np.asarray(mask)
+        if mask.ndim > len(shape):
+            mask = mask.any(axis=-1)
+        n = int(np.count_nonzero(mask))
+        if n:
+            v.clamped[reason] = v.clamped.get(reason, 0) + n
+            inexact = inexact | mask
+
+    bad_b = ~((b >= 0) & (b <= 1))
+    flag("beta outside [0, 1]", bad_b)
+    b = np.clip(np.nan_to_num(b), 0, 1)
+    bad_r = ~((r >= 0) & (r <= 1))
+    flag("reflectivity outside [0, 1]", bad_r)
+    r = np.clip(np.nan_to_num(r), 0, 1)
+    bad_g = ~((g >= 0) & (g <= 1))
+    flag("edge tint outside [0, 1] (not on Gulbrandsen's manifold)", bad_g)
+    g = np.clip(np.nan_to_num(g), 0, 1)
+
+    # -- haze extent: invert Eq. 8 ------------------------------------------------------------
+    gm = np.sqrt(ax) * np.sqrt(ay)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lx = np.where(gm > 0, (wx - ax) / gm, 0.0).astype(dtype)
+        ly = np.where(gm > 0, (wy - ay) / gm, 0.0).astype(dtype)
+    flag("alpha_wide < alpha (negative haze extent)", (lx < 0) | (ly < 0))
+    lx, ly = np.maximum(lx, 0), np.maximum(ly, 0)
+    if alpha_max is not None:
+        flag(f"alpha_wide at the renderer limit {alpha_max:g} (extent beyond it lost)",
+             (wx >= alpha_max) | (wy >= alpha_max))
+    wx, wy = np.maximum(wx, ax), np.maximum(wy, ay)
+
+    probe = haze_mapping(np.zeros(shape, dtype), 0.0, (ax, ay), np.zeros(shape, dtype), (lx, ly),
+                         distribution=distribution, alpha_max=alpha_max, strict=False)
+    p, q = probe.peak_ratio, probe.peak_complement
+
+    # -- reflectivity: r̂_c = r̂ (1 - (1-p) β)  (Eq. 3 at θ_d = 0 with Eq. 4) --------------------
+    r_max = r.max(axis=-1)
+    core_gain = 1.0 - q * b
+    rc = r * core_gain[..., None]
+    rc_max = r_max * core_gain
+
+    # -- haziness: solve β = β_h / (σ + (1-p) β_h) for β_h, σ = r̂_c / t (see haze_intensity) ------
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if smoothness is None:
+            sigma = np.where(rc_max <= p, p, rc_max * q / (1.0 - rc_max))
+        else:
+            m = 1.0 / np.asarray(smoothness, dtype=dtype)
+            omr = 1.0 - rc_max
+            d = np.where(p <= 0.5, rc_max - p, q - omr)
+            s = np.sqrt(rc_max * omr)
+            den = rc_max * q + p * omr + np.hypot(d, np.where(s > 0, m * s, 0.0))
+            sigma = den / (2.0 * omr)
+        bh = np.where(core_gain > 0, b * sigma / core_gain, np.inf)
+    no_effect = (rc_max >= 1.0) & (b > 0)
+    flag("core reflectivity 1 leaves no room for haze (haziness not recoverable)", no_effect)
+    bh = np.where(np.isnan(bh) | (rc_max >= 1.0), 0.0, bh)
+    over = bh >= 1.0
+    flag("haziness >= 1 (beyond the energy/positivity bounds or the Bézier's reach)", over)
+    bh = np.where(over, np.nextafter(dtype.type(1), dtype.type(0)), bh).astype(dtype)
+
+    return PerceptualParameters(core_reflectivity=rc.astype(dtype), edge_tint=g.astype(dtype),
+                                alpha=(ax, ay), haziness=bh, haze_extent=(lx, ly),
+                                exact=~inexact, clamped=v.clamped)
