@@ -357,7 +357,8 @@ def _broadcast_shape(named_shapes):
 
 
 def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
-                 distribution="GGX", smoothness=None, alpha_max=None, strict=None) -> HazeMapping:
+                 distribution="GGX", smoothness=None, alpha_max=None, max_aspect=None,
+                 strict=None) -> HazeMapping:
     """Perceptual -> physical parameters (the paper's HAZEMAPPING).
 
     core_reflectivity  [r_c]  colour in [0, 1], scalar (grey) or (..., 3)
@@ -372,6 +373,8 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
                        Eqs. 12-15; w = inf is exactly Eq. 7.
     alpha_max          None: Eq. 8 unbounded (the paper).  A number (Blender: 1.0): α_w is
                        limited to it and p computed from the limited α — what the renderer uses.
+    max_aspect         None: no limit.  A number (Blender's Metallic/Principled: 10): the longer
+                       axis of α_w is shortened to max_aspect × the shorter, p follows.
     strict             None: raise ValueError on bad input for a scalar call (every input one
                        texel), clamp and count for textures.  True/False forces either.
     """
@@ -441,6 +444,20 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
         sx = np.where((cnx != nx) | (cwx != wx), cwx - cnx, sx)
         sy = np.where((cny != ny) | (cwy != wy), cwy - cny, sy)
         nx, ny, wx, wy = cnx, cny, cwx, cwy
+    if max_aspect is not None:
+        k = dtype.type(max_aspect)
+        if not k >= 1:
+            raise ValueError(f"max_aspect must be >= 1, got {max_aspect!r}")
+        long_x, long_y = wx > k * wy, wy > k * wx
+        if np.any(long_x | long_y):
+            v.clamped[f"alpha_wide aspect > {float(k):g}:1 (renderer limit)"] = int(
+                np.count_nonzero(long_x | long_y))
+            # the shortened axis stays >= α_n as long as α_n itself respects the aspect limit
+            nwx = np.where(long_x, np.maximum(k * wy, nx), wx)
+            nwy = np.where(long_y, np.maximum(k * wx, ny), wy)
+            sx = np.where(long_x, nwx - nx, sx)
+            sy = np.where(long_y, nwy - ny, sy)
+            wx, wy = nwx, nwy
 
     # -- peak ratio (Table 2) -------------------------------------------------------------------
     px, qx = _axis_ratio(nx, wx, sx, distribution)

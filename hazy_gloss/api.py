@@ -1,0 +1,267 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scripting API: create and update hazy materials (used by operators, tests and pipelines).
+
+    import hazy_gloss; hazy_gloss.register()
+    from hazy_gloss import api
+    mat = api.create_material("Brushed", kind="CONDUCTOR", core_reflectivity=(0.9, 0.6, 0.3),
+                              edge_tint=(1, 0.8, 0.5), roughness=0.1, haziness=0.8, haze_extent=5)
+
+Roughness is Blender's R = √α (α = R²).  Perceptual parameters are stamped on the material as
+an ID property (``mat["hazy_gloss"]``), so a file saved with hazy materials keeps them and renders
+identically where the add-on is not installed (only built-in nodes are used).
+"""
+import bpy
+import numpy as np
+
+from .blender import compat
+from .core import haze_mapping
+from .node_groups.builder import TreeBuilder
+from .node_groups.groups import ensure_group, min_roughness
+from .node_groups.lobes import KINDS, build_lobes, check_distribution
+from .utils.conventions import (ALPHA_MAX, MAX_ASPECT, alpha_from_roughness, glossy_anisotropy,
+                                metallic_anisotropy, metallic_to_glossy_anisotropy, lobe_from_alpha)
+
+STAMP = "hazy_gloss"
+NODE_PREFIX = "HG"
+PARAMETERS = ("kind", "distribution", "core_reflectivity", "edge_tint", "roughness", "anisotropy",
+              "rotation", "haziness", "haze_extent", "smoothness", "shader_mapping", "base_color",
+              "transmission", "tangent")
+
+DEFAULTS = dict(kind="CONDUCTOR", distribution="GGX", core_reflectivity=(0.5, 0.5, 0.5),
+                edge_tint=(0.0, 0.0, 0.0), roughness=0.1, anisotropy=0.0, rotation=0.0,
+                haziness=0.5, haze_extent=(5.0, 5.0), smoothness=None, shader_mapping=False,
+                base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP")
+
+
+def _rgb(value, name):
+    arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,)) if np.ndim(value) == 0 \
+        else np.asarray(value, dtype=np.float64)[:3]
+    if arr.shape != (3,):
+        raise ValueError(f"{name} must be a number or an RGB triple")
+    return tuple(float(x) for x in arr)
+
+
+def _pair(value):
+    if isinstance(value, (tuple, list)):
+        return float(value[0]), float(value[1])
+    return float(value), float(value)
+
+
+def normalise_parameters(params):
+    """Fill defaults, check types and ranges; raise ValueError with a clear message."""
+    unknown = set(params) - set(PARAMETERS)
+    if unknown:
+        raise ValueError(f"unknown hazy parameters: {', '.join(sorted(unknown))}")
+    p = dict(DEFAULTS)
+    p.update({k: v for k, v in params.items()})
+    p["kind"] = str(p["kind"]).upper()
+    p["distribution"] = str(p["distribution"]).upper()
+    check_distribution(p["kind"], p["distribution"])
+    p["core_reflectivity"] = _rgb(p["core_reflectivity"], "core_reflectivity")
+    p["edge_tint"] = _rgb(p["edge_tint"], "edge_tint") if p["kind"] == "CONDUCTOR" else (0.0, 0.0, 0.0)
+    p["base_color"] = _rgb(p["base_color"], "base_color")
+    p["haze_extent"] = _pair(p["haze_extent"])
+    for key in ("roughness", "anisotropy", "rotation", "haziness", "transmission"):
+        p[key] = float(p[key])
+    for key in ("roughness", "anisotropy", "transmission"):
+        if not 0.0 <= p[key] <= 1.0:
+            raise ValueError(f"{key} must be in [0, 1], got {p[key]}")
+    if p["smoothness"] is not None:
+        p["smoothness"] = float(p["smoothness"])
+    p["shader_mapping"] = bool(p["shader_mapping"])
+    if p["tangent"] not in ("UV_MAP", "RADIAL_X", "RADIAL_Y", "RADIAL_Z"):
+        raise ValueError("tangent must be UV_MAP or RADIAL_X/Y/Z")
+    return p
+
+
+def is_anisotropic(p):
+    return p["anisotropy"] > 0.0 or p["haze_extent"][0] != p["haze_extent"][1]
+
+
+def map_parameters(p):
+    """Run the haze mapping for one material as Cycles will render it (α <= 1, aspect <= 10,
+    roughness above the mirror cut-off).  Raises ValueError on invalid values."""
+    rough = max(p["roughness"], min_roughness(p["distribution"]))
+    ax, ay = alpha_from_roughness(rough, p["anisotropy"])
+    return haze_mapping(p["core_reflectivity"], p["edge_tint"], (float(ax), float(ay)),
+                        p["haziness"], p["haze_extent"], distribution=p["distribution"],
+                        smoothness=p["smoothness"], alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT,
+                        strict=True)
+
+
+# --------------------------------------------------------------------------------------------
+# Material trees
+# --------------------------------------------------------------------------------------------
+
+
+def _output_node(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    if outs:
+        return outs[0]
+    n = tree.nodes.new("ShaderNodeOutputMaterial")
+    n.location = (1400, 0)
+    return n
+
+
+def _remove_ours(tree):
+    for n in [n for n in tree.nodes if n.name.startswith(NODE_PREFIX + " ")]:
+        tree.nodes.remove(n)
+
+
+def _tangent(tb, p, depth):
+    t = tb.node("ShaderNodeTangent", name="Tangent", depth=depth)
+    if p["tangent"] == "UV_MAP":
+        t.direction_type = "UV_MAP"
+    else:
+        t.direction_type = "RADIAL"
+        t.axis = p["tangent"][-1]
+    return t.outputs[0]
+
+
+def _f(x):
+    return float(np.asarray(x))
+
+
+def _build_lean(tree, p, m):
+    """Only what this material needs: two lobes and the mix with physical values from Python;
+    one lobe when there is no halo; anisotropy inputs and a tangent only when anisotropic."""
+    tb = TreeBuilder(tree, prefix=NODE_PREFIX, x0=600.0)
+    kind, dist = p["kind"], p["distribution"]
+    aniso = is_anisotropic(p)
+    shared = {"tangent": _tangent(tb, p, 0) if aniso else None}
+    rough = max(p["roughness"], min_roughness(dist))
+    narrow = dict(roughness=rough, anisotropy=None, rotation=None)
+    wx, wy = (_f(a) for a in m.alpha_wide)
+    nx, ny = (_f(a) for a in alpha_from_roughness(rough, p["anisotropy"]))
+    r_w, ratio, swap = lobe_from_alpha(wx, wy)
+    wide = dict(roughness=_f(r_w), anisotropy=None, rotation=None)
+    if aniso:
+        a_n = p["anisotropy"] if kind != "LEGACY" else _f(metallic_to_glossy_anisotropy(p["anisotropy"]))
+        narrow.update(anisotropy=a_n, rotation=p["rotation"])
+        a_w = metallic_anisotropy(ratio) if kind != "LEGACY" else glossy_anisotropy(ratio)
+        wide.update(anisotropy=_f(a_w), rotation=p["rotation"] + 0.25 * bool(swap))
+    beta = _f(m.beta)
+    if beta <= 0.0 or (wx == nx and wy == ny):
+        wide = None  # no halo: the core lobe alone is Eq. 1 exactly
+    r = tuple(float(x) for x in m.reflectivity)
+    if kind == "CONDUCTOR":
+        fresnel = dict(ior=tuple(float(x) for x in m.ior),
+                       extinction=tuple(float(x) for x in m.extinction))
+    elif kind == "DIELECTRIC":
+        rc = np.asarray(p["core_reflectivity"])
+        tint = tuple(float(x) for x in (rc / rc.max() if rc.max() > 0 else np.ones(3)))
+        fresnel = dict(ior=_f(m.dielectric_ior), specular_tint=tint, base_color=p["base_color"],
+                       transmission=p["transmission"])
+    else:
+        if wide is None:
+            fresnel = dict(colour_narrow=r)
+        else:
+            fresnel = dict(colour_narrow=tuple(float(x) for x in m.weight_narrow),
+                           colour_wide=tuple(float(x) for x in m.weight_wide))
+    return build_lobes(tb, kind, dist, beta=beta, narrow=narrow, wide=wide, fresnel=fresnel,
+                       shared=shared, depth=1)
+
+
+def _build_in_shader(tree, p):
+    tb = TreeBuilder(tree, prefix=NODE_PREFIX, x0=600.0)
+    aniso = is_anisotropic(p)
+    ng = ensure_group(p["kind"], p["distribution"], aniso, p["smoothness"] is not None)
+    g = tb.node("ShaderNodeGroup", name="Hazy Gloss", depth=1)
+    g.node_tree = ng
+    g.width = 240
+    ins = g.inputs
+    tb.feed(ins["Core Reflectivity"], p["core_reflectivity"])
+    if p["kind"] == "CONDUCTOR":
+        tb.feed(ins["Edge Tint"], p["edge_tint"])
+    tb.feed(ins["Roughness"], p["roughness"])
+    tb.feed(ins["Haziness"], p["haziness"])
+    if aniso:
+        tb.feed(ins["Anisotropy"], p["anisotropy"])
+        tb.feed(ins["Rotation"], p["rotation"])
+        tb.feed(ins["Haze Extent X"], p["haze_extent"][0])
+        tb.feed(ins["Haze Extent Y"], p["haze_extent"][1])
+        tb.link(_tangent(tb, p, 0), ins["Tangent"])
+    else:
+        tb.feed(ins["Haze Extent"], p["haze_extent"][0])
+    if p["smoothness"] is not None:
+        tb.feed(ins["Smoothness"], p["smoothness"])
+    if p["kind"] == "DIELECTRIC":
+        tb.feed(ins["Base Color"], p["base_color"])
+        tb.feed(ins["Transmission"], p["transmission"])
+    return g.outputs["BSDF"]
+
+
+def _stamp(mat, p):
+    d = {k: v for k, v in p.items() if k != "smoothness"}
+    d["use_smoothness"] = p["smoothness"] is not None
+    d["smoothness"] = p["smoothness"] if p["smoothness"] is not None else 2.0
+    d["version"] = 1
+    mat[STAMP] = d
+
+
+def read_parameters(mat):
+    """The perceptual parameters stamped on a hazy material, or None."""
+    d = mat.get(STAMP)
+    if d is None:
+        return None
+    d = d.to_dict() if hasattr(d, "to_dict") else dict(d)
+    p = {k: d[k] for k in PARAMETERS if k in d and k != "smoothness"}
+    p["smoothness"] = float(d["smoothness"]) if d.get("use_smoothness") else None
+    for k in ("core_reflectivity", "edge_tint", "base_color", "haze_extent"):
+        if k in p:
+            p[k] = tuple(float(x) for x in p[k])
+    return normalise_parameters(p)
+
+
+def is_hazy(mat):
+    return mat is not None and STAMP in mat
+
+
+def apply(mat, p):
+    """(Re)build the hazy part of ``mat``'s node tree for parameters ``p`` (normalised)."""
+    if mat.library is not None:
+        raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
+    m = map_parameters(p)  # raises before touching the tree
+    tree = mat.node_tree
+    _remove_ours(tree)
+    bsdf = _build_in_shader(tree, p) if p["shader_mapping"] else _build_lean(tree, p, m)
+    out = _output_node(tree)
+    tree.links.new(bsdf, out.inputs["Surface"])
+    _stamp(mat, p)
+    return m
+
+
+def create_material(name, *, kind="CONDUCTOR", core_reflectivity=(0.5, 0.5, 0.5), edge_tint=0.0,
+                    roughness=0.1, anisotropy=0.0, haziness=0.5, haze_extent=5.0, smoothness=None,
+                    distribution="GGX", shader_mapping=False, **extra):
+    """Create a hazy material.  ``roughness`` is Blender's R = √α_n; ``haze_extent`` a number or
+    an (x, y) pair; ``smoothness`` None (Eq. 7) or the Bézier weight w.  Extra keywords:
+    rotation, base_color, transmission (dielectric), tangent ("UV_MAP" or "RADIAL_X/Y/Z")."""
+    p = normalise_parameters(dict(kind=kind, core_reflectivity=core_reflectivity, edge_tint=edge_tint,
+                                  roughness=roughness, anisotropy=anisotropy, haziness=haziness,
+                                  haze_extent=haze_extent, smoothness=smoothness,
+                                  distribution=distribution, shader_mapping=shader_mapping, **extra))
+    map_parameters(p)  # validate before creating anything
+    mat = compat.new_material(name)
+    tree = mat.node_tree
+    for n in [n for n in tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial"]:
+        tree.nodes.remove(n)
+    apply(mat, p)
+    return mat
+
+
+def update_material(mat, **changes):
+    """Change some perceptual parameters of a hazy material and rebuild its tree.
+    Returns the HazeMapping of the new parameters."""
+    p = read_parameters(mat)
+    if p is None:
+        raise ValueError(f"material {mat.name!r} is not a hazy material")
+    p.update(changes)
+    return apply(mat, normalise_parameters(p))
+
+
+__all__ = ("create_material", "update_material", "read_parameters", "is_hazy", "map_parameters",
+           "KINDS")

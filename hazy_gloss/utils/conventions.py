@@ -1,0 +1,54 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Blender's roughness and anisotropy conventions (BLENDER-FACTS.md, Cycles svm/closure.h),
+bpy-free so the mapping code and the tests share one definition.
+
+Roughness R -> α = R² (R clamped to [0, 1]); after anisotropy each α is clamped to <= 1.
+Metallic / Principled: a = saturate(A), s = sqrt(1 - 0.9 a), α_x = R²/s, α_y = R² s  (aspect <= 10).
+Glossy:               a = clamp(A, -0.99, 0.99); a >= 0: α_x = R²(1-a), α_y = R²/(1-a); a < 0 mirrored.
+"""
+import numpy as np
+
+#: Cycles turns a lobe into a perfect mirror when α_x α_y <= 2e-10 (R < 0.00376).
+MIRROR_ALPHA_PRODUCT = 2e-10
+#: Smallest roughness the add-on gives a hazy lobe, just above the mirror cut-off.
+MIN_ROUGHNESS = 0.004
+#: Longest α_x/α_y the Metallic and Principled nodes can express (anisotropy 1).
+MAX_ASPECT = 10.0
+#: Cycles clamps every α to <= 1 after anisotropy.
+ALPHA_MAX = 1.0
+
+
+def alpha_from_roughness(roughness, anisotropy=0.0):
+    """(α_x, α_y) the renderer uses for a Metallic/Principled lobe with (R, A)."""
+    r = np.clip(np.asarray(roughness, dtype=np.float64), 0.0, 1.0)
+    a = np.clip(np.asarray(anisotropy, dtype=np.float64), 0.0, 1.0)
+    s = np.sqrt(1.0 - 0.9 * a)
+    alpha = r * r
+    return np.minimum(alpha / s, ALPHA_MAX), np.minimum(alpha * s, ALPHA_MAX)
+
+
+def lobe_from_alpha(alpha_x, alpha_y):
+    """(R, ratio, swap): R = (α_x α_y)^(1/4), ratio = short/long axis in (0, 1], swap = True when
+    the long axis is y (then the lobe's rotation needs +0.25 turn)."""
+    ax = np.asarray(alpha_x, dtype=np.float64)
+    ay = np.asarray(alpha_y, dtype=np.float64)
+    rough = np.sqrt(np.sqrt(ax) * np.sqrt(ay))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(np.maximum(ax, ay) > 0, np.minimum(ax, ay) / np.maximum(ax, ay), 1.0)
+    return rough, ratio, ax < ay
+
+
+def metallic_anisotropy(ratio):
+    """Metallic/Principled Anisotropy giving α_y/α_x = ratio (s² = 1 - 0.9 a)."""
+    return np.clip((1.0 - np.asarray(ratio, dtype=np.float64)) / 0.9, 0.0, 1.0)
+
+
+def glossy_anisotropy(ratio):
+    """Glossy Anisotropy giving α_y/α_x = ratio with α_x >= α_y (negative branch: 1-|a| = √ratio)."""
+    return -np.clip(1.0 - np.sqrt(np.asarray(ratio, dtype=np.float64)), 0.0, 0.99)
+
+
+def metallic_to_glossy_anisotropy(anisotropy):
+    """The Glossy Anisotropy with the same α_x, α_y as a Metallic lobe with Anisotropy A."""
+    a = np.clip(np.asarray(anisotropy, dtype=np.float64), 0.0, 1.0)
+    return glossy_anisotropy(1.0 - 0.9 * a)

@@ -1,0 +1,183 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Shader node groups exposing the perceptual parameters (in-shader mapping).
+
+One group per (kind, distribution, anisotropic, smooth): a material only carries the nodes its
+configuration needs (no anisotropy nodes when isotropic, no Bézier unless smooth).  Built from
+built-in nodes only, so files render the same without the add-on.
+"""
+import bpy
+
+from .builder import TreeBuilder
+from .lobes import build_lobes, check_distribution
+from .mapping_graph import build_mapping
+
+GROUP_VERSION = 1
+STAMP = "hazy_gloss_group"
+
+#: Roughness below Cycles' mirror cut-off (α_x α_y <= 2e-10) would turn the core into a delta.
+MIN_ROUGHNESS = 0.004
+
+#: Cycles clamps Ashikhmin-Shirley α to >= 1e-4 and drops a lobe whose α are all <= 1e-4.
+MIN_ROUGHNESS_AS = 0.0101
+
+
+def min_roughness(distribution):
+    return MIN_ROUGHNESS_AS if distribution == "ASHIKHMIN_SHIRLEY" else MIN_ROUGHNESS
+
+
+_KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
+_DIST_LABEL = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multiscatter GGX",
+               "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
+
+
+def group_name(kind, distribution="GGX", anisotropic=False, smooth=False):
+    parts = [f"Hazy Gloss {_KIND_LABEL[kind]}", _DIST_LABEL[distribution]]
+    if anisotropic:
+        parts.append("Anisotropic")
+    if smooth:
+        parts.append("Smooth")
+    return " · ".join(parts)
+
+
+def _socket(iface, name, kind, *, parent=None, default=None, lo=None, hi=None, desc="",
+            subtype=None, hide_value=False, in_out="INPUT"):
+    s = iface.new_socket(name=name, in_out=in_out, socket_type=kind, parent=parent)
+    if subtype is not None and hasattr(s, "subtype"):
+        try:
+            s.subtype = subtype
+        except (TypeError, AttributeError):
+            pass
+    if default is not None:
+        s.default_value = default
+    if lo is not None:
+        s.min_value = lo
+    if hi is not None:
+        s.max_value = hi
+    s.description = desc
+    s.hide_value = hide_value
+    return s
+
+
+def _interface(ng, kind, anisotropic, smooth):
+    it = ng.interface
+    _socket(it, "BSDF", "NodeSocketShader", in_out="OUTPUT", desc="The composite BRDF of Eq. 1")
+    _socket(it, "Beta", "NodeSocketFloat", in_out="OUTPUT", desc="β, mixture ratio of the wide lobe (Eq. 4)")
+    _socket(it, "Reflectivity", "NodeSocketColor", in_out="OUTPUT", desc="r, global reflectivity F_r(0) (Eq. 5)")
+    _socket(it, "Peak Ratio", "NodeSocketFloat", in_out="OUTPUT", desc="p = f_w(n,n)/f_n(n,n) (Table 2)")
+
+    core = it.new_panel("Core")
+    _socket(it, "Core Reflectivity", "NodeSocketColor", parent=core, default=(0.5, 0.5, 0.5, 1.0),
+            desc="r_c: reflectivity of the sharp core at normal incidence (linear RGB)")
+    if kind == "CONDUCTOR":
+        _socket(it, "Edge Tint", "NodeSocketColor", parent=core, default=(0.0, 0.0, 0.0, 1.0),
+                desc="g: edge tint (Gulbrandsen 2014); black = dielectric-like Fresnel (κ = 0)")
+    _socket(it, "Roughness", "NodeSocketFloat", parent=core, default=0.1, lo=0.0, hi=1.0,
+            subtype="FACTOR", desc="Core roughness in Blender's convention R = √α_n "
+            f"(values below {MIN_ROUGHNESS} are raised to it: Cycles' mirror cut-off)")
+    if anisotropic:
+        _socket(it, "Anisotropy", "NodeSocketFloat", parent=core, default=0.0, lo=0.0, hi=1.0,
+                subtype="FACTOR", desc="Core anisotropy (Metallic BSDF convention): "
+                "α_n^x = R²/s, α_n^y = R² s, s = √(1-0.9 a)")
+        _socket(it, "Rotation", "NodeSocketFloat", parent=core, default=0.0, lo=0.0, hi=1.0,
+                subtype="FACTOR", desc="Rotation of the tangent, in turns")
+        _socket(it, "Tangent", "NodeSocketVector", parent=core, hide_value=True,
+                desc="Tangent (x axis of α^x and λ_h^x); link an explicit tangent")
+
+    haze = it.new_panel("Haze")
+    _socket(it, "Haziness", "NodeSocketFloat", parent=haze, default=0.1, lo=0.0, hi=0.9999,
+            subtype="FACTOR", desc="β_h ∈ [0, 1): proportion of the available haze (Eq. 7). "
+            "0-0.1 typical for dielectrics, up to 0.99 for metals")
+    if anisotropic:
+        _socket(it, "Haze Extent X", "NodeSocketFloat", parent=haze, default=5.0, lo=0.0, hi=1000.0,
+                desc="λ_h^x: halo width along the tangent in units of √(α_n^x α_n^y) (Eq. 8)")
+        _socket(it, "Haze Extent Y", "NodeSocketFloat", parent=haze, default=5.0, lo=0.0, hi=1000.0,
+                desc="λ_h^y: halo width along the bitangent in units of √(α_n^x α_n^y) (Eq. 8)")
+    else:
+        _socket(it, "Haze Extent", "NodeSocketFloat", parent=haze, default=5.0, lo=0.0, hi=1000.0,
+                desc="λ_h: halo width in units of α_n, α_w = α_n (1 + λ_h) (Eq. 8)")
+    if smooth:
+        _socket(it, "Smoothness", "NodeSocketFloat", parent=haze, default=2.0, lo=1e-4, hi=1e6,
+                desc="w: weight of the rational Bézier (Eqs. 12-15); large w tends to Eq. 7")
+
+    if kind == "DIELECTRIC":
+        base = it.new_panel("Base")
+        _socket(it, "Base Color", "NodeSocketColor", parent=base, default=(0.0, 0.0, 0.0, 1.0),
+                desc="Diffuse colour under the specular layer (Principled BSDF)")
+        _socket(it, "Transmission", "NodeSocketFloat", parent=base, default=0.0, lo=0.0, hi=1.0,
+                subtype="FACTOR", desc="Transmission weight; the BTDF shares β, η and α (paper §4.2)")
+    _socket(it, "Normal", "NodeSocketVector", hide_value=True, desc="Shading normal (e.g. normal map)")
+
+
+def build_group(ng, kind, distribution, anisotropic, smooth):
+    ng.nodes.clear()
+    _interface(ng, kind, anisotropic, smooth)
+    gin = ng.nodes.new("NodeGroupInput")
+    gin.location = (-300, 0)
+    gout = ng.nodes.new("NodeGroupOutput")
+    tb = TreeBuilder(ng, prefix="HG")
+    src = {
+        "core_reflectivity": gin.outputs["Core Reflectivity"],
+        "edge_tint": gin.outputs["Edge Tint"] if kind == "CONDUCTOR" else None,
+        "roughness": gin.outputs["Roughness"],
+        "haziness": gin.outputs["Haziness"],
+        "haze_extent_x": gin.outputs["Haze Extent X" if anisotropic else "Haze Extent"],
+        "haze_extent_y": gin.outputs["Haze Extent Y"] if anisotropic else None,
+    }
+    if anisotropic:
+        src.update(anisotropy=gin.outputs["Anisotropy"], rotation=gin.outputs["Rotation"])
+    if smooth:
+        src["smoothness"] = gin.outputs["Smoothness"]
+    m = build_mapping(tb, src, kind=kind, anisotropic=anisotropic, smooth=smooth,
+                      min_roughness=min_roughness(distribution), distribution=distribution)
+    narrow = dict(roughness=m["roughness"], anisotropy=None, rotation=None)
+    wide = dict(roughness=m["roughness_wide"], anisotropy=None, rotation=None)
+    if anisotropic:
+        a_n = gin.outputs["Anisotropy"]
+        if kind == "LEGACY":  # Glossy's convention: a = -(1 - s) gives α_x = R²/s, α_y = R² s
+            a_n = tb.sub(tb.sqrt(tb.madd(tb.clamp(a_n, 0.0, 1.0), -0.9, 1.0)), 1.0)
+        narrow.update(anisotropy=a_n, rotation=gin.outputs["Rotation"])
+        wide.update(anisotropy=m["anisotropy_wide"], rotation=m["rotation_wide"])
+    if kind == "CONDUCTOR":
+        fresnel = dict(ior=m["ior"], extinction=m["extinction"])
+    elif kind == "DIELECTRIC":
+        fresnel = dict(ior=m["ior"], specular_tint=m["specular_tint"],
+                       base_color=gin.outputs["Base Color"], transmission=gin.outputs["Transmission"])
+    else:
+        fresnel = dict(colour_narrow=m["colour_narrow"], colour_wide=m["colour_wide"])
+    shared = dict(normal=gin.outputs["Normal"],
+                  tangent=gin.outputs["Tangent"] if anisotropic else None)
+    depth = 1 + max(tb._depth.values(), default=0)
+    bsdf = build_lobes(tb, kind, distribution, beta=m["beta"], narrow=narrow, wide=wide,
+                       fresnel=fresnel, shared=shared, depth=depth)
+    gout.location = (180.0 * (depth + 3), 0)
+    ng.links.new(bsdf, gout.inputs["BSDF"])
+    ng.links.new(m["beta"], gout.inputs["Beta"])
+    ng.links.new(m["reflectivity"], gout.inputs["Reflectivity"])
+    ng.links.new(m["peak_ratio"], gout.inputs["Peak Ratio"])
+    return m
+
+
+def ensure_group(kind, distribution="GGX", anisotropic=False, smooth=False):
+    """The group for this configuration, built on first use and rebuilt when outdated."""
+    check_distribution(kind, distribution)
+    name = group_name(kind, distribution, anisotropic, smooth)
+    ng = bpy.data.node_groups.get(name)
+    if ng is not None and ng.get(STAMP, {}).get("version") == GROUP_VERSION and not ng.library:
+        return ng
+    if ng is None:
+        ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    elif ng.library:
+        return ng
+    build_group(ng, kind, distribution, anisotropic, smooth)
+    ng[STAMP] = {"version": GROUP_VERSION, "kind": kind, "distribution": distribution,
+                 "anisotropic": int(anisotropic), "smooth": int(smooth)}
+    return ng
+
+
+def all_configurations():
+    from .lobes import NODE_DISTRIBUTIONS
+    for kind, dists in NODE_DISTRIBUTIONS.items():
+        for dist in dists:
+            for aniso in (False, True):
+                for smooth in (False, True):
+                    yield kind, dist, aniso, smooth

@@ -1,0 +1,405 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scene helpers for render tests (plain functions; import inside a bpy process, no pytest).
+
+Typical use, in a test that has the ``clean_file`` fixture (an empty file)::
+
+    import scenes
+    scenes.setup_render(samples=1, resolution=(8, 8))
+    mat = ...                                   # any bpy material
+    info = scenes.flat_plane_scene(mat, light_dir=(30, 0))
+    img = scenes.render_exr()                   # (H, W, 4) float32, row 0 = bottom row
+    pixel = img[4, 4, :3]                       # = Strength * f_r(info["wi"], info["wo"]) * cos θi
+
+Everything is set explicitly, because the defaults break exact tests (denoising, adaptive
+sampling, a grey world, a sun of angle 0.00918 rad, indirect clamp 10, glossy blur 1, a 1.5 px
+Blackman-Harris pixel filter, MULTI_GGX / F82 node defaults...; see docs and BLENDER-FACTS).
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+__all__ = (
+    "eevee_engine_id",
+    "new_material",
+    "metallic_material",
+    "setup_render",
+    "black_world",
+    "uniform_world",
+    "flat_plane_scene",
+    "furnace_sphere_scene",
+    "render_exr",
+    "eevee_setup",
+    "spherical_direction",
+)
+
+VERSION = bpy.app.version
+
+
+# ------------------------------------------------------------------------------------------------
+# Version differences (mirrors hazy_gloss/blender/compat.py, but the harness must not depend on
+# the code under test)
+# ------------------------------------------------------------------------------------------------
+
+
+def eevee_engine_id():
+    """``BLENDER_EEVEE`` in 5.0; ``BLENDER_EEVEE_NEXT`` in 4.2-4.5."""
+    items = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
+    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in items else "BLENDER_EEVEE"
+
+
+def new_material(name="Material"):
+    """A material with a node tree (``use_nodes`` is deprecated in 5.0, required in 4.x)."""
+    mat = bpy.data.materials.new(name)
+    if VERSION < (5, 0, 0):
+        mat.use_nodes = True
+    return mat
+
+
+def _output_node(tree):
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeOutputMaterial":
+            return node
+    return tree.nodes.new("ShaderNodeOutputMaterial")
+
+
+def metallic_material(name="Metallic", *, roughness=0.3, ior=(0.2, 0.9, 1.1),
+                      extinction=(3.9, 2.4, 2.2), distribution="GGX",
+                      fresnel_type="PHYSICAL_CONDUCTOR", anisotropy=0.0, rotation=0.0):
+    """A Metallic BSDF material with every result-changing setting explicit.
+
+    The node defaults are MULTI_GGX and F82; this sets ``distribution`` and ``fresnel_type``.
+    Anisotropic materials need an explicit tangent (an unlinked Tangent falls back to a radial
+    tangent); link one yourself if ``anisotropy`` != 0."""
+    mat = new_material(name)
+    tree = mat.node_tree
+    for node in list(tree.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            tree.nodes.remove(node)
+    out = _output_node(tree)
+    bsdf = tree.nodes.new("ShaderNodeBsdfMetallic")
+    bsdf.distribution = distribution
+    bsdf.fresnel_type = fresnel_type
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = ior
+    bsdf.inputs["Extinction"].default_value = extinction
+    bsdf.inputs["Anisotropy"].default_value = anisotropy
+    bsdf.inputs["Rotation"].default_value = rotation
+    tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+# ------------------------------------------------------------------------------------------------
+# Render settings and worlds
+# ------------------------------------------------------------------------------------------------
+
+
+def _world(name, color, strength):
+    world = bpy.data.worlds.new(name)
+    if VERSION < (5, 0, 0):
+        world.use_nodes = True
+    tree = world.node_tree
+    bg = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground"), None)
+    if bg is None:
+        bg = tree.nodes.new("ShaderNodeBackground")
+        out = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"), None)
+        if out is None:
+            out = tree.nodes.new("ShaderNodeOutputWorld")
+        tree.links.new(bg.outputs[0], out.inputs["Surface"])
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    world.color = color
+    bpy.context.scene.world = world
+    return world
+
+
+def black_world():
+    """A world that emits nothing (colour 0, strength 0)."""
+    return _world("HG Test Black World", (0.0, 0.0, 0.0), 0.0)
+
+
+def uniform_world(strength=1.0, color=(1.0, 1.0, 1.0)):
+    """A constant environment of radiance ``strength * color`` (a furnace)."""
+    return _world("HG Test Uniform World", tuple(color), float(strength))
+
+
+def setup_render(engine="CYCLES", samples=1, resolution=(64, 64), *, bounces=4, threads=None,
+                 seed=0):
+    """Configure the current scene for exact, noise-free analytic tests and return it.
+
+    Cycles on the CPU; ``samples`` fixed (adaptive sampling and denoising off); a box pixel
+    filter of the minimum width 0.01 px (each pixel is the value at its centre); no clamping,
+    no glossy blur, light threshold 0, path guiding off; film exposure 1 and the Standard view
+    transform (EXR output is scene-linear anyway); a black world; seed fixed; all cores.
+    ``bounces`` sets every bounce limit (a plane lit by a delta sun needs 0 bounces, a convex
+    object in a furnace 1; use more for concave or layered set-ups).
+    """
+    scene = bpy.context.scene
+    render = scene.render
+    render.engine = engine
+    render.resolution_x, render.resolution_y = resolution
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.film_transparent = False
+    render.use_border = False
+    render.threads_mode = "FIXED"
+    render.threads = threads or os.cpu_count() or 1
+    if hasattr(render, "use_persistent_data"):
+        render.use_persistent_data = False
+
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.samples = samples
+    cy.use_adaptive_sampling = False
+    cy.use_denoising = False
+    if hasattr(cy, "use_preview_denoising"):
+        cy.use_preview_denoising = False
+    cy.pixel_filter_type = "BOX"
+    cy.filter_width = 0.01
+    cy.seed = seed
+    cy.use_animated_seed = False
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.blur_glossy = 0.0
+    cy.light_sampling_threshold = 0.0
+    cy.use_guiding = False
+    cy.caustics_reflective = True
+    cy.caustics_refractive = True
+    cy.film_exposure = 1.0
+    cy.max_bounces = bounces
+    cy.diffuse_bounces = bounces
+    cy.glossy_bounces = bounces
+    cy.transmission_bounces = bounces
+    cy.volume_bounces = bounces
+    cy.transparent_max_bounces = max(bounces, 8)
+    cy.min_light_bounces = 0
+    cy.min_transparent_bounces = 0
+    if hasattr(cy, "use_auto_tile"):
+        cy.use_auto_tile = False
+    if hasattr(cy, "use_fast_gi"):
+        cy.use_fast_gi = False
+
+    vs = scene.view_settings
+    vs.view_transform = "Standard"
+    vs.look = "None"
+    vs.exposure = 0.0
+    vs.gamma = 1.0
+    vs.use_curve_mapping = False
+    scene.display_settings.display_device = "sRGB"
+
+    if hasattr(render, "use_compositing"):
+        render.use_compositing = False
+    if hasattr(render, "use_sequencer"):
+        render.use_sequencer = False
+
+    black_world()
+    return scene
+
+
+def eevee_setup(samples=1, resolution=(64, 64)):
+    """Configure the current scene for EEVEE (engine id per version), black world, Standard view.
+
+    EEVEE is not exact (LTC lights, split-sum, approximated conductor Fresnel, no anisotropy) and
+    its first render compiles shaders (~30 s headless).  Returns the scene."""
+    scene = setup_render(samples=samples, resolution=resolution)
+    scene.render.engine = eevee_engine_id()
+    ee = scene.eevee
+    ee.taa_render_samples = samples
+    if hasattr(ee, "use_shadows"):
+        ee.use_shadows = True
+    if hasattr(ee, "use_raytracing"):
+        ee.use_raytracing = False
+    if "filter_size" in scene.render.bl_rna.properties:  # EEVEE's pixel filter (px)
+        prop = scene.render.bl_rna.properties["filter_size"]
+        scene.render.filter_size = prop.hard_min
+    return scene
+
+
+# ------------------------------------------------------------------------------------------------
+# Scenes
+# ------------------------------------------------------------------------------------------------
+
+
+def spherical_direction(theta_deg, phi_deg=0.0):
+    """Unit vector at polar angle θ from +Z and azimuth φ from +X (world = plane-local frame)."""
+    t, p = math.radians(theta_deg), math.radians(phi_deg)
+    return Vector((math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)))
+
+
+def _plane_mesh(name, size):
+    """A square in the XY plane facing +Z, UV-mapped with U along +X (tangent = +X)."""
+    h = size / 2.0
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0)], [], [(0, 1, 2, 3)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    for loop, co in zip(uv.data, [(0, 0), (1, 0), (1, 1), (0, 1)]):
+        loop.uv = co
+    mesh.update()
+    return mesh
+
+
+def _link(obj):
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _ortho_camera(name, view_dir, ortho_scale, distance=10.0):
+    cam_data = bpy.data.cameras.new(name)
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = ortho_scale
+    cam_data.clip_start = 0.01
+    cam_data.clip_end = 4.0 * distance
+    cam = _link(bpy.data.objects.new(name, cam_data))
+    cam.location = view_dir * distance
+    # The camera looks along its local -Z; keep its local +Y (image up) as close to +Y as possible.
+    up = "Y" if abs(view_dir.y) < 0.999 else "X"
+    cam.rotation_euler = view_dir.to_track_quat("Z", up).to_euler()
+    bpy.context.scene.camera = cam
+    return cam
+
+
+def _sun(light_dir, strength):
+    sun_data = bpy.data.lights.new("HG Test Sun", type="SUN")
+    sun_data.energy = strength
+    sun_data.angle = 0.0
+    sun_data.color = (1.0, 1.0, 1.0)
+    if hasattr(sun_data, "use_shadow"):
+        sun_data.use_shadow = True
+    sun = _link(bpy.data.objects.new("HG Test Sun", sun_data))
+    # A sun emits along its local -Z: point local +Z at the light (towards wi).
+    sun.rotation_euler = light_dir.to_track_quat("Z", "Y").to_euler()
+    sun.location = light_dir * 5.0
+    return sun
+
+
+def flat_plane_scene(material, *, tilt_deg=0.0, view_dir=None, light_dir=(30.0, 0.0),
+                     strength=1.0, ortho_scale=1.0):
+    """A plane facing +Z at the origin, an orthographic camera, a delta sun.  Returns a dict.
+
+    The world frame is the plane's shading frame: normal +Z, tangent +X (the UV U axis).
+    ``light_dir=(θ, φ)`` in degrees: the sun sits at polar angle θ from the normal and azimuth φ
+    from +X (so wi = spherical_direction(θ, φ)); angle 0, so it is a delta light and the
+    irradiance on the plane is ``strength * cos θ``.
+    The camera looks at the origin from ``view_dir=(θ_v, φ_v)`` (default (0, 0): straight down
+    -Z, view direction = normal).  ``tilt_deg=t`` is the shorthand for a camera tilted about the
+    X axis, i.e. ``view_dir=(t, -90)`` (the camera sits on the -Y side).
+    The plane is sized so it fills the frame at any view angle < 85°.
+    Every pixel then reads  strength * f_r(wi, wo) * cos θi  (no other light, black world).
+
+    Returned keys: plane, camera, sun (objects), wi, wo (numpy unit vectors, local = world frame).
+    """
+    if view_dir is None:
+        view_dir = (float(tilt_deg), -90.0) if tilt_deg else (0.0, 0.0)
+    wi = spherical_direction(*light_dir)
+    wo = spherical_direction(*view_dir)
+    cos_v = max(wo.z, math.cos(math.radians(85.0)))
+    size = 4.0 * ortho_scale / cos_v
+
+    plane = _link(bpy.data.objects.new("HG Test Plane", _plane_mesh("HG Test Plane", size)))
+    plane.data.materials.append(material)
+    cam = _ortho_camera("HG Test Camera", wo, ortho_scale)
+    sun = _sun(wi, strength)
+    return {
+        "plane": plane,
+        "camera": cam,
+        "sun": sun,
+        "wi": np.array(wi, dtype=np.float64),
+        "wo": np.array(wo, dtype=np.float64),
+    }
+
+
+def _points_sphere_group(material, radius):
+    tree = bpy.data.node_groups.new("HG Test Points Sphere", "GeometryNodeTree")
+    tree.interface.new_socket(name="Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    out = tree.nodes.new("NodeGroupOutput")
+    pts = tree.nodes.new("GeometryNodePoints")
+    pts.inputs["Count"].default_value = 1
+    pts.inputs["Position"].default_value = (0.0, 0.0, 0.0)
+    pts.inputs["Radius"].default_value = radius
+    setmat = tree.nodes.new("GeometryNodeSetMaterial")
+    setmat.inputs["Material"].default_value = material
+    tree.links.new(pts.outputs["Points"], setmat.inputs["Geometry"])
+    tree.links.new(setmat.outputs["Geometry"], out.inputs[0])
+    return tree
+
+
+def furnace_sphere_scene(material, world_strength=1.0, *, radius=1.0, view_dir=(0.0, 0.0),
+                         ortho_scale=None):
+    """An exact sphere (a geometry-nodes point of radius ``radius``, which Cycles renders as an
+    analytic sphere) with ``material``, in a uniform white world of radiance ``world_strength``,
+    seen by an orthographic camera from ``view_dir=(θ, φ)`` (degrees, default straight down).
+
+    The film is transparent so that sphere pixels have alpha 1 and background pixels alpha 0:
+    use ``img[..., 3] > 0.999`` as the sphere mask.  Default framing: the sphere spans 80% of the
+    frame.  Call :func:`setup_render` first (with ``bounces`` >= 1, more for non-convex set-ups);
+    this replaces its black world.  Returns a dict: sphere, camera, world, radius."""
+    world = uniform_world(world_strength)
+    bpy.context.scene.render.film_transparent = True
+    obj = _link(bpy.data.objects.new("HG Test Sphere", bpy.data.meshes.new("HG Test Sphere")))
+    mod = obj.modifiers.new("HG Points Sphere", "NODES")
+    mod.node_group = _points_sphere_group(material, radius)
+    obj.data.materials.append(material)
+    cam = _ortho_camera("HG Test Camera", spherical_direction(*view_dir),
+                        ortho_scale or 2.5 * radius)
+    return {"sphere": obj, "camera": cam, "world": world, "radius": radius}
+
+
+# ------------------------------------------------------------------------------------------------
+# Rendering
+# ------------------------------------------------------------------------------------------------
+
+
+def render_exr(path=None, *, codec="ZIP"):
+    """Render the current scene and return its pixels as float32 (H, W, 4), RGBA, scene-linear.
+
+    Row 0 is the BOTTOM row of the image (Blender's pixel order); column 0 is the left column.
+    Route: 32-bit float OpenEXR (lossless ``codec`` ZIP or NONE) written by ``write_still``,
+    loaded with ``bpy.data.images.load`` and read with ``foreach_get`` (a background-mode Render
+    Result has no readable pixels).  The image datablock is removed; the file is deleted unless
+    ``path`` was given."""
+    scene = bpy.context.scene
+    render = scene.render
+    settings = render.image_settings
+    if hasattr(settings, "media_type"):  # 5.0
+        settings.media_type = "IMAGE"
+    settings.file_format = "OPEN_EXR"
+    settings.color_mode = "RGBA"
+    settings.color_depth = "32"
+    settings.exr_codec = codec
+    if hasattr(settings, "color_management"):
+        settings.color_management = "FOLLOW_SCENE"
+    render.use_file_extension = True
+
+    keep = path is not None
+    if not keep:
+        fd, path = tempfile.mkstemp(suffix=".exr", prefix="hg_render_")
+        os.close(fd)
+    path = os.path.abspath(path)
+    old_path = render.filepath
+    render.filepath = path
+    try:
+        bpy.ops.render.render(write_still=True)
+    finally:
+        render.filepath = old_path
+    if not os.path.exists(path) or os.path.getsize(path) == 0:
+        raise RuntimeError(f"render did not write {path}")
+
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        channels = img.channels
+        buf = np.empty(w * h * channels, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(img)
+        if not keep:
+            os.remove(path)
+    arr = buf.reshape(h, w, channels)
+    if channels == 3:
+        arr = np.concatenate([arr, np.ones((h, w, 1), np.float32)], axis=-1)
+    return arr
