@@ -1,0 +1,192 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The demo gallery: the paper's Figure 3 layout (a dielectric row and a conductor row of spheres
+with increasing haziness, α_n = 0.01, λ_h = 7) plus the Table 3 materials, rendered with Cycles.
+
+    .venv/bin/python scripts/gallery.py [--out out/gallery.png] [--samples 48] [--scale 1.0]
+
+Runs on the bpy module; loads the add-on the way scripts do (repo root on sys.path).
+"""
+import argparse
+import math
+import os
+import sys
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPO)
+
+import bpy  # noqa: E402
+
+import hazy_gloss  # noqa: E402
+
+R_01 = math.sqrt(0.01)  # the paper's α_n = 0.01 is Blender roughness R = √α = 0.1
+
+# Figure 3: dielectric row (r_c typical of a dielectric, greenish Lambertian) and conductor row
+FIG3_HAZINESS_DIELECTRIC = (0.0, 0.025, 0.05, 0.1, 0.2)
+FIG3_HAZINESS_CONDUCTOR = (0.0, 0.25, 0.5, 0.75, 0.99)
+
+# Table 3 (α_n given as α; converted to R = √α)
+TABLE3 = {
+    "Probe A": dict(kind="DIELECTRIC", core_reflectivity=0.02, roughness=math.sqrt(0.01),
+                    haziness=0.1, haze_extent=5.0, base_color=(0.02, 0.02, 0.025)),
+    "Probe B": dict(kind="CONDUCTOR", core_reflectivity=0.5, edge_tint=1.0,
+                    roughness=math.sqrt(0.01), haziness=0.99, haze_extent=5.0),
+    "Fertility": dict(kind="CONDUCTOR", core_reflectivity=(0.5, 0.28, 0.1), edge_tint=(0.8, 0.06, 0.03),
+                      roughness=math.sqrt(0.03), haziness=0.99, haze_extent=5.0),
+    "Vase": dict(kind="DIELECTRIC", core_reflectivity=0.05, roughness=math.sqrt(0.01), haziness=0.15,
+                 haze_extent=7.0, base_color=(0.01, 0.05, 0.02)),
+    "Teapot": dict(kind="CONDUCTOR", core_reflectivity=(0.5, 0.12, 0.12), edge_tint=(0.0, 0.85, 1.0),
+                   roughness=math.sqrt(0.01), haziness=0.99, haze_extent=(10.0, 1.0), tangent="RADIAL_Z"),
+}
+
+
+def _sphere(name, location, material, radius=0.42):
+    """An analytic sphere: a geometry-nodes point, which Cycles renders as an exact sphere."""
+    obj = bpy.data.objects.new(name, bpy.data.meshes.new(name))
+    bpy.context.scene.collection.objects.link(obj)
+    obj.location = location
+    mod = obj.modifiers.new("points", "NODES")
+    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    pts = ng.nodes.new("GeometryNodePoints")
+    pts.inputs["Count"].default_value = 1
+    pts.inputs["Radius"].default_value = radius
+    setm = ng.nodes.new("GeometryNodeSetMaterial")
+    setm.inputs["Material"].default_value = material
+    out = ng.nodes.new("NodeGroupOutput")
+    ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
+    ng.links.new(setm.outputs[0], out.inputs[0])
+    mod.node_group = ng
+    return obj
+
+
+def _label(text, location, size=0.11):
+    curve = bpy.data.curves.new(text, "FONT")
+    curve.body = text
+    curve.size = size
+    curve.align_x = "CENTER"
+    obj = bpy.data.objects.new(text, curve)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.location = location
+    obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # face the camera (which looks along +Y)
+    mat = bpy.data.materials.get("HG label") or bpy.data.materials.new("HG label")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 0.8
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(em.outputs[0], out.inputs[0])
+    curve.materials.append(mat)
+
+
+def build_scene(api):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    # environment: dark with a bright horizon band, so reflections show a sharp edge and its halo
+    world = bpy.data.worlds.new("HG gallery")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    nt = world.node_tree
+    nt.nodes.clear()
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    cr = ramp.color_ramp
+    cr.interpolation = "CONSTANT"
+    cr.elements[0].position = 0.0
+    cr.elements[0].color = (0.002, 0.002, 0.003, 1)
+    cr.elements[1].position = 0.52
+    cr.elements[1].color = (0.6, 0.62, 0.7, 1)
+    e = cr.elements.new(0.62)
+    e.color = (0.01, 0.012, 0.02, 1)
+    bg = nt.nodes.new("ShaderNodeBackground")
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    mapz = nt.nodes.new("ShaderNodeMapRange")
+    nt.links.new(sep.outputs["Z"], mapz.inputs[0])
+    mapz.inputs[1].default_value = -1.0
+    nt.links.new(mapz.outputs[0], ramp.inputs[0])
+    nt.links.new(ramp.outputs[0], bg.inputs[0])
+    nt.links.new(bg.outputs[0], out.inputs[0])
+    # two small, strong area lights: sharp highlights with visible halos
+    for loc, energy in (((3.0, -4.0, 5.0), 600.0), ((-4.0, -2.0, 2.0), 250.0)):
+        light = bpy.data.lights.new("HG key", "AREA")
+        light.size = 0.15
+        light.energy = energy
+        obj = bpy.data.objects.new("HG key", light)
+        scene.collection.objects.link(obj)
+        obj.location = loc
+        direction = -obj.location.normalized()
+        obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+
+    rows = []
+    dielectric = [api.create_material(f"Fig3 dielectric {h}", kind="DIELECTRIC", core_reflectivity=0.04,
+                                      roughness=R_01, haziness=h, haze_extent=7.0,
+                                      base_color=(0.03, 0.12, 0.05))
+                  for h in FIG3_HAZINESS_DIELECTRIC]
+    rows.append(([f"haziness {h:g}" for h in FIG3_HAZINESS_DIELECTRIC], dielectric))
+    conductor = [api.create_material(f"Fig3 conductor {h}", kind="CONDUCTOR", core_reflectivity=0.5,
+                                     edge_tint=1.0, roughness=R_01, haziness=h, haze_extent=7.0)
+                 for h in FIG3_HAZINESS_CONDUCTOR]
+    rows.append(([f"haziness {h:g}" for h in FIG3_HAZINESS_CONDUCTOR], conductor))
+    table = [api.create_material(name, **params) for name, params in TABLE3.items()]
+    rows.append((list(TABLE3), table))
+    for r, (labels, mats) in enumerate(rows):
+        z = 1.1 * (1 - r)
+        for c, (label, mat) in enumerate(zip(labels, mats)):
+            x = 1.0 * (c - 2)
+            _sphere(mat.name, (x, 0.0, z), mat)
+            _label(label, (x, -0.6, z - 0.53), size=0.09)
+
+    cam = bpy.data.cameras.new("HG camera")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 5.2
+    cam_obj = bpy.data.objects.new("HG camera", cam)
+    scene.collection.objects.link(cam_obj)
+    cam_obj.location = (0.0, -10.0, 0.0)
+    cam_obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.camera = cam_obj
+    return scene
+
+
+def render(out_path, samples=48, scale=1.0):
+    hazy_gloss.register()
+    from hazy_gloss import api
+    scene = build_scene(api)
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = True
+    try:
+        scene.cycles.denoiser = "OPENIMAGEDENOISE"
+    except TypeError:
+        scene.cycles.use_denoising = False
+    scene.render.resolution_x = int(1040 * scale)
+    scene.render.resolution_y = int(680 * scale)
+    scene.view_settings.view_transform = "AgX" if "AgX" in [
+        i.identifier for i in scene.view_settings.bl_rna.properties["view_transform"].enum_items] else "Filmic"
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.abspath(out_path)
+    os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return time.perf_counter() - t
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=os.path.join(REPO, "out", "gallery.png"))
+    ap.add_argument("--samples", type=int, default=48)
+    ap.add_argument("--scale", type=float, default=1.0)
+    args = ap.parse_args(argv)
+    seconds = render(args.out, args.samples, args.scale)
+    print(f"hazy_gloss gallery: wrote {os.path.abspath(args.out)} ({seconds:.0f} s render, "
+          f"{args.samples} samples)")
+
+
+if __name__ == "__main__":
+    main()
