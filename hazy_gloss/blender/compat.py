@@ -23,3 +23,14 @@ def exact_conductor_fresnel():
     """Metallic BSDF PHYSICAL_CONDUCTOR is the exact conductor Fresnel from 5.0 on; 4.5 uses an
     approximation exact only at normal incidence (BLENDER-FACTS.md)."""
     return VERSION >= (5, 0, 0)
+
+
+def shader_add_menu():
+    """The menu whose contents the Shader Editor's Add menu (Shift+A) draws.
+
+    4.5 and 5.0 both define ``NODE_MT_shader_node_add_all`` (``NODE_MT_add`` draws it with
+    ``menu_contents`` when the edited tree is a shader tree; 5.0 generates it from a base class).
+    Older or future versions without it fall back to ``NODE_MT_add``, which is shared by all node
+    editors: draw functions appended to it must check ``space_data.tree_type`` themselves."""
+    menu = getattr(bpy.types, "NODE_MT_shader_node_add_all", None)
+    return menu if menu is not None else bpy.types.NODE_MT_add
