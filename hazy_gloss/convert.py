@@ -1,0 +1,588 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Texture batch conversion, the bpy-free part: perceptual maps -> physical maps in numpy.
+
+The paper (§2.4) notes that the haze mapping "may be applied ... as a batch process to convert
+textures storing variations of these parameters".  This module does the numeric half of that:
+
+- :func:`resolve_inputs` checks and canonicalises the user's inputs (names, aliases, constants);
+- :func:`map_textures` applies Blender's conventions exactly as ``api.map_parameters`` does
+  (roughness R = √α, raised to the mirror cut-off; Metallic anisotropy; α <= 1; aspect <= 10),
+  validates every texel (NaN, out of range: clamped and counted), runs
+  :func:`hazy_gloss.core.haze_mapping` over whole images in float32, tile by tile to bound the
+  temporaries, and returns the physical maps in the convention of the lean node tree;
+- :func:`encode_png` / :func:`decode_png` give the documented 16-bit PNG encodings of the maps
+  that do not fit in [0, 1] (η, κ, Glossy anisotropy, rotation);
+- :func:`srgb_to_linear` / :func:`linear_to_srgb` (IEC 61966-2-1, the curve Blender's OCIO
+  "sRGB" uses) and :func:`resample_bilinear`.
+
+Reading and writing images goes through bpy (hazy_gloss/blender/convert.py).  Images here are
+arrays shaped (H, W) for scalar maps and (H, W, 3) for colours, in Blender's row order (row 0 is
+the bottom row); nothing here depends on the order.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .core import haze_mapping
+from .utils.conventions import (ALPHA_MAX, MAX_ASPECT, MIN_ROUGHNESS, alpha_from_roughness,
+                                glossy_anisotropy, lobe_from_alpha, metallic_anisotropy,
+                                metallic_to_glossy_anisotropy)
+
+__all__ = (
+    "ConversionError",
+    "InputSpec",
+    "MapSpec",
+    "MappedMaps",
+    "PARAMETERS",
+    "DEFAULTS",
+    "KINDS",
+    "FILE_FORMATS",
+    "resolve_inputs",
+    "output_specs",
+    "map_textures",
+    "encode_png",
+    "decode_png",
+    "srgb_to_linear",
+    "linear_to_srgb",
+    "resample_bilinear",
+    "check_sizes",
+    "group_clamped",
+    "ConversionReport",
+    "ConversionResult",
+)
+
+KINDS = ("CONDUCTOR", "DIELECTRIC", "LEGACY")
+#: Lobe distributions each kind's node offers (mirrors node_groups.lobes.NODE_DISTRIBUTIONS,
+#: which this bpy-free module cannot import; tests check they agree).
+NODE_DISTRIBUTIONS = {
+    "CONDUCTOR": ("GGX", "BECKMANN", "MULTI_GGX"),
+    "DIELECTRIC": ("GGX", "MULTI_GGX"),
+    "LEGACY": ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY"),
+}
+#: Smallest roughness per distribution (mirrors node_groups.groups.min_roughness).
+MIN_ROUGHNESS_AS = 0.0101
+FILE_FORMATS = ("OPEN_EXR", "PNG")
+
+#: Perceptual parameters a map (or a constant) can give, with their role: colour maps are
+#: decoded from their colour space to linear, data maps are read raw (Non-Color).
+PARAMETERS = {
+    "core_reflectivity": "colour",
+    "edge_tint": "colour",
+    "roughness": "data",
+    "anisotropy": "data",
+    "rotation": "data",
+    "haziness": "data",
+    "haze_extent_x": "data",
+    "haze_extent_y": "data",
+}
+#: Accepted spellings that are folded into PARAMETERS by resolve_inputs.
+ALIASES = ("alpha", "haze_extent")
+#: Values of the parameters the user does not give (api.DEFAULTS).
+DEFAULTS = dict(core_reflectivity=0.5, edge_tint=0.0, roughness=0.1, anisotropy=0.0,
+                rotation=0.0, haziness=0.5, haze_extent_x=5.0, haze_extent_y=5.0)
+
+#: haziness is kept below 1 (the largest float32 below 1, as haze_mapping does).
+_HAZINESS_MAX = float(np.nextafter(np.float32(1), np.float32(0)))
+_F32_MAX = float(np.finfo(np.float32).max)
+
+
+class ConversionError(ValueError):
+    """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is
+    one line meant for the user."""
+
+
+def min_roughness(distribution):
+    return MIN_ROUGHNESS_AS if distribution == "ASHIKHMIN_SHIRLEY" else MIN_ROUGHNESS
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class InputSpec:
+    """One canonical input: ``source`` is what the user gave (a path, an image datablock, or a
+    constant); ``transform`` is "sqrt" when the user gave α (alpha) rather than R."""
+
+    name: str
+    role: str
+    source: object
+    given_as: str
+    transform: str = ""
+
+    @property
+    def is_constant(self):
+        return _is_constant(self.source)
+
+
+def _is_constant(value):
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return True
+    if isinstance(value, (tuple, list)) and value and all(
+            isinstance(v, (int, float, np.integer, np.floating)) for v in value):
+        return True
+    return isinstance(value, np.ndarray) and value.ndim <= 1 and value.size in (1, 3)
+
+
+def _constant(label, range_key, role, value):
+    """A checked float32 constant (scalar, or RGB for colours).  Raises on bad values: unlike
+    texels, a constant is typed by hand."""
+    try:
+        arr = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        raise ConversionError(f"{label}: not a number: {value!r}") from None
+    if role == "colour":
+        if arr.size == 1:
+            arr = np.repeat(arr, 3)
+        if arr.size != 3:
+            raise ConversionError(f"{label}: a colour constant is a number or an RGB triple, got {value!r}")
+    elif arr.size != 1:
+        raise ConversionError(f"{label}: expected a number, got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ConversionError(f"{label}: constant must be finite, got {value!r}")
+    lo, hi = _RANGES[range_key]
+    if np.any(arr < lo) or (hi is not None and np.any(arr > hi)):
+        rng = f"[{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
+        if range_key == "haziness":
+            rng = "[0, 1)"
+        raise ConversionError(f"{label}: constant {value!r} is outside {rng}")
+    out = arr.astype(np.float32)
+    return out if role == "colour" else out[0]
+
+
+#: Valid range of each input (None: unbounded above).  Haziness 1 is clamped to just below.
+_RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "roughness": (0.0, 1.0),
+           "alpha": (0.0, 1.0), "anisotropy": (0.0, 1.0), "rotation": (-math.inf, None),
+           "haziness": (0.0, _HAZINESS_MAX), "haze_extent_x": (0.0, None),
+           "haze_extent_y": (0.0, None)}
+
+
+def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None,
+                   file_format="OPEN_EXR"):
+    """Check the conversion arguments and return (specs, notes).
+
+    ``inputs`` maps parameter names to sources.  Accepted names: core_reflectivity, edge_tint,
+    roughness (Blender's R) or alpha (α = R², converted with R = √α), anisotropy, rotation,
+    haziness, haze_extent (both axes) or haze_extent_x + haze_extent_y.  Parameters not given take
+    DEFAULTS.  ``specs`` has one InputSpec per canonical parameter; constants are checked here
+    (a bad constant raises, a bad texel is clamped and counted later).  ``notes`` lists harmless
+    oddities (an edge tint given to a non-conductor)."""
+    kind = str(kind).upper()
+    if kind not in KINDS:
+        raise ConversionError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
+    distribution = str(distribution).upper()
+    if distribution not in NODE_DISTRIBUTIONS[kind]:
+        raise ConversionError(f"{kind.lower()} maps support the distributions "
+                              f"{', '.join(NODE_DISTRIBUTIONS[kind])}; got {distribution!r}")
+    if str(file_format).upper() not in FILE_FORMATS:
+        raise ConversionError(f"file_format must be one of {', '.join(FILE_FORMATS)}; got {file_format!r}")
+    if smoothness is not None:
+        try:
+            w = float(smoothness)
+        except (TypeError, ValueError):
+            raise ConversionError(f"smoothness must be None or a number > 0, got {smoothness!r}") from None
+        if not w > 0:
+            raise ConversionError(f"smoothness must be None or a number > 0, got {smoothness!r}")
+    if not isinstance(inputs, dict):
+        raise ConversionError("inputs must be a dict of parameter name -> image path, image or constant")
+    allowed = set(PARAMETERS) | set(ALIASES)
+    unknown = sorted(set(inputs) - allowed)
+    if unknown:
+        raise ConversionError(f"unknown input(s) {', '.join(unknown)}; accepted: "
+                              f"{', '.join(sorted(allowed))}")
+    given = {k: v for k, v in inputs.items() if v is not None}
+    if "alpha" in given and "roughness" in given:
+        raise ConversionError("give either roughness (R) or alpha (α = R²), not both")
+    if "haze_extent" in given and ({"haze_extent_x", "haze_extent_y"} & set(given)):
+        raise ConversionError("give either haze_extent or haze_extent_x + haze_extent_y, not both")
+    if ("haze_extent_x" in given) != ("haze_extent_y" in given):
+        raise ConversionError("give both haze_extent_x and haze_extent_y (or haze_extent for both axes)")
+
+    notes = []
+    specs = {}
+    for name, role in PARAMETERS.items():
+        src, given_as, transform = DEFAULTS[name], "default", ""
+        if name == "roughness" and "alpha" in given:
+            src, given_as, transform = given["alpha"], "alpha", "sqrt"
+        elif name in ("haze_extent_x", "haze_extent_y") and "haze_extent" in given:
+            src, given_as = given["haze_extent"], "haze_extent"
+        elif name in given:
+            src, given_as = given[name], name
+        if name == "edge_tint" and kind != "CONDUCTOR":
+            if given_as != "default":
+                notes.append(f"edge_tint is ignored for {kind.lower()} maps")
+            src, given_as = 0.0, "default"
+        if _is_constant(src):
+            label = name if given_as == "default" else given_as
+            src = _constant(label, "alpha" if transform else name, role, src)
+        specs[name] = InputSpec(name=name, role=role, source=src, given_as=given_as,
+                                transform=transform)
+    if all(s.is_constant for s in specs.values()):
+        raise ConversionError("no image input: give at least one map (for constants alone use "
+                              "api.create_material)")
+    return specs, notes
+
+
+def check_sizes(named_sizes):
+    """named_sizes: list of (label, (width, height)).  Raises ConversionError naming every image
+    when they differ."""
+    sizes = {tuple(s) for _, s in named_sizes}
+    if len(sizes) > 1:
+        desc = ", ".join(f"{label} {s[0]}x{s[1]}" for label, s in named_sizes)
+        raise ConversionError(f"input images have different resolutions: {desc} "
+                              "(resize them, or pass resample=True / --resample)")
+
+
+# --------------------------------------------------------------------------------------------
+# Colour
+# --------------------------------------------------------------------------------------------
+
+
+def srgb_to_linear(x):
+    """IEC 61966-2-1 sRGB decoding (piecewise, 0.04045 / 12.92 / 2.4), computed in float64,
+    returned as float32.  Blender's OCIO "sRGB" colour space uses this curve (measured: a 16-bit
+    PNG tagged sRGB decodes to it)."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4)
+    return out.astype(np.float32)
+
+
+def linear_to_srgb(x):
+    """Inverse of :func:`srgb_to_linear` (recovers the file values of a float image Blender
+    decoded from sRGB)."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.where(x <= 0.0031308, x * 12.92,
+                   1.055 * np.maximum(x, 0.0031308) ** (1.0 / 2.4) - 0.055)
+    return out.astype(np.float32)
+
+
+def resample_bilinear(arr, size):
+    """Resample an (H, W[, C]) array to ``size`` = (width, height), texel centres aligned
+    (the convention of image editors), edges clamped.  float32 in and out."""
+    w, h = int(size[0]), int(size[1])
+    arr = np.asarray(arr, dtype=np.float32)
+    h0, w0 = arr.shape[:2]
+    if (h0, w0) == (h, w):
+        return arr
+
+    def axis(n_out, n_in):
+        x = (np.arange(n_out, dtype=np.float64) + 0.5) * (n_in / n_out) - 0.5
+        x = np.clip(x, 0.0, n_in - 1)
+        i0 = np.floor(x).astype(np.intp)
+        i1 = np.minimum(i0 + 1, n_in - 1)
+        return i0, i1, (x - i0).astype(np.float32)
+
+    y0, y1, fy = axis(h, h0)
+    x0, x1, fx = axis(w, w0)
+    if arr.ndim == 3:
+        fx = fx[:, None]
+    top = arr[y0][:, x0] * (1 - fx) + arr[y0][:, x1] * fx
+    bot = arr[y1][:, x0] * (1 - fx) + arr[y1][:, x1] * fx
+    fy = fy[:, None, None] if arr.ndim == 3 else fy[:, None]
+    return (top * (1 - fy) + bot * fy).astype(np.float32)
+
+
+# --------------------------------------------------------------------------------------------
+# Outputs
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """One physical output map.  ``png``: how 16-bit PNG stores it (values must be in [0, 1]):
+    "identity", "ratio" (x/(1+x) for unbounded x >= 0, decoded e/(1-e)), "negate" (Glossy
+    anisotropy in [-0.99, 0] stored as -a) or "wrap" (rotation in turns, stored modulo 1)."""
+
+    name: str
+    channels: int
+    png: str
+    doc: str
+
+
+_COMMON = (
+    MapSpec("beta", 1, "identity", "β, mix factor of the wide lobe (Eq. 4)"),
+    MapSpec("roughness", 1, "identity", "narrow lobe roughness R (clamped to [mirror cut-off, 1])"),
+    MapSpec("roughness_wide", 1, "identity", "wide lobe roughness R_w = (α_w^x α_w^y)^¼"),
+)
+_ANISO = {
+    "node": (
+        MapSpec("anisotropy", 1, "identity", "narrow lobe anisotropy (node convention)"),
+        MapSpec("rotation", 1, "wrap", "narrow lobe rotation (turns)"),
+        MapSpec("anisotropy_wide", 1, "identity", "wide lobe anisotropy (node convention)"),
+        MapSpec("rotation_wide", 1, "wrap", "wide lobe rotation: rotation + ¼ where α_w^y > α_w^x"),
+    ),
+    "glossy": (
+        MapSpec("anisotropy", 1, "negate", "narrow lobe anisotropy (Glossy convention, <= 0)"),
+        MapSpec("rotation", 1, "wrap", "narrow lobe rotation (turns)"),
+        MapSpec("anisotropy_wide", 1, "negate", "wide lobe anisotropy (Glossy convention, <= 0)"),
+        MapSpec("rotation_wide", 1, "wrap", "wide lobe rotation: rotation + ¼ where α_w^y > α_w^x"),
+    ),
+}
+_FRESNEL = {
+    "CONDUCTOR": (
+        MapSpec("ior", 3, "ratio", "η per channel (Gulbrandsen from r and g)"),
+        MapSpec("extinction", 3, "ratio", "κ per channel (Gulbrandsen from r and g)"),
+    ),
+    "DIELECTRIC": (
+        MapSpec("ior", 1, "ratio", "η = (1+√r̂)/(1-√r̂)"),
+        MapSpec("specular_tint", 3, "identity", "chroma c = r_c / r̂_c (Principled Specular Tint)"),
+    ),
+    "LEGACY": (
+        MapSpec("weight_narrow", 3, "identity", "k_n = (1-β) r, Glossy colour of the narrow lobe"),
+        MapSpec("weight_wide", 3, "identity", "k_w = β r, Glossy colour of the wide lobe"),
+    ),
+}
+
+
+def output_specs(kind, anisotropic):
+    """The maps a conversion writes, in writing order."""
+    specs = list(_COMMON)
+    if anisotropic:
+        specs += _ANISO["glossy" if kind == "LEGACY" else "node"]
+    specs += _FRESNEL[kind]
+    return specs
+
+
+def encode_png(spec, values):
+    """Values of ``spec`` -> [0, 1] for a 16-bit PNG (see MapSpec.png)."""
+    v = np.asarray(values, dtype=np.float32)
+    if spec.png == "ratio":
+        v = v / (np.float32(1) + v)
+    elif spec.png == "negate":
+        v = -v
+    elif spec.png == "wrap":
+        v = np.mod(v, np.float32(1))
+        v = np.where(v >= 1, np.float32(0), v)
+    return np.clip(v, 0, 1).astype(np.float32)
+
+
+def decode_png(spec, encoded):
+    """Inverse of :func:`encode_png` (what the node tree computes after the Image Texture)."""
+    e = np.asarray(encoded, dtype=np.float32)
+    if spec.png == "ratio":
+        return (e / (np.float32(1) - e)).astype(np.float32)
+    if spec.png == "negate":
+        return -e
+    return e
+
+
+# --------------------------------------------------------------------------------------------
+# Mapping whole images
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class MappedMaps:
+    """Result of :func:`map_textures`."""
+
+    maps: dict  # name -> float32 (H, W) or (H, W, 3)
+    specs: list  # MapSpec in writing order
+    anisotropic: bool
+    texels: int
+    clamped: dict = field(default_factory=dict)  # reason -> texel count
+
+
+def _sanitise(arr, name, lo, hi, clamped, *, above_reason=None):
+    """Clamp to [lo, hi] (hi None: float32 max), NaN -> lo; count bad texels per reason (a colour
+    texel counts once however many channels are bad)."""
+    a = np.asarray(arr, dtype=np.float32)
+    per_texel = (lambda m: m.any(axis=-1)) if a.ndim == 3 else (lambda m: m)
+    lo_v = np.float32(lo)
+    hi_v = np.float32(hi if hi is not None else _F32_MAX)
+    nan = np.isnan(a)
+    below = a < lo_v
+    above = a > hi_v
+    if above_reason is None:
+        above_reason = f"{name} > {hi:g}" if hi is not None else f"{name} is +inf"
+    for reason, mask in ((f"{name} is NaN (set to {lo:g})", nan),
+                         (f"{name} < {lo:g}", below),
+                         (above_reason, above)):
+        n = int(np.count_nonzero(per_texel(mask)))
+        if n:
+            clamped[reason] = clamped.get(reason, 0) + n
+    if not (nan.any() or below.any() or above.any()):
+        return a
+    return np.clip(np.where(nan, lo_v, a), lo_v, hi_v).astype(np.float32)
+
+
+def _sanitise_rotation(arr, clamped):
+    """Rotation (turns) may be any finite number; NaN and ±inf -> 0."""
+    a = np.asarray(arr, dtype=np.float32)
+    bad = ~np.isfinite(a)
+    n = int(np.count_nonzero(bad))
+    if not n:
+        return a
+    clamped["rotation is not finite (set to 0)"] = clamped.get("rotation is not finite (set to 0)", 0) + n
+    return np.where(bad, np.float32(0), a).astype(np.float32)
+
+
+def _add_counts(total, new):
+    for k, v in new.items():
+        total[k] = total.get(k, 0) + int(v)
+
+
+def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=None,
+                 tile_texels=1 << 20, alpha_given=False):
+    """Perceptual maps -> physical maps for the lean node tree.
+
+    ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked
+    constant (from resolve_inputs).  ``alpha_given``: the roughness entry holds α (R = √α).
+    Every texel goes through exactly what ``api.map_parameters`` does for one material:
+    R clamped to [0, 1] and raised to the mirror cut-off, (α_x, α_y) = alpha_from_roughness(R, A),
+    haze_mapping(..., alpha_max=1, max_aspect=10) in float32, then the wide lobe's roughness,
+    anisotropy and rotation in the node convention (lobe_from_alpha, metallic/glossy_anisotropy).
+    Bad texels are clamped and counted in ``clamped`` (reason -> texels).
+    """
+    kind = str(kind).upper()
+    distribution = str(distribution).upper()
+    shapes = {n: np.shape(a)[:2] for n, a in arrays.items() if np.ndim(a) >= 2}
+    if not shapes:
+        raise ConversionError("no image input")
+    hw = set(shapes.values())
+    if len(hw) != 1:
+        raise ConversionError("input arrays have different shapes: " +
+                              ", ".join(f"{n} {s}" for n, s in shapes.items()))
+    (h, w), = hw
+    clamped = {}
+
+    # -- validate every input once (a haze extent shared by both axes counts once) -------------
+    clean = {}
+    seen = {}
+    for name in PARAMETERS:
+        a = arrays[name]
+        if np.ndim(a) < 2:
+            clean[name] = np.asarray(a, dtype=np.float32)
+            continue
+        if id(a) in seen:
+            clean[name] = clean[seen[id(a)]]
+            continue
+        seen[id(a)] = name
+        if name == "roughness" and alpha_given:
+            clean[name] = _sanitise(a, "alpha", 0.0, 1.0, clamped)
+        elif name == "rotation":
+            clean[name] = _sanitise_rotation(a, clamped)
+        elif name == "haziness":
+            clean[name] = _sanitise(a, name, 0.0, _HAZINESS_MAX, clamped,
+                                    above_reason="haziness >= 1")
+        else:
+            lo, hi = _RANGES[name]
+            clean[name] = _sanitise(a, name, lo, hi, clamped)
+    if alpha_given:  # R = √α
+        clean["roughness"] = np.sqrt(clean["roughness"]).astype(np.float32)
+
+    aniso_in = clean["anisotropy"]
+    lx_in, ly_in = clean["haze_extent_x"], clean["haze_extent_y"]
+    anisotropic = bool(np.any(aniso_in > 0)) or (
+        lx_in is not ly_in and bool(np.any(lx_in != ly_in)))
+    specs = output_specs(kind, anisotropic)
+    maps = {s.name: np.empty((h, w, 3) if s.channels == 3 else (h, w), np.float32) for s in specs}
+
+    r_min = np.float32(min_roughness(distribution))
+    rows = max(1, int(tile_texels) // max(w, 1))
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+
+        def tile(name):
+            a = clean[name]
+            return a[r0:r1] if a.ndim >= 2 else a
+
+        rough = np.maximum(tile("roughness"), r_min)
+        aniso = tile("anisotropy")
+        ax64, ay64 = alpha_from_roughness(rough, aniso)
+        ax, ay = ax64.astype(np.float32), ay64.astype(np.float32)
+        lx = tile("haze_extent_x")
+        ly = lx if clean["haze_extent_y"] is clean["haze_extent_x"] else tile("haze_extent_y")
+        m = haze_mapping(tile("core_reflectivity"), tile("edge_tint"), (ax, ay), tile("haziness"),
+                         (lx, ly), distribution=distribution, smoothness=smoothness,
+                         alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT, strict=False)
+        _add_counts(clamped, m.clamped)
+        sl = np.s_[r0:r1]
+        shape = (r1 - r0, w)
+        maps["beta"][sl] = np.broadcast_to(m.beta, shape)
+        maps["roughness"][sl] = np.broadcast_to(rough, shape)
+        wx, wy = m.alpha_wide
+        r_w, ratio, swap = lobe_from_alpha(wx, wy)
+        maps["roughness_wide"][sl] = np.broadcast_to(r_w.astype(np.float32), shape)
+        if anisotropic:
+            rot = np.broadcast_to(tile("rotation"), shape)
+            if kind == "LEGACY":
+                a_n = metallic_to_glossy_anisotropy(aniso)
+                a_w = glossy_anisotropy(ratio)
+            else:
+                a_n = aniso
+                a_w = metallic_anisotropy(ratio)
+            maps["anisotropy"][sl] = np.broadcast_to(np.asarray(a_n, np.float32), shape)
+            maps["rotation"][sl] = rot
+            maps["anisotropy_wide"][sl] = np.broadcast_to(np.asarray(a_w, np.float32), shape)
+            maps["rotation_wide"][sl] = rot + np.where(swap, np.float32(0.25), np.float32(0))
+        if kind == "CONDUCTOR":
+            maps["ior"][sl] = np.broadcast_to(m.ior, shape + (3,))
+            maps["extinction"][sl] = np.broadcast_to(m.extinction, shape + (3,))
+        elif kind == "DIELECTRIC":
+            maps["ior"][sl] = np.broadcast_to(m.dielectric_ior, shape)
+            rc = np.broadcast_to(m.core_reflectivity, shape + (3,))
+            rc_max = rc.max(axis=-1, keepdims=True)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tint = np.where(rc_max > 0, rc / rc_max, np.float32(1))
+            maps["specular_tint"][sl] = tint
+        else:
+            maps["weight_narrow"][sl] = np.broadcast_to(m.weight_narrow, shape + (3,))
+            maps["weight_wide"][sl] = np.broadcast_to(m.weight_wide, shape + (3,))
+    return MappedMaps(maps=maps, specs=specs, anisotropic=anisotropic, texels=h * w,
+                      clamped=clamped)
+
+
+def group_clamped(clamped):
+    """reason -> count  =>  parameter -> count (texels counted once per reason)."""
+    out = {}
+    for reason, n in clamped.items():
+        param = reason.split()[0].split(".")[0]
+        out[param] = out.get(param, 0) + int(n)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ConversionReport:
+    """What a conversion did.  ``clamped``: reason -> texels (summed over UDIM tiles);
+    ``clamped_by_parameter``: the same grouped by parameter."""
+
+    kind: str
+    distribution: str
+    file_format: str
+    size: tuple = (0, 0)
+    tiles: list = field(default_factory=list)
+    texels: int = 0
+    anisotropic: bool = False
+    clamped: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    warnings: list = field(default_factory=list)
+
+    @property
+    def clamped_by_parameter(self):
+        return group_clamped(self.clamped)
+
+    def summary(self, n_maps=None):
+        maps = f"{n_maps} maps, " if n_maps is not None else ""
+        tiles = f" in {len(self.tiles)} UDIM tiles" if self.tiles else ""
+        clamp = ", ".join(f"{k} {v}" for k, v in self.clamped_by_parameter.items()) or "none"
+        return (f"{self.kind.lower()} {self.size[0]}x{self.size[1]}{tiles}: {self.texels} texels, "
+                f"{maps}{self.seconds:.2f} s; clamped texels: {clamp}")
+
+
+class ConversionResult(dict):
+    """``{map name: written path}`` (UDIM sets use the ``<UDIM>`` token), with ``.report``
+    (a ConversionReport) and ``.specs`` (MapSpec by name)."""
+
+    def __init__(self, paths, report, specs):
+        super().__init__(paths)
+        self.report = report
+        self.specs = {s.name: s for s in specs}
