@@ -26,17 +26,23 @@ def min_roughness(distribution):
 
 
 _KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
-_DIST_LABEL = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multiscatter GGX",
+_DIST_LABEL = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multi GGX",
                "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
 
 
-def group_name(kind, distribution="GGX", anisotropic=False, smooth=False):
-    parts = [f"Hazy Gloss {_KIND_LABEL[kind]}", _DIST_LABEL[distribution]]
+def group_label(distribution="GGX", anisotropic=False, smooth=False):
+    """The configuration part of a group's name, e.g. "GGX, Aniso, Smooth" (menu item text)."""
+    parts = [_DIST_LABEL[distribution]]
     if anisotropic:
-        parts.append("Anisotropic")
+        parts.append("Aniso")
     if smooth:
         parts.append("Smooth")
-    return " · ".join(parts)
+    return ", ".join(parts)
+
+
+def group_name(kind, distribution="GGX", anisotropic=False, smooth=False):
+    """E.g. "Hazy Gloss Conductor (GGX, Aniso, Smooth)": under Blender 4.5's 63-byte ID limit."""
+    return f"Hazy Gloss {_KIND_LABEL[kind]} ({group_label(distribution, anisotropic, smooth)})"
 
 
 def _socket(iface, name, kind, *, parent=None, default=None, lo=None, hi=None, desc="",

@@ -19,7 +19,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from . import compat
-from ..node_groups.groups import all_configurations, ensure_group, group_name
+from ..node_groups.groups import all_configurations, ensure_group, group_label, group_name
 from ..node_groups.lobes import KINDS, check_distribution
 
 # --------------------------------------------------------------------------------------------
@@ -63,7 +63,7 @@ def describe(kind, distribution="GGX", anisotropic=False, smooth=False):
 
 def item_label(kind, distribution="GGX", anisotropic=False, smooth=False):
     """Menu text of a configuration: the group name without "Hazy Gloss <Kind> · "."""
-    return group_name(kind, distribution, anisotropic, smooth).split(" · ", 1)[1]
+    return group_label(distribution, anisotropic, smooth)
 
 
 def catalog_path(kind):
