@@ -7,7 +7,8 @@ something that does not share its mistakes:
 - GGX / Trowbridge-Reitz and Beckmann normal distributions (anisotropic, Walter et al. 2007);
 - height-correlated Smith masking-shadowing G2 = 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014), which is
   what Cycles uses; GGX Λ exact, Beckmann Λ with Walter's rational approximation (as Cycles);
-- exact unpolarised Fresnel for conductors (complex index η + iκ) and dielectrics;
+- exact unpolarised Fresnel for conductors (complex index η + iκ) and dielectrics, and the
+  approximate conductor Fresnel that Blender 4.5's Metallic BSDF uses;
 - the paper's two-lobe BRDF (Barla, Pacanowski & Vangorp 2018, Eq. 1):
       f_r(wi, wo) = ((1 - β) f_n(wi, wo) + β f_w(wi, wo)) F(θd),
   with f_n, f_w microfacet lobes without Fresnel, D G / (4 cosθi cosθo), and θd the angle
@@ -30,6 +31,7 @@ __all__ = (
     "beckmann_lambda",
     "smith_G2",
     "conductor_fresnel",
+    "conductor_fresnel_approx",
     "dielectric_fresnel",
     "microfacet_lobe",
     "microfacet_brdf",
@@ -94,7 +96,8 @@ def beckmann_lambda(alpha_x, alpha_y, w):
     s = _alpha_tan_sq(alpha_x, alpha_y, w)
     with np.errstate(divide="ignore"):
         a = 1.0 / np.sqrt(s)
-    lam = (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a)
+    b = np.minimum(a, 1.6)  # the formula is only used below 1.6 (avoids inf - inf at the normal)
+    lam = (1.0 - 1.259 * b + 0.396 * b * b) / (3.535 * b + 2.181 * b * b)
     return np.where(a < 1.6, lam, 0.0)
 
 
@@ -125,6 +128,21 @@ def conductor_fresnel(cos_theta, eta, kappa):
     return 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
 
 
+def conductor_fresnel_approx(cos_theta, eta, kappa):
+    """The approximate conductor Fresnel of PBRT v2 (exact only at normal incidence), which is
+    what Blender 4.5 LTS's Metallic BSDF (PHYSICAL_CONDUCTOR) renders; 5.0 uses the exact one:
+        t = η² + κ², R∥ = (t c² - 2ηc + 1)/(t c² + 2ηc + 1), R⊥ = (t - 2ηc + c²)/(t + 2ηc + c²),
+        F = (R∥ + R⊥)/2."""
+    c = np.asarray(cos_theta, dtype=np.float64)
+    eta = np.asarray(eta, dtype=np.float64)
+    kappa = np.asarray(kappa, dtype=np.float64)
+    t = eta * eta + kappa * kappa
+    c2 = c * c
+    r_par = (t * c2 - 2.0 * eta * c + 1.0) / (t * c2 + 2.0 * eta * c + 1.0)
+    r_perp = (t - 2.0 * eta * c + c2) / (t + 2.0 * eta * c + c2)
+    return 0.5 * (r_par + r_perp)
+
+
 def dielectric_fresnel(cos_theta, eta):
     """Exact unpolarised dielectric Fresnel (Walter et al. 2007 form), 1 under total internal
     reflection:  g = sqrt(η² - 1 + c²),
@@ -152,31 +170,39 @@ def microfacet_lobe(wi, wo, alpha_x, alpha_y=None, distribution="GGX"):
     return np.where((ci > 0) & (co > 0), val, 0.0)
 
 
-def _fresnel_rgb(wi, wo, eta, kappa):
+_FRESNEL = {"exact": conductor_fresnel, "approx": conductor_fresnel_approx}
+
+
+def _fresnel_rgb(wi, wo, eta, kappa, fresnel="exact"):
     """Conductor Fresnel at cosθd = h·wi, per channel, shaped (..., 3)."""
     h = half_vector(wi, wo)
     cos_d = np.clip(np.sum(h * _as_vec(wi), axis=-1), 0.0, 1.0)
-    f = conductor_fresnel(cos_d[..., None], np.asarray(eta, np.float64), np.asarray(kappa, np.float64))
+    f = _FRESNEL[fresnel](cos_d[..., None], np.asarray(eta, np.float64),
+                          np.asarray(kappa, np.float64))
     return np.broadcast_to(f, f.shape[:-1] + (3,)) if f.shape[-1] == 1 else f
 
 
-def microfacet_brdf(wi, wo, alpha_x, alpha_y=None, *, eta, kappa, distribution="GGX"):
-    """Single-lobe conductor BRDF D G F / (4 cosθi cosθo), F exact at cosθd = h·wi; RGB (..., 3).
+def microfacet_brdf(wi, wo, alpha_x, alpha_y=None, *, eta, kappa, distribution="GGX",
+                    fresnel="exact"):
+    """Single-lobe conductor BRDF D G F / (4 cosθi cosθo), F at cosθd = h·wi; RGB (..., 3).
 
-    This is what Cycles' Metallic BSDF (PHYSICAL_CONDUCTOR, GGX or BECKMANN, Base Color and
-    Edge Tint unused) evaluates in Blender 5.0."""
+    This is what Cycles' Metallic BSDF (PHYSICAL_CONDUCTOR, GGX or BECKMANN; Base Color and
+    Edge Tint unused) evaluates: with ``fresnel="exact"`` in Blender 5.0, with
+    ``fresnel="approx"`` (:func:`conductor_fresnel_approx`) in Blender 4.5."""
     lobe = microfacet_lobe(wi, wo, alpha_x, alpha_y, distribution)
-    return lobe[..., None] * _fresnel_rgb(wi, wo, eta, kappa)
+    return lobe[..., None] * _fresnel_rgb(wi, wo, eta, kappa, fresnel)
 
 
-def two_lobe_brdf(wi, wo, *, beta, alpha_n, alpha_w, eta, kappa, distribution="GGX"):
+def two_lobe_brdf(wi, wo, *, beta, alpha_n, alpha_w, eta, kappa, distribution="GGX",
+                  fresnel="exact"):
     """The paper's Eq. 1: f_r = ((1 - β) f_n + β f_w) F(θd), RGB (..., 3).
 
     alpha_n, alpha_w: α of the narrow (core) and wide (halo) lobes, each a scalar or an (x, y)
-    pair.  eta, kappa: per-channel conductor index (κ = 0 for a dielectric)."""
+    pair.  eta, kappa: per-channel conductor index (κ = 0 for a dielectric).  ``fresnel`` as in
+    :func:`microfacet_brdf`."""
     anx, any_ = (alpha_n if isinstance(alpha_n, (tuple, list)) else (alpha_n, alpha_n))
     awx, awy = (alpha_w if isinstance(alpha_w, (tuple, list)) else (alpha_w, alpha_w))
     fn = microfacet_lobe(wi, wo, anx, any_, distribution)
     fw = microfacet_lobe(wi, wo, awx, awy, distribution)
     mix = (1.0 - beta) * fn + beta * fw
-    return mix[..., None] * _fresnel_rgb(wi, wo, eta, kappa)
+    return mix[..., None] * _fresnel_rgb(wi, wo, eta, kappa, fresnel)

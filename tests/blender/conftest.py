@@ -56,6 +56,7 @@ if not _BPY_WAS_IMPORTED:
     os.environ["BLENDER_USER_RESOURCES"] = _USER_RESOURCES
 
 # -- 2. bpy ----------------------------------------------------------------------------------------
+_BPY_ERROR = None
 try:
     import bpy  # noqa: E402
     import addon_utils  # noqa: E402  (ships with bpy)
@@ -64,15 +65,37 @@ except ImportError as exc:  # pure-only environment
         raise RuntimeError(
             f"HAZY_GLOSS_REQUIRE_BPY is set but bpy cannot be imported ({exc}); "
             "run scripts/setup.sh") from exc
-    pytest.skip(f"bpy is not importable ({exc}): Blender tests skipped "
-                "(install bpy==5.0.1 with scripts/setup.sh to run them)", allow_module_level=True)
+    _BPY_ERROR = exc
 
-if _BPY_WAS_IMPORTED:
+_SKIP_MESSAGE = (f"bpy is not importable ({_BPY_ERROR}): Blender tests skipped "
+                 "(scripts/setup.sh installs bpy==5.0.1 into .venv)")
+
+if _BPY_ERROR is not None:
+    # Test modules import bpy at import time: do not collect them; report one skipped item
+    # instead, so both ``pytest tests`` and ``pytest tests/blender`` say why (a module-level
+    # pytest.skip in a conftest only works when the conftest is found during collection).
+    collect_ignore_glob = ["test_*.py"]
+
+    class _BpyMissingItem(pytest.Item):
+        def runtest(self):
+            pytest.skip(_SKIP_MESSAGE)
+
+        def reportinfo(self):
+            return self.path, None, "Blender tests (bpy missing)"
+
+    class _BpyMissingFile(pytest.File):
+        def collect(self):
+            yield _BpyMissingItem.from_parent(self, name="bpy_not_importable")
+
+    def pytest_collect_file(file_path, parent):
+        if file_path.name == "conftest.py" and file_path.parent.resolve() == Path(HERE):
+            return _BpyMissingFile.from_parent(parent, path=file_path)
+        return None
+
+if _BPY_WAS_IMPORTED and _BPY_ERROR is None:
     import warnings
     warnings.warn("bpy was imported before tests/blender/conftest.py: BLENDER_USER_RESOURCES "
                   "could not be redirected, the real user config dir is in use")
-
-bpy.context.preferences.use_preferences_save = False
 
 # -- 3. a temp extension repository holding only our package -------------------------------------
 _EXT_REPO_DIR = os.path.join(_TMP_ROOT, "extensions", REPO_MODULE)
@@ -105,12 +128,15 @@ def _enable():
     return sys.modules[MODULE_NAME]
 
 
+# -- 4. enable ------------------------------------------------------------------------------------
 _LOAD_ERROR = None
-try:
-    _REPO = _add_repo()
-    _enable()
-except Exception as exc:  # reported by the fixtures, so each test says why
-    _LOAD_ERROR = exc
+if _BPY_ERROR is None:
+    bpy.context.preferences.use_preferences_save = False  # never write the temp prefs
+    try:
+        _REPO = _add_repo()
+        _enable()
+    except Exception as exc:  # reported by the fixtures, so each test says why
+        _LOAD_ERROR = exc
 
 
 def is_enabled():

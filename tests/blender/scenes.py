@@ -22,7 +22,7 @@ import tempfile
 
 import bpy
 import numpy as np
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
 __all__ = (
     "eevee_engine_id",
@@ -128,12 +128,21 @@ def uniform_world(strength=1.0, color=(1.0, 1.0, 1.0)):
     return _world("HG Test Uniform World", tuple(color), float(strength))
 
 
+def _cpu_count():
+    """Cores this process may use (respects CPU affinity / container limits where visible)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
 def setup_render(engine="CYCLES", samples=1, resolution=(64, 64), *, bounces=4, threads=None,
                  seed=0):
     """Configure the current scene for exact, noise-free analytic tests and return it.
 
-    Cycles on the CPU; ``samples`` fixed (adaptive sampling and denoising off); a box pixel
-    filter of the minimum width 0.01 px (each pixel is the value at its centre); no clamping,
+    Cycles on the CPU; ``samples`` fixed (adaptive sampling and denoising off); a Gaussian pixel
+    filter of the minimum width 0.01 px (each pixel is the value at its centre; BOX would
+    ignore the width and average over the whole pixel); no clamping,
     no glossy blur, light threshold 0, path guiding off; film exposure 1 and the Standard view
     transform (EXR output is scene-linear anyway); a black world; seed fixed; all cores.
     ``bounces`` sets every bounce limit (a plane lit by a delta sun needs 0 bounces, a convex
@@ -148,7 +157,7 @@ def setup_render(engine="CYCLES", samples=1, resolution=(64, 64), *, bounces=4, 
     render.film_transparent = False
     render.use_border = False
     render.threads_mode = "FIXED"
-    render.threads = threads or os.cpu_count() or 1
+    render.threads = threads or _cpu_count()
     if hasattr(render, "use_persistent_data"):
         render.use_persistent_data = False
 
@@ -159,7 +168,10 @@ def setup_render(engine="CYCLES", samples=1, resolution=(64, 64), *, bounces=4, 
     cy.use_denoising = False
     if hasattr(cy, "use_preview_denoising"):
         cy.use_preview_denoising = False
-    cy.pixel_filter_type = "BOX"
+    # Cycles' BOX filter is always 1 px wide (it ignores filter_width; the UI hides it), so
+    # samples spread over the whole pixel.  A Gaussian of the minimum width 0.01 px puts every
+    # sample within 0.005 px of the pixel centre: each pixel is the value at its centre.
+    cy.pixel_filter_type = "GAUSSIAN"
     cy.filter_width = 0.01
     cy.seed = seed
     cy.use_animated_seed = False
@@ -231,6 +243,12 @@ def spherical_direction(theta_deg, phi_deg=0.0):
     return Vector((math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)))
 
 
+def _direction64(theta_deg, phi_deg=0.0):
+    """spherical_direction in float64 numpy (mathutils vectors are float32)."""
+    t, p = math.radians(theta_deg), math.radians(phi_deg)
+    return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
+
+
 def _plane_mesh(name, size):
     """A square in the XY plane facing +Z, UV-mapped with U along +X (tangent = +X)."""
     h = size / 2.0
@@ -248,6 +266,18 @@ def _link(obj):
     return obj
 
 
+def _camera_basis(view_dir):
+    """Rotation whose local +Z is ``view_dir`` (the camera looks along -Z), with image right
+    (local +X) horizontal, along +Y x view_dir, and image up (local +Y) = view_dir x right.
+    Looking straight down, right = +X and up = +Y; tilted about X, up leans towards +Z.
+    (``Vector.to_track_quat`` is avoided: it flips the up axis for some directions.)"""
+    z = view_dir.normalized()
+    ref = Vector((0.0, 1.0, 0.0)) if abs(z.y) < 0.999 else Vector((0.0, 0.0, 1.0))
+    x = ref.cross(z).normalized()
+    y = z.cross(x)
+    return Matrix((x, y, z)).transposed()
+
+
 def _ortho_camera(name, view_dir, ortho_scale, distance=10.0):
     cam_data = bpy.data.cameras.new(name)
     cam_data.type = "ORTHO"
@@ -256,9 +286,7 @@ def _ortho_camera(name, view_dir, ortho_scale, distance=10.0):
     cam_data.clip_end = 4.0 * distance
     cam = _link(bpy.data.objects.new(name, cam_data))
     cam.location = view_dir * distance
-    # The camera looks along its local -Z; keep its local +Y (image up) as close to +Y as possible.
-    up = "Y" if abs(view_dir.y) < 0.999 else "X"
-    cam.rotation_euler = view_dir.to_track_quat("Z", up).to_euler()
+    cam.rotation_euler = _camera_basis(view_dir).to_euler()
     bpy.context.scene.camera = cam
     return cam
 
@@ -291,7 +319,8 @@ def flat_plane_scene(material, *, tilt_deg=0.0, view_dir=None, light_dir=(30.0, 
     The plane is sized so it fills the frame at any view angle < 85°.
     Every pixel then reads  strength * f_r(wi, wo) * cos θi  (no other light, black world).
 
-    Returned keys: plane, camera, sun (objects), wi, wo (numpy unit vectors, local = world frame).
+    Returned keys: plane, camera, sun (objects), wi, wo (numpy unit vectors, local = world frame),
+    size (the plane's edge length).
     """
     if view_dir is None:
         view_dir = (float(tilt_deg), -90.0) if tilt_deg else (0.0, 0.0)
@@ -308,8 +337,9 @@ def flat_plane_scene(material, *, tilt_deg=0.0, view_dir=None, light_dir=(30.0, 
         "plane": plane,
         "camera": cam,
         "sun": sun,
-        "wi": np.array(wi, dtype=np.float64),
-        "wo": np.array(wo, dtype=np.float64),
+        "wi": _direction64(*light_dir),
+        "wo": _direction64(*view_dir),
+        "size": size,
     }
 
 

@@ -1,12 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The render harness itself: scenes.py + analytic.py against real Cycles renders.
 
-If these fail, every render test built on the harness is suspect.  Measured (this machine):
-single-lobe Metallic plane vs analytic, max relative error 2.1e-6 in Blender 5.0.1 (float32
-kernel);  4.5 LTS renders its approximate conductor Fresnel (exact only at normal incidence),
-6.1e-5 off at θd = 15° and 3.3e-3 at θd ≈ 45°.  White diffuse furnace: exactly 1.0 in both.
+If these fail, every render test built on the harness is suspect.  Measured on this machine
+(max relative error, Metallic plane, sun at 30°, view along the normal, GGX R = 0.3):
+Blender 5.0.1: 2.1e-6 against the exact conductor Fresnel.  4.5.15 LTS renders the PBRT-v2
+approximate conductor Fresnel: 6.1e-5 against the exact one (θd = 15°; ~1e-2 at θd = 67.5°),
+but ~1e-6 against analytic.conductor_fresnel_approx.  White diffuse furnace: exactly 1.0.
+Run with ``-s`` to see the printed errors; they are also recorded as junit properties.
 """
 import math
+import os
 
 import bpy
 import numpy as np
@@ -17,15 +20,13 @@ import scenes
 
 IOR = (0.2, 0.9, 1.1)
 EXTINCTION = (3.9, 2.4, 2.2)
-EXACT_FRESNEL = bpy.app.version >= (5, 0, 0)
-
-
-def _tolerance(cos_d):
-    """Relative tolerance of the Metallic plane: float32 kernel in 5.0; in 4.5 the approximate
-    conductor Fresnel grows with θd (6e-5 at 15°, 8e-4 at 30°, 3.3e-3 at 45°)."""
-    if EXACT_FRESNEL:
-        return 2e-5
-    return 2e-4 + 1e-2 * (1.0 - cos_d)
+#: Fresnel the Metallic BSDF renders: exact from 5.0 on, the PBRT-v2 approximation in 4.5.
+BLENDER_FRESNEL = "exact" if bpy.app.version >= (5, 0, 0) else "approx"
+#: Render vs the analytic with Blender's own Fresnel (float32 kernel; measured <= 2.2e-6).
+RTOL = 2e-5
+#: Blender 4.5's approximate Fresnel vs the exact one at these test angles (θd <= 67.5°).
+RTOL_45_VS_EXACT = 3e-2
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy 2 renamed it
 
 
 def _render_plane(mat, **kw):
@@ -39,53 +40,78 @@ def _relative_error(img, ref):
     return float(np.max(np.abs(img[..., :3] / ref - 1.0)))
 
 
-def test_metallic_plane_matches_analytic(clean_file, record_property):
-    """Sun at 30°, camera along the normal: pixel = Strength f_r(wi, wo) cos 30°."""
-    mat = scenes.metallic_material(roughness=0.3, ior=IOR, extinction=EXTINCTION)
-    img, info = _render_plane(mat, light_dir=(30.0, 0.0), strength=1.0)
-    alpha = 0.3 ** 2
-    ref = analytic.microfacet_brdf(info["wi"], info["wo"], alpha, eta=IOR, kappa=EXTINCTION)
-    ref = 1.0 * ref * math.cos(math.radians(30.0))
-    err = _relative_error(img, ref)
-    record_property("metallic_plane_rel_error", err)
-    print(f"\nBlender {bpy.app.version_string}: Metallic plane max relative error {err:.3g}")
+def _check_plane(img, info, brdf, strength, record_property=None, label=""):
+    """img must equal strength * cosθi * f_r with Blender's Fresnel; returns (err, err_exact)."""
+    wi, wo = info["wi"], info["wo"]
+    ref = strength * wi[2] * brdf(wi, wo, fresnel=BLENDER_FRESNEL)
+    ref_exact = strength * wi[2] * brdf(wi, wo, fresnel="exact")
+    err, err_exact = _relative_error(img, ref), _relative_error(img, ref_exact)
+    if record_property is not None:
+        record_property(f"{label}rel_error", err)
+        record_property(f"{label}rel_error_vs_exact_fresnel", err_exact)
     assert np.all(img[..., 3] == 1.0)
     # Every pixel is the same: one delta light, a flat plane, an orthographic camera.
-    assert np.ptp(img[..., :3], axis=(0, 1)).max() <= 1e-7 * img[..., :3].max()
-    cos_d = float(analytic.half_vector(info["wi"], info["wo"]) @ info["wi"])
-    assert err < _tolerance(cos_d), f"relative error {err:.3g}"
+    assert np.ptp(img[..., :3], axis=(0, 1)).max() <= 1e-6 * img[..., :3].max()
+    assert err < RTOL, f"relative error {err:.3g} against the {BLENDER_FRESNEL} Fresnel"
+    assert err_exact < (RTOL if BLENDER_FRESNEL == "exact" else RTOL_45_VS_EXACT)
+    return err, err_exact
+
+
+def test_metallic_plane_matches_analytic(clean_file, record_property):
+    """Sun at 30°, camera along the normal: pixel = Strength f_r(wi, wo) cos 30°, f_r = D G F /
+    (4 cosθi cosθo), GGX, α = R² = 0.09, exact conductor Fresnel at cosθd = h·wi."""
+    mat = scenes.metallic_material(roughness=0.3, ior=IOR, extinction=EXTINCTION)
+    img, info = _render_plane(mat, light_dir=(30.0, 0.0), strength=1.0)
+    assert info["wo"][2] == 1.0 and abs(info["wi"][2] - math.cos(math.radians(30.0))) < 1e-15
+
+    def brdf(wi, wo, fresnel):
+        return analytic.microfacet_brdf(wi, wo, 0.3 ** 2, eta=IOR, kappa=EXTINCTION,
+                                        fresnel=fresnel)
+
+    err, err_exact = _check_plane(img, info, brdf, 1.0, record_property)
+    print(f"\nBlender {bpy.app.version_string}: Metallic plane max relative error {err:.3g} "
+          f"({BLENDER_FRESNEL} Fresnel), {err_exact:.3g} against the exact Fresnel")
 
 
 @pytest.mark.parametrize("distribution", ["GGX", "BECKMANN"])
 @pytest.mark.parametrize("view, light", [((0, 0), (60, 0)), ((40, -90), (35, 60)),
                                          ((70, 180), (65, 0))])
-def test_metallic_plane_off_axis(clean_file, distribution, view, light):
-    """Oblique views and lights (camera-tilted variant), both distributions, R = 0.5."""
+def test_metallic_plane_off_axis(clean_file, record_property, distribution, view, light):
+    """Oblique views and lights (tilted camera), both distributions, R = 0.5, Strength 3."""
     mat = scenes.metallic_material(roughness=0.5, distribution=distribution)
     img, info = _render_plane(mat, view_dir=view, light_dir=light, strength=3.0)
-    ref = 3.0 * info["wi"][2] * analytic.microfacet_brdf(
-        info["wi"], info["wo"], 0.25, eta=IOR, kappa=EXTINCTION, distribution=distribution)
-    cos_d = float(analytic.half_vector(info["wi"], info["wo"]) @ info["wi"])
-    assert np.all(img[..., 3] == 1.0)
-    assert _relative_error(img, ref) < _tolerance(cos_d)
+
+    def brdf(wi, wo, fresnel):
+        return analytic.microfacet_brdf(wi, wo, 0.25, eta=IOR, kappa=EXTINCTION,
+                                        distribution=distribution, fresnel=fresnel)
+
+    _check_plane(img, info, brdf, 3.0, record_property)
 
 
 def test_tilt_shorthand(clean_file):
     info = scenes.flat_plane_scene(scenes.metallic_material(), tilt_deg=30.0)
     np.testing.assert_allclose(info["wo"], analytic.direction(30.0, -90.0), atol=1e-12)
     cam = info["camera"]
-    forward = cam.matrix_world.to_3x3() @ scenes.Vector((0.0, 0.0, -1.0))
+    forward = cam.rotation_euler.to_matrix() @ scenes.Vector((0.0, 0.0, -1.0))
     np.testing.assert_allclose(np.array(forward), -info["wo"], atol=1e-6)
+    up = cam.rotation_euler.to_matrix() @ scenes.Vector((0.0, 1.0, 0.0))
+    np.testing.assert_allclose(np.array(up), [0.0, math.cos(math.radians(30)),
+                                              math.sin(math.radians(30))], atol=1e-6)
 
 
 def test_render_exr_row_order(clean_file):
-    """Row 0 is the bottom row: a plane covering only the lower half of the frame."""
+    """Row 0 is the bottom row (-Y), column 0 the left column (-X): a plane covering only the
+    x < 0, y < 0 quadrant of the top view lights only img[:4, :4]."""
     scenes.setup_render(samples=1, resolution=(8, 8))
     mat = scenes.metallic_material(roughness=0.3)
     info = scenes.flat_plane_scene(mat, light_dir=(0.0, 0.0))
-    info["plane"].location.y = -info["plane"].dimensions.y / 2.0  # top edge at y = 0
+    info["plane"].location.x = -info["size"] / 2.0  # right edge at x = 0
+    info["plane"].location.y = -info["size"] / 2.0  # top edge at y = 0
     img = scenes.render_exr()
-    assert np.all(img[:4, :, 0] > 0) and np.all(img[4:, :, 0] == 0)
+    lit = img[..., 0] > 0
+    expected = np.zeros((8, 8), bool)
+    expected[:4, :4] = True
+    assert np.array_equal(lit, expected), lit.astype(int)
 
 
 def test_white_furnace(clean_file, record_property):
@@ -103,9 +129,11 @@ def test_white_furnace(clean_file, record_property):
     scenes.furnace_sphere_scene(mat, world_strength=1.0)
     img = scenes.render_exr()
     mask = img[..., 3] > 0.999
-    # It is a sphere: radius 1 spans 80% of 32 px, so the disc covers ~515 px.
-    area = math.pi * (0.4 * 32) ** 2
-    assert abs(mask.sum() - area) < 0.1 * area
+    # It is a true sphere: radius 1 at ortho scale 2.5 is a disc of radius 12.8 px, and with the
+    # 0.01 px wide pixel filter a pixel is covered exactly when its centre is inside the disc.
+    centre = (np.arange(32) + 0.5) - 16.0
+    disc = np.hypot(*np.meshgrid(centre, centre, indexing="ij")) < 0.4 * 32
+    assert np.count_nonzero(mask != disc) <= 2, (mask.sum(), disc.sum())
     err = float(np.abs(img[mask][:, :3] - 1.0).max())
     record_property("white_furnace_abs_error", err)
     assert err < 1e-5
@@ -128,7 +156,7 @@ def test_analytic_self_consistency():
     h = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
     for d in (analytic.ggx_D, analytic.beckmann_D):
         integrand = d(0.3, 0.15, h) * np.cos(T) * np.sin(T)
-        total = np.trapz(np.trapz(integrand, p, axis=1), t)
+        total = _trapezoid(_trapezoid(integrand, p, axis=1), t)
         assert abs(total - 1.0) < 2e-3, (d.__name__, total)
     # Two-lobe Eq. 1 reduces to one lobe at β = 0 and β = 1.
     wi, wo = analytic.direction(40.0, 10.0), analytic.direction(20.0, 200.0)
@@ -167,8 +195,25 @@ def test_two_metallic_lobes_mix(clean_file):
     tree.links.new(lobes[1].outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], scenes._output_node(tree).inputs["Surface"])
     img, info = _render_plane(mat, light_dir=(25.0, 0.0), view_dir=(10.0, 180.0))
-    ref = info["wi"][2] * analytic.two_lobe_brdf(info["wi"], info["wo"], beta=beta,
-                                                 alpha_n=rn ** 2, alpha_w=rw ** 2,
-                                                 eta=IOR, kappa=EXTINCTION)
-    cos_d = float(analytic.half_vector(info["wi"], info["wo"]) @ info["wi"])
-    assert _relative_error(img, ref) < _tolerance(cos_d)
+
+    def brdf(wi, wo, fresnel):
+        return analytic.two_lobe_brdf(wi, wo, beta=beta, alpha_n=rn ** 2, alpha_w=rw ** 2,
+                                      eta=IOR, kappa=EXTINCTION, fresnel=fresnel)
+
+    _check_plane(img, info, brdf, 1.0)
+
+
+@pytest.mark.skipif(os.environ.get("HAZY_GLOSS_EEVEE", "") in ("", "0"),
+                    reason="EEVEE compiles shaders on its first render (10-40 s headless); "
+                           "set HAZY_GLOSS_EEVEE=1 to run")
+def test_eevee_plane_close_to_analytic(clean_file):
+    """EEVEE renders headless; it is not exact (LTC lights, split-sum, approximate conductor
+    Fresnel, half-float EXR): measured 1.5% above the analytic here in 4.5 and 5.0."""
+    scene = scenes.eevee_setup(samples=1, resolution=(16, 16))
+    assert scene.render.engine == scenes.eevee_engine_id()
+    mat = scenes.metallic_material(roughness=0.3, ior=IOR, extinction=EXTINCTION)
+    info = scenes.flat_plane_scene(mat, light_dir=(30.0, 0.0))
+    img = scenes.render_exr()
+    ref = info["wi"][2] * analytic.microfacet_brdf(info["wi"], info["wo"], 0.09, eta=IOR,
+                                                   kappa=EXTINCTION)
+    assert _relative_error(img, ref) < 0.1
