@@ -83,7 +83,8 @@ def test_peak_invariance(api, case, anisotropy, shader_mapping):
 # --------------------------------------------------------------------------------------------
 # Analytic agreement with an independent evaluation of Eq. 1
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("case", ["conductor", "conductor_aniso", "dielectric", "legacy", "beckmann"])
+@pytest.mark.parametrize("case", ["conductor", "conductor_aniso", "dielectric", "dielectric_aniso",
+                                  "legacy", "legacy_aniso", "beckmann", "clamped_wide"])
 def test_analytic_agreement(api, hg, case):
     core = importlib.import_module(hg.__name__ + ".core")
     conv = importlib.import_module(hg.__name__ + ".utils.conventions")
@@ -96,6 +97,13 @@ def test_analytic_agreement(api, hg, case):
         dist = "BECKMANN"
     elif case == "dielectric":
         params.update(kind="DIELECTRIC", core_reflectivity=0.05, haziness=0.08)
+    elif case == "dielectric_aniso":  # Principled: same anisotropy convention as Metallic
+        params.update(kind="DIELECTRIC", core_reflectivity=0.05, haziness=0.08, anisotropy=0.5,
+                      haze_extent=(2.0, 7.0), rotation=0.1)
+    elif case == "legacy_aniso":  # Glossy: the opposite anisotropy convention
+        params.update(CASES["legacy"], anisotropy=0.8, haze_extent=(7.0, 2.0))
+    elif case == "clamped_wide":  # α_w hits Cycles' α <= 1 and the 10:1 aspect limit
+        params.update(CASES["conductor"], roughness=0.5, anisotropy=0.3, haze_extent=(30.0, 1.0))
     else:
         params.update(CASES[case])
     mat = api.create_material("analytic", **params)
@@ -104,16 +112,20 @@ def test_analytic_agreement(api, hg, case):
     alpha_n = tuple(float(a) for a in conv.alpha_from_roughness(p["roughness"], p["anisotropy"]))
     alpha_w = tuple(float(np.asarray(a)) for a in m.alpha_wide)
     worst = 0.0
-    exact_fresnel = case == "legacy" or case == "dielectric" or bpy.app.version >= (5, 0, 0)
+    exact_fresnel = not case.startswith(("conductor", "beckmann", "clamped")) or bpy.app.version >= (5, 0, 0)
     for theta, phi in [(0.0, 0.0), (10.0, 0.0), (25.0, 30.0), (40.0, 90.0), (60.0, 200.0)]:
         px, setup = render_plane(mat, light=(theta, phi), strength=1.0)
         wi, wo = setup["wi"], setup["wo"]
+        if p["rotation"]:  # express the directions in the rotated tangent frame
+            c, s_ = math.cos(2 * math.pi * p["rotation"]), math.sin(2 * math.pi * p["rotation"])
+            rot = np.array([[c, s_, 0.0], [-s_, c, 0.0], [0.0, 0.0, 1.0]])
+            wi, wo = rot @ wi, rot @ wo
         beta = float(m.beta)
-        if case == "legacy":
+        if case.startswith("legacy"):
             fn = analytic.microfacet_lobe(wi, wo, *alpha_n, distribution=dist)
             fw = analytic.microfacet_lobe(wi, wo, *alpha_w, distribution=dist)
             f = np.asarray(m.weight_narrow) * fn + np.asarray(m.weight_wide) * fw
-        elif case == "dielectric":
+        elif case.startswith("dielectric"):
             eta = float(m.dielectric_ior)
             f = analytic.two_lobe_brdf(wi, wo, beta=beta, alpha_n=alpha_n, alpha_w=alpha_w,
                                        eta=(eta,) * 3, kappa=(0.0,) * 3, distribution=dist)
