@@ -3,7 +3,7 @@
 import importlib
 
 # Order matters: properties before the operators and panels that use them.
-_MODULE_NAMES = ("properties", "operators", "convert", "panels", "menus")
+_MODULE_NAMES = ("properties", "operators", "convert", "composite_ops", "panels", "menus")
 
 _modules = []
 

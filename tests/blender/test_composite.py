@@ -1,0 +1,359 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Issue 7: edit haziness after the render (paper §4.3, Eq. 10-11).
+
+One scene: a hazy conductor sphere (lean tree), a hazy dielectric sphere with a diffuse base
+(in-shader mapping), a non-hazy diffuse sphere and a non-hazy ground plane, a delta sun.
+
+- exact: black world, no bounces.  Every sample is deterministic given the seed, so the four
+  layers line up sample for sample: recomposite == direct render to float precision, at the
+  edited haziness and at the original one, edge pixels included (Blackman-Harris filter).
+- noisy: a small environment and 2 bounces.  Sampling differs between the layers (different
+  closures at the camera hit), so agreement is at noise level: measured against the seed-to-seed
+  difference of two direct renders.
+- the compositor group "Hazy Gloss Recomposite" run headless (Image nodes on the saved EXR, no
+  scene render) == the numpy recomposite.
+- the operators: setup, idempotence, clear.
+"""
+import importlib
+import json
+import os
+import time
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+
+OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
+RES = (64, 48)
+ORIGINAL = dict(conductor=0.3, dielectric=0.05)
+EDITED = 0.7  # β_h for every hazy pixel after the edit
+
+
+def record(name, data):
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{name}.json"
+    old = json.loads(path.read_text()) if path.exists() else {}
+    old.setdefault(f"blender {bpy.app.version_string}", {}).update(data)
+    path.write_text(json.dumps(old, indent=1, default=float))
+
+
+@pytest.fixture
+def mods(hg, clean_file):
+    api = importlib.import_module(hg.__name__ + ".api")
+    comp = importlib.import_module(hg.__name__ + ".composite")
+    return api, comp
+
+
+def _sphere(name, location, material, radius=0.5):
+    obj = bpy.data.objects.new(name, bpy.data.meshes.new(name))
+    bpy.context.scene.collection.objects.link(obj)
+    obj.location = location
+    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    pts = ng.nodes.new("GeometryNodePoints")
+    pts.inputs["Count"].default_value = 1
+    pts.inputs["Radius"].default_value = radius
+    setm = ng.nodes.new("GeometryNodeSetMaterial")
+    setm.inputs["Material"].default_value = material
+    out = ng.nodes.new("NodeGroupOutput")
+    ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
+    ng.links.new(setm.outputs[0], out.inputs[0])
+    obj.modifiers.new("points", "NODES").node_group = ng
+    obj.data.materials.append(material)
+    return obj
+
+
+def _diffuse(name, colour):
+    mat = scenes.new_material(name)
+    bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    mat.node_tree.nodes.remove(bsdf)
+    d = mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*colour, 1.0)
+    out = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(d.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def build_scene(api, *, samples, bounces, world=0.0, res=RES, spread=0.62):
+    """The test scene; returns the hazy materials {"conductor": mat, "dielectric": mat}."""
+    scene = scenes.setup_render(samples=samples, resolution=res, bounces=bounces, seed=3)
+    scene.cycles.pixel_filter_type = "BLACKMAN_HARRIS"
+    scene.cycles.filter_width = 1.5  # anti-aliased edges: tests the mask normalisation
+    if world:
+        scenes.uniform_world(world, color=(0.6, 0.75, 1.0))
+    mats = {
+        "conductor": api.create_material("HG Test Conductor", kind="CONDUCTOR",
+                                         core_reflectivity=(0.9, 0.6, 0.3), edge_tint=(1.0, 0.8, 0.5),
+                                         roughness=0.15, haziness=ORIGINAL["conductor"],
+                                         haze_extent=6.0),
+        "dielectric": api.create_material("HG Test Dielectric", kind="DIELECTRIC",
+                                          core_reflectivity=0.04, roughness=0.12,
+                                          haziness=ORIGINAL["dielectric"], haze_extent=8.0,
+                                          base_color=(0.05, 0.2, 0.08), shader_mapping=True),
+    }
+    _sphere("Conductor", (-spread, 0.0, 0.5), mats["conductor"])
+    _sphere("Dielectric", (spread, 0.0, 0.5), mats["dielectric"])
+    _sphere("Plain", (0.0, 1.0, 0.3), _diffuse("Plain Diffuse", (0.7, 0.2, 0.2)), radius=0.3)
+    plane = bpy.data.objects.new("Ground", scenes._plane_mesh("Ground", 8.0))
+    scene.collection.objects.link(plane)
+    plane.data.materials.append(_diffuse("Ground Diffuse", (0.5, 0.5, 0.5)))
+    cam_data = bpy.data.cameras.new("Cam")
+    cam_data.lens = 40
+    cam = bpy.data.objects.new("Cam", cam_data)
+    scene.collection.objects.link(cam)
+    cam.location = (0.0, -4.0, 1.6)
+    cam.rotation_euler = (np.radians(72.0), 0.0, 0.0)
+    scene.camera = cam
+    scenes._sun(scenes.spherical_direction(40.0, -120.0), 3.0)
+    return mats
+
+
+def direct_render(scene, comp):
+    """The ordinary render of the recomposite-mode materials (template layer only)."""
+    layers = {vl.name: vl.use for vl in scene.view_layers}
+    compositing = scene.render.use_compositing
+    try:
+        for vl in scene.view_layers:
+            vl.use = vl.name not in comp.LAYERS
+        scene.render.use_compositing = False
+        return scenes.render_exr()
+    finally:
+        for vl in scene.view_layers:
+            vl.use = layers[vl.name]
+        scene.render.use_compositing = compositing
+        comp._set_multilayer_exr(scene)
+
+
+def passes_render(scene, comp, tmp_path, name="passes"):
+    path = str(tmp_path / f"{name}.exr")
+    scene.render.filepath = path
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return comp.passes_from_exr(path), time.perf_counter() - t0, path
+
+
+def set_haziness(api, comp, mats, value):
+    """A direct render at another haziness: rebuild the material, back to recomposite mode."""
+    for kind, mat in mats.items():
+        api.update_material(mat, haziness=value if np.isscalar(value) else value[kind])
+        comp.convert_material(mat)
+
+
+def _hazy(passes):
+    return passes["mask"] > 0
+
+
+# --------------------------------------------------------------------------------------------
+# exact: delta sun, black world, no bounces
+# --------------------------------------------------------------------------------------------
+def test_recomposite_exact(mods, tmp_path):
+    api, comp = mods
+    scene = bpy.context.scene
+    mats = build_scene(api, samples=4, bounces=0)
+    report = comp.setup_recomposite(scene)
+    assert sorted(report["converted"]) == sorted(m.name for m in mats.values()), report
+    passes, _, _ = passes_render(scene, comp, tmp_path)
+    hazy = _hazy(passes)
+    assert hazy.sum() > 300 and (~hazy).sum() > 1000
+
+    original = direct_render(scene, comp)
+    same = comp.recomposite(passes)  # nothing edited
+    err_same = np.abs(same - original).max()
+
+    set_haziness(api, comp, mats, EDITED)
+    edited_direct = direct_render(scene, comp)
+    edited = comp.recomposite(passes, haziness=EDITED)
+    err_edit = np.abs(edited - edited_direct).max()
+    scale = edited_direct[..., :3].max()
+    change = np.abs(edited_direct - original)[hazy].max()
+    # non-hazy pixels are untouched: exactly the first buffer, and the direct render
+    nonhazy = np.abs(edited - original)[~hazy].max()
+    record("recomposite", {"exact scene: max |recomposite - direct| (edited)": err_edit,
+                           "exact scene: max |recomposite - direct| (unchanged)": err_same,
+                           "exact scene: peak pixel": scale, "exact scene: haziness change": change})
+    assert change > 0.05 * scale  # the edit is visible
+    assert err_edit <= 2e-5 * scale, err_edit
+    assert err_same <= 2e-5 * scale, err_same
+    assert nonhazy <= 2e-5 * scale, nonhazy
+
+
+# --------------------------------------------------------------------------------------------
+# noisy: environment light.  bounces=0: the only difference is sampling.  bounces=2: hazy
+# objects also see each other, and Eq. 11 only re-weights what the camera sees directly — the
+# reflection of the dielectric in the conductor keeps its original haziness (a real limit).
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bounces", [0, 2])
+def test_recomposite_noise_level(mods, tmp_path, bounces):
+    api, comp = mods
+    scene = bpy.context.scene
+    mats = build_scene(api, samples=32, bounces=bounces, world=0.4)
+    comp.setup_recomposite(scene)
+    t0 = time.perf_counter()
+    original = direct_render(scene, comp)
+    t_direct = time.perf_counter() - t0
+    passes, t_passes, _ = passes_render(scene, comp, tmp_path)
+    hazy = _hazy(passes)
+
+    same = comp.recomposite(passes)
+    set_haziness(api, comp, mats, EDITED)
+    edited_direct = direct_render(scene, comp)
+    scene.cycles.seed = 4
+    edited_direct_2 = direct_render(scene, comp)
+    edited = comp.recomposite(passes, haziness=EDITED)
+
+    def rms(a, b, m):
+        """rms difference after x/(1+x) tone mapping: the sun's sub-pixel highlight (pixel
+        values up to ~25, anti-aliasing noise of ±50%) would otherwise be the whole figure."""
+        ta, tb = (x[..., :3] / (1.0 + x[..., :3]) for x in (a, b))
+        return float(np.sqrt(np.mean((ta - tb)[m] ** 2)))
+
+    noise = rms(edited_direct, edited_direct_2, hazy)  # two independent renders, same settings
+    err_edit = rms(edited, edited_direct, hazy)
+    err_same = rms(same, original, hazy)
+    w = hazy.shape[1]
+    left = hazy & (np.arange(w) < w // 2)[None, :]  # the conductor sphere
+    right = hazy & (np.arange(w) >= w // 2)[None, :]  # the dielectric sphere
+    bias = {name: float(np.mean(edited[..., :3][m]) / np.mean(edited_direct[..., :3][m]) - 1)
+            for name, m in (("conductor", left), ("dielectric", right))}
+    seed_bias = {name: float(np.mean(edited_direct_2[..., :3][m]) / np.mean(edited_direct[..., :3][m]) - 1)
+                 for name, m in (("conductor", left), ("dielectric", right))}
+    change = rms(edited_direct, original, hazy)
+    nonhazy_same = np.abs(same - original)[~hazy].max()
+    key = f"environment, {bounces} bounces, 32 spp (rms of x/(1+x))"
+    record("recomposite", {
+        f"{key}: rms recomposite - direct (edited), hazy pixels": err_edit,
+        f"{key}: rms recomposite - direct (unchanged), hazy pixels": err_same,
+        f"{key}: rms direct seed 3 - seed 4 (noise level)": noise,
+        f"{key}: rms change of the edit": change,
+        f"{key}: relative mean difference recomposite/direct - 1": bias,
+        f"{key}: relative mean difference seed 4/seed 3 - 1": seed_bias,
+        f"{key}: max |recomposite - direct| non-hazy (unchanged)": nonhazy_same,
+        f"{key}: render time direct s": t_direct,
+        f"{key}: render time original + 4 layers s": t_passes})
+    assert change > 2 * noise  # the edit is larger than the noise
+    assert err_same <= 1e-6, err_same  # unedited = the original layer, bit for bit
+    # non-hazy pixels of the unedited recomposite are the original render's, exactly: their
+    # paths never meet the per-layer switch (it acts on camera rays at hazy surfaces only)
+    assert nonhazy_same <= 1e-5, nonhazy_same
+    if bounces == 0:
+        # the layers' sampling mostly lines up with the direct render: far below the noise
+        assert err_edit <= 0.2 * noise, (err_edit, noise)
+        assert max(abs(b) for b in bias.values()) <= 0.005, bias
+    else:
+        # inter-reflections keep the original haziness: a bias of a few percent, measured
+        assert err_edit <= noise, (err_edit, noise)
+        assert max(abs(b) for b in bias.values()) <= 0.08, bias
+
+
+# --------------------------------------------------------------------------------------------
+# compositor group == numpy
+# --------------------------------------------------------------------------------------------
+def test_compositor_group_matches_numpy(mods, tmp_path):
+    api, comp = mods
+    scene = bpy.context.scene
+    mats = build_scene(api, samples=4, bounces=0)
+    comp.setup_recomposite(scene)
+    passes, _, path = passes_render(scene, comp, tmp_path)
+    hazy = _hazy(passes)
+    # a haziness map and a core-reflectivity edit limited by a mask: left half only
+    h, w = hazy.shape
+    left = np.zeros((h, w), np.float32)
+    left[:, : w // 2] = 1.0
+    expected = comp.recomposite(passes, haziness=0.85, core_reflectivity=(0.4, 0.7, 0.9),
+                                core_reflectivity_factor=left)
+
+    group = comp.build_compositor(scene, source=path, haziness=0.85,
+                                  core_reflectivity=(0.4, 0.7, 0.9))
+    tree = group.id_data
+    mask_img = bpy.data.images.new("HG left", w, h, float_buffer=True, is_data=True)
+    buf = np.repeat(left[..., None], 4, axis=-1).astype(np.float32)
+    mask_img.pixels.foreach_set(buf.ravel())
+    mask_img.pack()
+    mask_node = tree.nodes.new("CompositorNodeImage")
+    mask_node.image = mask_img
+    mask_node.name = "HG RC Test Mask"
+    tree.links.new(mask_node.outputs["Alpha"], group.inputs["Core Reflectivity Factor"])
+    t0 = time.perf_counter()
+    got = scenes.render_exr()  # no Render Layers node: the compositor runs, the scene does not
+    t_comp = time.perf_counter() - t0
+    err = np.abs(got - expected).max()
+    scale = expected[..., :3].max()
+    record("recomposite", {"compositor vs numpy max abs": err, "compositor time s": t_comp})
+    assert np.abs(expected - comp.recomposite(passes))[hazy].max() > 0.05 * scale
+    assert err <= 1e-5 * max(scale, 1.0), err
+    del mats
+
+
+# --------------------------------------------------------------------------------------------
+# operators and bookkeeping
+# --------------------------------------------------------------------------------------------
+def test_operators_setup_and_clear(mods):
+    api, comp = mods
+    scene = bpy.context.scene
+    mats = build_scene(api, samples=1, bounces=0)
+    legacy_as = api.create_material("HG Test AS", kind="LEGACY", distribution="ASHIKHMIN_SHIRLEY")
+    _sphere("AS", (0.0, -1.0, 0.3), legacy_as, radius=0.2)
+    surface_before = {m.name: m.node_tree.nodes["Material Output"].inputs["Surface"].links[0].from_node.name
+                      for m in (*mats.values(), legacy_as)}
+    n_layers = len(scene.view_layers)
+    file_format = scene.render.image_settings.file_format
+    assert bpy.ops.hazy_gloss.setup_recomposite() == {"FINISHED"}
+    assert bpy.ops.hazy_gloss.setup_recomposite() == {"FINISHED"}  # idempotent
+    names = [vl.name for vl in scene.view_layers]
+    assert names.count("HG Narrow Delta") == 1 and len(names) == n_layers + 4
+    assert scene.view_layers[0].use  # the original render stays: V0 of the recomposite
+    held = {o.name for o in bpy.data.collections[comp.HOLDOUT_COLLECTION].objects}
+    # non-hazy objects only; the skipped hazy material (AS) stays visible in every layer, where
+    # it cancels exactly (Σ of the weight differences is 0)
+    assert held == {"Plain", "Ground"}, held
+    assert all(scene.view_layers[n].layer_collection.children[comp.HOLDOUT_COLLECTION].holdout
+               for n in comp.LAYERS)
+    assert not scene.view_layers[0].layer_collection.children[comp.HOLDOUT_COLLECTION].holdout
+    assert {a.name for a in scene.view_layers["HG Narrow Delta"].aovs} == {a for a, _, _ in comp.AOVS}
+    assert scene.render.image_settings.file_format == "OPEN_EXR_MULTILAYER"
+    for m in mats.values():
+        assert comp.is_recomposite_material(m)
+        link = m.node_tree.nodes["Material Output"].inputs["Surface"].links[0]
+        assert link.from_node.name.startswith("HG RC")
+        lobes = [n for n in m.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfMetallic"
+                 and n.name.startswith("HG RC")]
+        assert len(lobes) == 2 and all(n.fresnel_type == "F82" for n in lobes)
+    assert not comp.is_recomposite_material(legacy_as)  # skipped: rendered as non-hazy
+    assert bpy.data.node_groups.get(comp.GROUP_NAME) is not None
+
+    assert bpy.ops.hazy_gloss.clear_recomposite() == {"FINISHED"}
+    assert len(scene.view_layers) == n_layers and scene.view_layers[0].use
+    assert comp.HOLDOUT_COLLECTION not in bpy.data.collections
+    for m in (*mats.values(), legacy_as):
+        assert not comp.is_recomposite_material(m)
+        assert not any(n.name.startswith("HG RC") for n in m.node_tree.nodes)
+        link = m.node_tree.nodes["Material Output"].inputs["Surface"].links[0]
+        assert link.from_node.name == surface_before[m.name]
+    assert scene.render.image_settings.file_format == file_format
+
+
+def test_exr_reader_codecs(mods, tmp_path):
+    """The bpy-free reader against Blender's own loader, for every codec it supports."""
+    _, comp = mods
+    scenes.setup_render(samples=1, resolution=(23, 37), bounces=0)
+    img = bpy.data.images.new("HG ramp", 23, 37, float_buffer=True)
+    rng = np.random.default_rng(1)
+    buf = rng.random((37, 23, 4), dtype=np.float32) * 4.0
+    img.pixels.foreach_set(buf.ravel())
+    for codec in ("NONE", "ZIP", "ZIPS", "RLE"):
+        s = bpy.context.scene.render.image_settings
+        if hasattr(s, "media_type"):
+            s.media_type = "IMAGE"
+        s.file_format = "OPEN_EXR"
+        s.color_depth = "32"
+        s.color_mode = "RGBA"
+        s.exr_codec = codec
+        path = str(tmp_path / f"ramp_{codec}.exr")
+        img.save_render(path, scene=bpy.context.scene)
+        ch = comp.read_exr(path)
+        got = np.stack([ch[k] for k in ("R", "G", "B", "A")], axis=-1)
+        assert np.array_equal(got, buf), codec
+    os.remove(path)
