@@ -265,3 +265,21 @@ def update_material(mat, **changes):
 
 __all__ = ("create_material", "update_material", "read_parameters", "is_hazy", "map_parameters",
            "KINDS")
+
+
+def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
+                 file_format="OPEN_EXR", **options):
+    """Batch-convert perceptual maps into physical maps (paper §2.4); docs/textures.md.
+
+    ``inputs`` maps parameter names (core_reflectivity, edge_tint, roughness or alpha, anisotropy,
+    rotation, haziness, haze_extent or haze_extent_x + haze_extent_y) to an image path (``<UDIM>``
+    token for tile sets), a ``bpy.types.Image``, or a constant; missing ones take the defaults of
+    create_material.  Writes float OpenEXR (or 16-bit PNG) physical maps into ``out_dir``
+    atomically and returns ``{map name: path}`` with ``.report`` (texels, clamped texels per
+    reason and parameter, seconds, warnings).  Options: resample=False, prefix="",
+    exr_codec="ZIP", material=None (wire the maps into that material's lean tree),
+    interpolation="Linear", progress=None (callable(done, total, message)).
+    Bad input raises hazy_gloss.convert.ConversionError (a ValueError) with a one-line message."""
+    from .blender import convert as _convert
+    return _convert.convert_maps(inputs, out_dir, kind=kind, smoothness=smoothness,
+                                 distribution=distribution, file_format=file_format, **options)

@@ -1,0 +1,121 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Command line: ``python -m hazy_gloss convert ...`` (on the ``bpy`` module) or, inside Blender,
+``blender -b --python-expr "import sys; from bl_ext.user_default.hazy_gloss.__main__ import main;
+sys.exit(main(['convert', ...]))"``.  See docs/textures.md.
+
+Exit status: 0 success; 2 bad input or usage (one line ``hazy_gloss convert: error: <reason>``
+on stderr: missing file, mismatched sizes, bad kind...); 3 bpy is not importable.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+#: (parameter name, flag) of the map/constant inputs.
+INPUT_FLAGS = (
+    ("core_reflectivity", "--core-reflectivity"),
+    ("edge_tint", "--edge-tint"),
+    ("roughness", "--roughness"),
+    ("alpha", "--alpha"),
+    ("anisotropy", "--anisotropy"),
+    ("rotation", "--rotation"),
+    ("haziness", "--haziness"),
+    ("haze_extent", "--haze-extent"),
+    ("haze_extent_x", "--haze-extent-x"),
+    ("haze_extent_y", "--haze-extent-y"),
+)
+PROG = "hazy_gloss convert"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, no usage block
+        self.exit(2, f"{PROG}: error: {message}\n")
+
+
+def parse_value(text):
+    """A constant ("0.5", "0.9,0.6,0.3") or a path (anything else, or an existing file)."""
+    if os.path.exists(text):
+        return text
+    try:
+        nums = [float(p) for p in text.split(",")]
+    except ValueError:
+        return text
+    return nums[0] if len(nums) == 1 else tuple(nums)
+
+
+def build_parser():
+    parser = _Parser(prog="python -m hazy_gloss",
+                     description="Hazy Gloss command line tools (run on the bpy module or "
+                                 "inside Blender).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    conv = sub.add_parser(
+        "convert", help="convert perceptual maps into physical maps",
+        description="Convert perceptual hazy-gloss maps into physical maps (float OpenEXR by "
+                    "default).  Each input is an image path (use <UDIM> for tile sets) or a "
+                    "constant: a number, or r,g,b for colours.  Missing inputs take the "
+                    "defaults of api.create_material.")
+    for name, flag in INPUT_FLAGS:
+        conv.add_argument(flag, dest=name, metavar="PATH|VALUE", default=None)
+    conv.add_argument("--kind", default="CONDUCTOR", type=str.upper,
+                      help="CONDUCTOR (default), DIELECTRIC or LEGACY")
+    conv.add_argument("--distribution", default="GGX", type=str.upper,
+                      help="GGX (default), BECKMANN, MULTI_GGX, ASHIKHMIN_SHIRLEY (legacy)")
+    conv.add_argument("--smoothness", type=float, default=None,
+                      help="Bézier weight w (Eqs. 12-15); default: Eq. 7")
+    conv.add_argument("--format", dest="file_format", default="OPEN_EXR", type=str.upper,
+                      help="OPEN_EXR (default, 32-bit float) or PNG (16-bit, encoded)")
+    conv.add_argument("--exr-codec", default="ZIP", help="EXR codec (default ZIP, lossless)")
+    conv.add_argument("--prefix", default="", help="prefix of the output file names")
+    conv.add_argument("--resample", action="store_true",
+                      help="resample inputs of other sizes to the largest (bilinear)")
+    conv.add_argument("--out", required=True, help="output folder (created if needed)")
+    conv.add_argument("--json", action="store_true", help="print the report as JSON")
+    conv.add_argument("--quiet", action="store_true", help="print nothing on success")
+    return parser
+
+
+def _convert(args):
+    inputs = {name: parse_value(getattr(args, name)) for name, _ in INPUT_FLAGS
+              if getattr(args, name) is not None}
+    try:
+        import bpy  # noqa: F401  (the conversion reads and writes images through Blender)
+    except ImportError as exc:
+        print(f"{PROG}: error: bpy is not importable ({exc}); install the bpy module or run "
+              "inside Blender", file=sys.stderr)
+        return 3
+    from . import api
+    from .convert import ConversionError
+    try:
+        result = api.convert_maps(inputs, os.path.abspath(args.out), kind=args.kind,
+                                  smoothness=args.smoothness, distribution=args.distribution,
+                                  file_format=args.file_format, resample=args.resample,
+                                  prefix=args.prefix, exr_codec=args.exr_codec)
+    except ConversionError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    rep = result.report
+    if args.json:
+        print(json.dumps({"maps": dict(result), "texels": rep.texels, "size": list(rep.size),
+                          "tiles": rep.tiles, "seconds": rep.seconds, "clamped": rep.clamped,
+                          "clamped_by_parameter": rep.clamped_by_parameter,
+                          "warnings": rep.warnings}, indent=1))
+    elif not args.quiet:
+        print(rep.summary(len(result)))
+        for w in rep.warnings:
+            print(f"warning: {w}")
+        for name, path in result.items():
+            print(f"{name}: {path}")
+    return 0
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    if args.command == "convert":
+        return _convert(args)
+    return 2  # pragma: no cover (argparse requires a command)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
