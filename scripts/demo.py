@@ -1,8 +1,12 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Demo: the haze mapping of Barla, Pacanowski & Vangorp 2018 on the paper's Table 3 materials.
+"""Demo (the README's main job): renders the gallery with Cycles (scripts/gallery.py: the paper's
+Figure 3 rows and the Table 3 materials on spheres) to out/gallery.png, after printing the haze
+mapping of the Table 3 materials.
 
-Prints the physical parameters of Eq. 1 that the perceptual parameters map to:
+    .venv/bin/python scripts/demo.py [--no-render] [gallery options, e.g. --samples 16]
+
+The printed table gives the physical parameters of Eq. 1 that the perceptual parameters map to:
 β (wide-lobe ratio), r (reflectivity F(0), RGB), η and κ (conductor Fresnel, RGB), α_w (wide
 roughness, x/y), p (peak ratio f_w(n,n)/f_n(n,n)) and k̂_h (halo intensity).  bpy-free.
 
@@ -68,3 +72,7 @@ def main():
 
 if __name__ == "__main__":
     main()
+    if "--no-render" not in sys.argv:
+        import gallery  # scripts/ is on sys.path when run as a script
+
+        gallery.main([a for a in sys.argv[1:] if a != "--no-render"])
