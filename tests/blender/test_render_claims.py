@@ -2,7 +2,7 @@
 """Real Cycles renders that prove the paper's claims for the add-on's materials.
 
 Scene: a flat plane, orthographic camera along the normal, a delta sun (angle 0), black world,
-box filter of 0.01 px, denoising off — each pixel is Strength * f_r(wi, wo) * cos θi exactly.
+Gaussian pixel filter of 0.01 px (samples at the pixel centre), denoising off — each pixel is Strength * f_r(wi, wo) * cos θi exactly.
 The analytic reference is tests/blender/analytic.py (an independent numpy evaluation of Eq. 1);
 the physical parameters it is given come from hazy_gloss.core (the code under test maps, the
 analytic side evaluates the BRDF).
