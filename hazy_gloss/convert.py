@@ -22,6 +22,8 @@ the bottom row); nothing here depends on the order.
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,6 +48,7 @@ __all__ = (
     "encode_png",
     "decode_png",
     "srgb_to_linear",
+    "srgb_bytes_to_linear",
     "linear_to_srgb",
     "resample_bilinear",
     "check_sizes",
@@ -251,6 +254,21 @@ def srgb_to_linear(x):
     return out.astype(np.float32)
 
 
+def srgb_bytes_to_linear(x):
+    """:func:`srgb_to_linear` of the float values Blender gives for an 8-bit image (k/255 as
+    float32), through a 256-entry table: identical results, float32 memory only (the general
+    function's float64 temporaries would take ~8x the image for a 4K map)."""
+    x = np.asarray(x, dtype=np.float32)
+    k = np.arange(256, dtype=np.float32) * np.float32(1 / 255)  # Blender's byte -> float
+    lut = srgb_to_linear(k)
+    idx = np.rint(x * np.float32(255))
+    np.clip(idx, 0, 255, out=idx)
+    idx = idx.astype(np.uint8)
+    if not np.array_equal(np.take(k, idx), x):
+        return srgb_to_linear(x)  # not 8-bit values: the general (exact) path
+    return np.take(lut, idx)
+
+
 def linear_to_srgb(x):
     """Inverse of :func:`srgb_to_linear` (recovers the file values of a float image Blender
     decoded from sRGB)."""
@@ -426,7 +444,7 @@ def _add_counts(total, new):
 
 
 def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=None,
-                 tile_texels=1 << 20, alpha_given=False):
+                 tile_texels=1 << 18, alpha_given=False, anisotropic=None, threads=None):
     """Perceptual maps -> physical maps for the lean node tree.
 
     ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked
@@ -436,6 +454,10 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
     haze_mapping(..., alpha_max=1, max_aspect=10) in float32, then the wide lobe's roughness,
     anisotropy and rotation in the node convention (lobe_from_alpha, metallic/glossy_anisotropy).
     Bad texels are clamped and counted in ``clamped`` (reason -> texels).
+    Tiles of ``tile_texels`` texels run on ``threads`` threads (default: one per CPU, at most 8);
+    the result does not depend on either (every operation is per texel).
+    ``anisotropic``: None decides from the data (any anisotropy > 0 or λ_x != λ_y); True forces
+    the anisotropic map set (UDIM tiles of one set must agree).
     """
     kind = str(kind).upper()
     distribution = str(distribution).upper()
@@ -476,14 +498,16 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
 
     aniso_in = clean["anisotropy"]
     lx_in, ly_in = clean["haze_extent_x"], clean["haze_extent_y"]
-    anisotropic = bool(np.any(aniso_in > 0)) or (
+    anisotropic = bool(anisotropic) or bool(np.any(aniso_in > 0)) or (
         lx_in is not ly_in and bool(np.any(lx_in != ly_in)))
     specs = output_specs(kind, anisotropic)
     maps = {s.name: np.empty((h, w, 3) if s.channels == 3 else (h, w), np.float32) for s in specs}
 
     r_min = np.float32(min_roughness(distribution))
     rows = max(1, int(tile_texels) // max(w, 1))
-    for r0 in range(0, h, rows):
+
+    def run_tile(r0):
+        """Map rows r0 .. r0 + rows into the preallocated outputs; returns its clamp counts."""
         r1 = min(h, r0 + rows)
 
         def tile(name):
@@ -494,12 +518,12 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
         aniso = tile("anisotropy")
         ax64, ay64 = alpha_from_roughness(rough, aniso)
         ax, ay = ax64.astype(np.float32), ay64.astype(np.float32)
+        del ax64, ay64
         lx = tile("haze_extent_x")
         ly = lx if clean["haze_extent_y"] is clean["haze_extent_x"] else tile("haze_extent_y")
         m = haze_mapping(tile("core_reflectivity"), tile("edge_tint"), (ax, ay), tile("haziness"),
                          (lx, ly), distribution=distribution, smoothness=smoothness,
                          alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT, strict=False)
-        _add_counts(clamped, m.clamped)
         sl = np.s_[r0:r1]
         shape = (r1 - r0, w)
         maps["beta"][sl] = np.broadcast_to(m.beta, shape)
@@ -532,6 +556,17 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
         else:
             maps["weight_narrow"][sl] = np.broadcast_to(m.weight_narrow, shape + (3,))
             maps["weight_wide"][sl] = np.broadcast_to(m.weight_wide, shape + (3,))
+        return m.clamped
+
+    starts = list(range(0, h, rows))
+    workers = max(1, min(int(threads or os.cpu_count() or 1), len(starts), 8))
+    if workers == 1:
+        counts = [run_tile(r0) for r0 in starts]
+    else:  # numpy releases the GIL in its loops; tiles write disjoint rows
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            counts = list(pool.map(run_tile, starts))
+    for c in counts:  # in tile order: the report does not depend on the thread schedule
+        _add_counts(clamped, c)
     return MappedMaps(maps=maps, specs=specs, anisotropic=anisotropic, texels=h * w,
                       clamped=clamped)
 

@@ -159,7 +159,7 @@ def _decode_colour(values, img, label, warnings):
             warnings.append(f"{label}: colour map tagged Non-Color; its values are used as linear")
         return values
     if cs.name == "sRGB":
-        return core.srgb_to_linear(values)
+        return core.srgb_bytes_to_linear(values)
     if cs.is_data or cs.name == "Non-Color":
         warnings.append(f"{label}: colour map tagged Non-Color; its values are used as linear")
         return values
@@ -320,7 +320,7 @@ def resolve_out_dir(out_dir):
 
 def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
                  file_format="OPEN_EXR", resample=False, prefix="", exr_codec="ZIP",
-                 material=None, interpolation="Linear", progress=None, tile_texels=1 << 20):
+                 material=None, interpolation="Linear", progress=None, tile_texels=1 << 18):
     """Convert perceptual maps to physical maps; see hazy_gloss.api.convert_maps."""
     t0 = time.perf_counter()
     file_format = str(file_format).upper()
@@ -361,72 +361,92 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
         if progress is not None:
             progress(min(done[0], total), total, message)
 
-    paths = {}
-    out_specs = None
     writer = _Writer(file_format, exr_codec)
     try:
-        for tile in jobs:
-            arrays = {}
-            sizes = []
-            for name, spec in specs.items():
-                if spec.is_constant:
-                    arrays[name] = spec.source
-            for name, src in sources.items():
-                values = src.read(tile, report.warnings)
-                h, w = values.shape[:2]
-                sizes.append((src.label + (f" tile {tile}" if tile else ""), (w, h), name))
-                arrays[name] = values
-                step(f"read {name}")
-            if shared_extent:
-                arrays["haze_extent_y"] = arrays["haze_extent_x"]
-            target = max((s for _, s, _ in sizes), key=lambda s: s[0] * s[1])
-            if resample:
-                for label, size, name in sizes:
-                    if size != target:
-                        report.warnings.append(f"{label}: resampled from {size[0]}x{size[1]} "
-                                               f"to {target[0]}x{target[1]} (bilinear)")
-                        arrays[name] = core.resample_bilinear(arrays[name], target)
-                if shared_extent:
-                    arrays["haze_extent_y"] = arrays["haze_extent_x"]
-            else:
-                core.check_sizes([(label, size) for label, size, _ in sizes])
-            mapped = core.map_textures(arrays, kind=kind, distribution=distribution,
-                                       smoothness=smoothness, tile_texels=tile_texels,
-                                       alpha_given=specs["roughness"].transform == "sqrt")
-            del arrays
-            step("mapped")
-            if out_specs is None:
-                out_specs = mapped.specs
-                report.size = target
-                report.anisotropic = mapped.anisotropic
-            elif [s.name for s in mapped.specs] != [s.name for s in out_specs]:
-                # one tile anisotropic, another not: write the anisotropic set for every tile
-                raise ConversionError("UDIM tiles differ in anisotropy; convert them separately")
-            report.texels += mapped.texels
-            for k, v in mapped.clamped.items():
-                report.clamped[k] = report.clamped.get(k, 0) + v
-            for spec in mapped.specs:
-                suffix = f".{tile}" if tile else ""
-                path = os.path.join(out_dir, f"{prefix}{spec.name}{suffix}{ext}")
-                if os.path.realpath(path) in input_files:
-                    raise ConversionError(f"output {path} would overwrite an input; choose "
-                                          "another folder or prefix")
-                values = mapped.maps.pop(spec.name)
-                if file_format == "PNG":
-                    values = core.encode_png(spec, values)
-                writer.write(values, path)
-                del values
-                paths[spec.name] = os.path.join(
-                    out_dir, f"{prefix}{spec.name}{'.' + UDIM_TOKEN if tile else ''}{ext}")
-                step(f"wrote {spec.name}")
-            del mapped
+        try:
+            paths, out_specs = _run_jobs(jobs, specs, sources, shared_extent, resample, kind,
+                                         distribution, smoothness, tile_texels, file_format,
+                                         writer, out_dir, prefix, ext, input_files, report,
+                                         step, None)
+        except _AnisotropyChanged:
+            # a later UDIM tile is anisotropic: redo every tile with the anisotropic map set
+            report.texels, report.clamped = 0, {}
+            paths, out_specs = _run_jobs(jobs, specs, sources, shared_extent, resample, kind,
+                                         distribution, smoothness, tile_texels, file_format,
+                                         writer, out_dir, prefix, ext, input_files, report,
+                                         step, True)
     finally:
         writer.close()
+    report.warnings = list(dict.fromkeys(report.warnings))
     report.seconds = time.perf_counter() - t0
     result = core.ConversionResult(paths, report, out_specs)
     if material is not None:
         wire_material(material, result, interpolation=interpolation)
     return result
+
+
+class _AnisotropyChanged(Exception):
+    pass
+
+
+def _run_jobs(jobs, specs, sources, shared_extent, resample, kind, distribution, smoothness,
+              tile_texels, file_format, writer, out_dir, prefix, ext, input_files, report, step,
+              anisotropic):
+    paths = {}
+    out_specs = None
+    for tile in jobs:
+        arrays = {n: s.source for n, s in specs.items() if s.is_constant}
+        sizes = []
+        for name, src in sources.items():
+            values = src.read(tile, report.warnings)
+            h, w = values.shape[:2]
+            sizes.append((src.label + (f" tile {tile}" if tile else ""), (w, h), name))
+            arrays[name] = values
+            step(f"read {name}")
+        if shared_extent:
+            arrays["haze_extent_y"] = arrays["haze_extent_x"]
+        target = max((s for _, s, _ in sizes), key=lambda s: s[0] * s[1])
+        if resample:
+            for label, size, name in sizes:
+                if size != target:
+                    report.warnings.append(f"{label}: resampled from {size[0]}x{size[1]} "
+                                           f"to {target[0]}x{target[1]} (bilinear)")
+                    arrays[name] = core.resample_bilinear(arrays[name], target)
+            if shared_extent:
+                arrays["haze_extent_y"] = arrays["haze_extent_x"]
+        else:
+            core.check_sizes([(label, size) for label, size, _ in sizes])
+        mapped = core.map_textures(arrays, kind=kind, distribution=distribution,
+                                   smoothness=smoothness, tile_texels=tile_texels,
+                                   alpha_given=specs["roughness"].transform == "sqrt",
+                                   anisotropic=anisotropic)
+        del arrays
+        step("mapped")
+        if out_specs is None:
+            out_specs = mapped.specs
+            report.size = target
+            report.anisotropic = mapped.anisotropic
+        elif mapped.anisotropic != report.anisotropic:
+            raise _AnisotropyChanged()
+        report.texels += mapped.texels
+        for k, v in mapped.clamped.items():
+            report.clamped[k] = report.clamped.get(k, 0) + v
+        for spec in mapped.specs:
+            suffix = f".{tile}" if tile else ""
+            path = os.path.join(out_dir, f"{prefix}{spec.name}{suffix}{ext}")
+            if os.path.realpath(path) in input_files:
+                raise ConversionError(f"output {path} would overwrite an input; choose "
+                                      "another folder or prefix")
+            values = mapped.maps.pop(spec.name)
+            if file_format == "PNG":
+                values = core.encode_png(spec, values)
+            writer.write(values, path)
+            del values
+            paths[spec.name] = os.path.join(
+                out_dir, f"{prefix}{spec.name}{'.' + UDIM_TOKEN if tile else ''}{ext}")
+            step(f"wrote {spec.name}")
+        del mapped
+    return paths, out_specs
 
 
 # --------------------------------------------------------------------------------------------

@@ -508,6 +508,21 @@ def test_udim_tiles(api, tmp_path):
     assert sorted(t.number for t in tex.image.tiles) == [1001, 1002, 1011]
 
 
+def test_udim_tiles_agree_in_anisotropy(api, tmp_path):
+    """Tile 1001 isotropic, tile 1002 anisotropic: every tile gets the anisotropic map set."""
+    ext = np.full((N, N), 3.0, np.float32)
+    for t, ey in ((1001, 3.0), (1002, 6.0)):
+        write_exr(tmp_path / f"ex.{t}.exr", ext)
+        write_exr(tmp_path / f"ey.{t}.exr", np.full((N, N), ey, np.float32))
+    res = api.convert_maps({"haze_extent_x": str(tmp_path / "ex.<UDIM>.exr"),
+                            "haze_extent_y": str(tmp_path / "ey.<UDIM>.exr")}, str(tmp_path / "o"))
+    assert res.report.anisotropic and res.report.texels == 2 * N * N
+    for t in (1001, 1002):
+        assert os.path.isfile(res["anisotropy_wide"].replace("<UDIM>", str(t)))
+    a = read_raw(res["anisotropy_wide"].replace("<UDIM>", "1001"))
+    assert np.all(a[..., 0] == 0)  # isotropic tile: wide anisotropy 0
+
+
 # --------------------------------------------------------------------------------------------
 # Wiring, operator, constants shared with the add-on
 # --------------------------------------------------------------------------------------------

@@ -107,8 +107,8 @@ def test_tiling_does_not_change_any_bit():
     rng = np.random.default_rng(3)
     a = _inputs(rng)
     ref = C.map_textures(a, tile_texels=1 << 30)
-    for tile in (1, W, 3 * W + 1, 5 * W):
-        out = C.map_textures(a, tile_texels=tile)
+    for tile, threads in ((1, 1), (W, 2), (3 * W + 1, 3), (5 * W, 1), (5 * W, 4)):
+        out = C.map_textures(a, tile_texels=tile, threads=threads)
         for name in ref.maps:
             assert np.array_equal(out.maps[name], ref.maps[name]), (tile, name)
         assert out.clamped == ref.clamped
@@ -250,6 +250,15 @@ def test_srgb_curve():
     assert abs(lin[128] - 0.2158605) < 1e-7
     assert np.all(np.diff(lin) > 0)
     np.testing.assert_allclose(C.linear_to_srgb(lin), k, atol=2e-7)
+
+
+def test_srgb_bytes_table_equals_formula():
+    k = (np.arange(256, dtype=np.float32) * np.float32(1 / 255)).reshape(16, 16)
+    img = np.stack([k, k[::-1], k.T], axis=-1)
+    np.testing.assert_array_equal(C.srgb_bytes_to_linear(img), C.srgb_to_linear(img))
+    odd = img.copy()
+    odd[0, 0, 0] = 0.5  # not a byte value: falls back to the formula
+    np.testing.assert_array_equal(C.srgb_bytes_to_linear(odd), C.srgb_to_linear(odd))
 
 
 def test_resample_bilinear():
