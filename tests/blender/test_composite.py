@@ -246,6 +246,17 @@ def test_recomposite_noise_level(mods, tmp_path, bounces):
         # inter-reflections keep the original haziness: a bias of a few percent, measured
         assert err_edit <= noise, (err_edit, noise)
         assert max(abs(b) for b in bias.values()) <= 0.08, bias
+        # the holdout of non-hazy objects acts on camera rays only: where the camera sees only
+        # hazy surfaces, the buffers are bit-identical without it (same paths, same light —
+        # the held-out floor and sphere still shadow, light and appear in reflections)
+        scene.cycles.seed = 3
+        set_haziness(api, comp, mats, ORIGINAL)
+        comp.setup_recomposite(scene, holdout=False)
+        free, _, _ = passes_render(scene, comp, tmp_path, "no_holdout")
+        inside = passes["mask"] >= 1.0
+        for key in comp.BUFFER_KEYS:
+            assert np.array_equal(free[key][inside], passes[key][inside]), key
+        assert np.abs(free["narrow_delta"] - passes["narrow_delta"])[~hazy].max() > 0.01
 
 
 # --------------------------------------------------------------------------------------------
