@@ -527,6 +527,11 @@ def convert_material(mat):
         if v is None:
             v = _constant_values(p, api, groups, conventions)
             v["base_color"] = p["base_color"] if p["kind"] == "DIELECTRIC" else None
+            if v["anisotropic"]:  # the lean tree's explicit tangent (api._tangent)
+                t = tree.nodes.get(f"{NODE_PREFIX} Tangent")
+                if t is None:
+                    t = api._tangent(tb, p, 0).node
+                v["tangent"] = t.outputs[0]
         bsdf = _build_schlick(tree, p, v, tb)
     except Exception:
         for n in tb.created:
