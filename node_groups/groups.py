@@ -11,7 +11,7 @@ from .builder import TreeBuilder
 from .lobes import build_lobes, check_distribution
 from .mapping_graph import build_mapping
 
-GROUP_VERSION = 1
+GROUP_VERSION = 2
 STAMP = "hazy_gloss_group"
 
 #: Roughness below Cycles' mirror cut-off (α_x α_y <= 2e-10) would turn the core into a delta.

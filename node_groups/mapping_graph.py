@@ -72,7 +72,8 @@ def build_mapping(tb, src, *, kind, anisotropic, smooth, min_roughness, distribu
         two_omr_bh = tb.mul(tb.mul(omr, bh), 2.0)
         beta = tb.div(two_omr_bh, tb.madd(q, two_omr_bh, den), label="β (Eq. 4)")
     else:
-        upper = tb.less(p, rc_max)  # r̂_c > p: energy branch of Eq. 7
+        # r̂_c > p: energy branch of Eq. 7, decided on the accurate complements when p > 1/2
+        upper = tb.select(tb.less(p, 0.5), tb.less(p, rc_max), tb.less(omr, q))
         kh = tb.mul(bh, tb.select(upper, tb.div(omr, q), tb.div(rc_max, p)), label="k̂_h (Eq. 7)")
         sigma = tb.select(upper, tb.div(tb.mul(rc_max, q), omr), p)
         beta = tb.div(bh, tb.madd(q, bh, sigma), label="β (Eq. 4)")

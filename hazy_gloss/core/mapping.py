@@ -113,6 +113,9 @@ class PerceptualParameters:
     haze_extent: tuple  #: [λ_h^x, λ_h^y]
     #: True where the physical input is reproduced exactly by the forward mapping of the result.
     exact: np.ndarray
+    #: True where, in addition, no other perceptual point maps to the same physical one (False at
+    #: r_c = 1, where β_h has no effect; r = 0, where g has none; α_n = 0, where λ_h has none).
+    unique: np.ndarray
     clamped: dict = field(default_factory=dict)
 
     @property
@@ -259,7 +262,7 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
     zero = dtype.type(0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if smoothness is None or np.all(np.isinf(smoothness)):
-            lower = rc <= p
+            lower = _on_positivity_side(rc, omr, p, q)
             # Eq. 7, branch by branch; σ = r̂_c / k̂_h·β_h is the per-branch "cost" of a unit of haze.
             kh = np.where(lower, haziness * rc / np.where(p > 0, p, 1),
                           haziness * omr / np.where(q > 0, q, 1))
@@ -286,6 +289,12 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
                 kh = np.where(inf, kh7, kh)
                 beta = np.where(inf, beta7, beta)
     return kh.astype(dtype, copy=False), np.clip(beta, 0, 1).astype(dtype, copy=False)
+
+
+def _on_positivity_side(rc, omr, p, q):
+    """r̂_c <= p, decided with the accurate complements when p > 1/2 (as 1 - r̂_c >= 1 - p): the
+    rounded p can equal 1 while r̂_c = 1 is already on the energy side (λ_h -> 0)."""
+    return np.where(p <= 0.5, rc <= p, omr >= q)
 
 
 def gulbrandsen_ior(reflectivity, edge_tint):
@@ -590,6 +599,9 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     bad_r = ~((r >= 0) & (r <= 1))
     flag("reflectivity outside [0, 1]", bad_r)
     r = np.clip(np.nan_to_num(r), 0, 1)
+    # rounding leaves g a few ulps outside [0, 1] for points on the manifold's edges (g = 0, 1)
+    tol = 64 * np.finfo(dtype).eps
+    g = np.where((g < 0) & (g >= -tol), 0.0, np.where((g > 1) & (g <= 1 + tol), 1.0, g)).astype(dtype)
     bad_g = ~((g >= 0) & (g <= 1))
     flag("edge tint outside [0, 1] (not on Gulbrandsen's manifold)", bad_g)
     g = np.clip(np.nan_to_num(g), 0, 1)
@@ -606,7 +618,7 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
              (wx >= alpha_max) | (wy >= alpha_max))
     wx, wy = np.maximum(wx, ax), np.maximum(wy, ay)
 
-    probe = haze_mapping(np.zeros(shape, dtype), 0.0, (ax, ay), np.zeros(shape, dtype), (lx, ly),
+    probe = haze_mapping(np.zeros(shape + (3,), dtype), 0.0, (ax, ay), np.zeros(shape, dtype), (lx, ly),
                          distribution=distribution, alpha_max=alpha_max, strict=False)
     p, q = probe.peak_ratio, probe.peak_complement
 
@@ -619,7 +631,8 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     # -- haziness: solve β = β_h / (σ + (1-p) β_h) for β_h, σ = r̂_c / t (see haze_intensity) ------
     with np.errstate(divide="ignore", invalid="ignore"):
         if smoothness is None:
-            sigma = np.where(rc_max <= p, p, rc_max * q / (1.0 - rc_max))
+            sigma = np.where(_on_positivity_side(rc_max, 1.0 - rc_max, p, q), p,
+                             rc_max * q / (1.0 - rc_max))
         else:
             m = 1.0 / np.asarray(smoothness, dtype=dtype)
             omr = 1.0 - rc_max
@@ -630,6 +643,10 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
         bh = np.where(core_gain > 0, b * sigma / core_gain, np.inf)
     no_effect = (rc_max >= 1.0) & (b > 0)
     flag("core reflectivity 1 leaves no room for haze (haziness not recoverable)", no_effect)
+    # Exactly reproduced but not unique: several perceptual points map to this physical one.
+    unique = ~((rc_max >= 1.0)  # k̂_h = 0 for every β_h
+               | (r_max <= 0.0)  # r = 0: η = 1, κ = 0 whatever g
+               | ((gm <= 0.0) & ((lx > 0) | (ly > 0) | (wx > ax) | (wy > ay))))  # α_n = 0
     bh = np.where(np.isnan(bh) | (rc_max >= 1.0), 0.0, bh)
     over = bh >= 1.0
     flag("haziness >= 1 (beyond the energy/positivity bounds or the Bézier's reach)", over)
@@ -637,4 +654,4 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
 
     return PerceptualParameters(core_reflectivity=rc.astype(dtype), edge_tint=g.astype(dtype),
                                 alpha=(ax, ay), haziness=bh, haze_extent=(lx, ly),
-                                exact=~inexact, clamped=v.clamped)
+                                exact=~inexact, unique=unique & ~inexact, clamped=v.clamped)
