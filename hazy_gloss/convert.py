@@ -414,16 +414,16 @@ def _sanitise(arr, name, lo, hi, clamped, *, above_reason=None):
     nan = np.isnan(a)
     below = a < lo_v
     above = a > hi_v
+    if not (nan.any() or below.any() or above.any()):  # the common case: no per-texel pass
+        return a
     if above_reason is None:
         above_reason = f"{name} > {hi:g}" if hi is not None else f"{name} is +inf"
     for reason, mask in ((f"{name} is NaN (set to {lo:g})", nan),
                          (f"{name} < {lo:g}", below),
                          (above_reason, above)):
-        n = int(np.count_nonzero(per_texel(mask)))
+        n = int(np.count_nonzero(per_texel(mask))) if mask.any() else 0
         if n:
             clamped[reason] = clamped.get(reason, 0) + n
-    if not (nan.any() or below.any() or above.any()):
-        return a
     return np.clip(np.where(nan, lo_v, a), lo_v, hi_v).astype(np.float32)
 
 

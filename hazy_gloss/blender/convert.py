@@ -55,7 +55,13 @@ def _abspath(path, library=None):
 def _label(name, source):
     if isinstance(source, bpy.types.Image):
         return f"{name} (image {source.name!r})"
-    return f"{name} ({os.path.basename(os.fspath(source))})"
+    if isinstance(source, np.ndarray):
+        return f"{name} (array)"
+    try:
+        return f"{name} ({os.path.basename(os.fspath(source))})"
+    except TypeError:
+        raise ConversionError(f"{name}: expected an image path, an image datablock, a numpy "
+                              f"array or a constant, got {type(source).__name__}") from None
 
 
 def _tile_paths(pattern):
@@ -80,7 +86,14 @@ class _Source:
         self.path = None
         self.tiles = None
         self.label = _label(name, source)
-        if isinstance(source, bpy.types.Image):
+        self.array = None
+        if isinstance(source, np.ndarray):  # in memory: linear colour (H, W, 3) or data (H, W)
+            want = 3 if role == "colour" else 2
+            if source.ndim != want or (role == "colour" and source.shape[-1] != 3):
+                raise ConversionError(f"{self.label}: expected shape "
+                                      f"{'(H, W, 3)' if role == 'colour' else '(H, W)'}, got {source.shape}")
+            self.array = np.asarray(source, dtype=np.float32)
+        elif isinstance(source, bpy.types.Image):
             img = source
             if img.source == "TILED":
                 if img.packed_file is not None or getattr(img, "packed_files", None):
@@ -110,6 +123,8 @@ class _Source:
                 self.path = path
 
     def files(self):
+        if self.array is not None:
+            return []
         if self.path:
             return [self.path]
         if self.tiles:
@@ -121,6 +136,8 @@ class _Source:
 
     def read(self, tile, warnings):
         """(H, W[, 3]) float32 values: linear for colour maps, raw for data maps."""
+        if self.array is not None:
+            return self.array
         if self.image is not None:
             return _read_datablock(self.image, self.role, self.label, warnings)
         path = self.path if self.tiles is None else self.tiles.get(tile, None)

@@ -131,6 +131,15 @@ def make_inputs(folder, *, n=N, seed=0, aniso=False, rc_bytes=256):
     else:
         paths["haze_extent"] = write_exr(folder / "ext.exr", ext)
         values["haze_extent_x"] = values["haze_extent_y"] = ext
+    # the reference is what Blender reads (16-bit PNG: within an ulp of k/65535)
+    for name, p in paths.items():
+        raw = read_raw(p)
+        got = raw[..., :3] if name == "core_reflectivity" else raw[..., 0]
+        key = "haze_extent_x" if name == "haze_extent" else name
+        np.testing.assert_allclose(got, values[key], rtol=2e-7, atol=0)
+        values[key] = got
+        if name == "haze_extent":
+            values["haze_extent_y"] = got
     return paths, values
 
 
@@ -188,8 +197,7 @@ def test_maps_equal_per_texel_mapping(api, hg, tmp_path, kind, aniso):
     assert res.report.texels == N * N and res.report.size == (N, N)
     assert res.report.anisotropic == aniso
     maps = {name: read_raw(p) for name, p in res.items()}
-    rng = np.random.default_rng(1)
-    texels = [(0, 0), (N - 1, N - 1), (3, 11)] + [tuple(t) for t in rng.integers(0, N, (12, 2))]
+    texels = [(i, j) for i in range(N) for j in range(N)]  # every texel
     diffs = 0
     for i, j in texels:
         ref = reference_texel(hg, values, i, j, kind, tint)
@@ -480,6 +488,21 @@ def test_packed_image_input(api, tmp_path):
     assert img.packed_file is not None
     for k in ref:
         np.testing.assert_array_equal(read_raw(res[k]), read_raw(ref[k]), err_msg=k)
+
+
+def test_numpy_array_inputs(api, core, tmp_path):
+    paths, _ = make_inputs(tmp_path / "in")
+    from_files = api.convert_maps(paths, str(tmp_path / "a"))
+    # the values exactly as Blender reads the files (16-bit PNG: k x float32(1/65535))
+    arrays = {k: read_raw(p)[..., 0] for k, p in paths.items() if k != "core_reflectivity"}
+    arrays["core_reflectivity"] = core.srgb_to_linear(read_raw(paths["core_reflectivity"])[..., :3])
+    from_arrays = api.convert_maps(arrays, str(tmp_path / "b"))
+    for k in from_files:
+        np.testing.assert_array_equal(read_raw(from_arrays[k]), read_raw(from_files[k]), err_msg=k)
+    with pytest.raises(core.ConversionError, match=r"haziness \(array\): expected shape \(H, W\)"):
+        api.convert_maps(dict(arrays, haziness=np.zeros((4, 4, 3), np.float32)), str(tmp_path / "c"))
+    with pytest.raises(core.ConversionError, match="haziness: expected an image path"):
+        api.convert_maps(dict(arrays, haziness={"not": "an image"}), str(tmp_path / "c"))
 
 
 def test_udim_tiles(api, tmp_path):
