@@ -341,8 +341,9 @@ def write_doc(r, bpy):
         f"excluded): {r['traced_peak'] / gib:.2f} GiB.",
         "",
         "Where the time goes: B is image decoding/encoding inside Blender (ZIP compression of "
-        "float EXR dominates the writes); C is the float32 mapping in tiles of 2^20 texels. "
-        "A is roughly B + C.",
+        "float EXR dominates the writes); C is the float32 mapping in tiles of 2^18 texels, "
+        "one thread per CPU. A is roughly B + C. The machine was shared with other jobs while "
+        "measuring, hence the spread between rounds.",
         "",
     ]
     section = "\n".join(lines)

@@ -274,3 +274,52 @@ def test_resample_bilinear():
     ramp = np.tile(np.arange(4, dtype=np.float32), (2, 1))
     r2 = C.resample_bilinear(ramp, (8, 2))[0]
     np.testing.assert_allclose(np.diff(r2[1:-1]), 0.5, atol=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# Without Blender
+# --------------------------------------------------------------------------------------------
+
+_BLOCK_BPY = """
+import importlib.abc, sys
+sys.path.insert(0, {root!r})
+class _Block(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in ("bpy", "_bpy", "mathutils", "bmesh", "gpu"):
+            raise ImportError("blocked for the test: " + name)
+        return None
+sys.meta_path.insert(0, _Block())
+"""
+
+
+def _run_blocked(body):
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = str(Path(__file__).resolve().parents[2])
+    return subprocess.run([sys.executable, "-c", _BLOCK_BPY.format(root=root) + body],
+                          capture_output=True, text=True, timeout=120, cwd=root)
+
+
+def test_numeric_part_needs_no_bpy():
+    r = _run_blocked("import numpy as np\n"
+                     "from hazy_gloss import convert as C\n"
+                     "m = C.map_textures({**{k: np.float32(v) if np.ndim(v) == 0 else np.float32(v)"
+                     " for k, v in C.DEFAULTS.items()}, 'haziness': np.full((4, 4), 0.3, np.float32),"
+                     " 'core_reflectivity': np.full(3, 0.5, np.float32), 'edge_tint': np.zeros(3, np.float32)})\n"
+                     "assert m.maps['beta'].shape == (4, 4)\n"
+                     "assert 'bpy' not in sys.modules\n"
+                     "print('OK')\n")
+    assert r.returncode == 0 and r.stdout.strip() == "OK", r.stderr
+
+
+def test_cli_without_bpy_exits_3_with_one_line():
+    r = _run_blocked("import runpy\n"
+                     "sys.argv = ['hazy_gloss', 'convert', '--haziness', 'h.png', '--out', 'x']\n"
+                     "runpy.run_module('hazy_gloss', run_name='__main__')\n")
+    assert r.returncode == 3, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hazy_gloss convert: error: bpy is not importable")
+    h = _run_blocked("import runpy\nsys.argv = ['hazy_gloss', 'convert', '--help']\n"
+                     "runpy.run_module('hazy_gloss', run_name='__main__')\n")
+    assert h.returncode == 0 and "--haziness" in h.stdout
