@@ -596,8 +596,11 @@ def test_operator(hg, clean_file, tmp_path):
     img = bpy.data.images.load(paths["haziness"], check_existing=False)
     r = bpy.ops.hazy_gloss.convert_maps(haziness_image=img.name, wire=False)
     assert r == {"FINISHED"}
+    import shutil
     import tempfile
-    assert (Path(tempfile.gettempdir()) / "hazy_gloss_maps" / "target" / "beta.exr").is_file()
+    fallback = Path(tempfile.gettempdir()) / "hazy_gloss_maps" / "target"
+    assert (fallback / "beta.exr").is_file()
+    shutil.rmtree(fallback)
     with pytest.raises(RuntimeError, match="file not found"):
         bpy.ops.hazy_gloss.convert_maps(haziness_path=str(tmp_path / "nope.png"),
                                         directory=str(tmp_path / "op2"))
