@@ -177,6 +177,11 @@ def bijection_table():
                                extinction=out.extinction)
     rows.append(_inv_row("dielectric g = 0 given as η, κ=0 (r = 0.875)", inv,
                          float(np.max(np.abs(inv.edge_tint))) < 1e-12))
+    out = haze_mapping(0.9953090836814844, 0.0, 0.5, 0.0, 0.0)
+    inv = inverse_haze_mapping(out.beta, 0.5, out.alpha_wide, ior=out.ior,
+                               extinction=out.extinction)
+    rows.append(_inv_row("dielectric g = 0 given as η, κ=0 (r = 0.99531)", inv,
+                         float(np.max(np.abs(inv.edge_tint))) < 1e-12))
     # r = 0: g has no effect
     out = haze_mapping(0.0, 0.7, 0.1, 0.3, 2.0)
     inv = inverse_haze_mapping(out.beta, 0.1, out.alpha_wide, ior=out.ior,
@@ -188,6 +193,8 @@ def bijection_table():
     inv = inverse_haze_mapping(out.beta, 0.0, out.alpha_wide, reflectivity=out.reflectivity)
     rows.append(_inv_row("α_n = 0 (λ_h = 5 has no effect on α_w = 0)", inv,
                          abs(float(inv.haze_extent[0]) - 5) < 1e-9))
+    inv = inverse_haze_mapping(0.3, 0.0, (0.1, 0.1), reflectivity=0.5)
+    rows.append(_inv_row("physical α_n = 0 < α_w = 0.1 (not reproducible)", inv, False))
     # texture call
     try:
         inv = inverse_haze_mapping(np.full(4, 0.2), 0.1, 0.3, reflectivity=np.full((4, 3), 0.5))
