@@ -256,10 +256,19 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
     Taylor window; this closed form is the same root with no division by b - 1 and no
     cancellation anywhere, and reduces exactly to Eq. 7 at w = ∞.
     """
+    kh, beta, _ = _haze_terms(core_max, p, q, haziness, smoothness)
+    return kh, beta
+
+
+def _haze_terms(core_max, p, q, haziness, smoothness=None):
+    """(k̂_h, β, 1 - r̂), the last without cancellation as r̂ -> 1 (see docs/mapping.md §6)."""
     rc = core_max
     omr = 1.0 - rc
     dtype = np.result_type(rc)
     zero = dtype.type(0)
+    omb = 1.0 - haziness  # exact for β_h >= 1/2
+    # r̂_c - p without cancellation: near 1 subtract the complements instead.
+    d = np.where(p <= 0.5, rc - p, q - omr)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if smoothness is None or np.all(np.isinf(smoothness)):
             lower = _on_positivity_side(rc, omr, p, q)
@@ -269,10 +278,13 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
             sigma = np.where(lower, p, rc * q / omr)
             den = sigma + q * haziness
             beta = np.where(den > 0, haziness / den, zero)
+            # 1 - r̂ = (1 - r̂_c) - (1-p) k̂_h, rearranged into non-negative terms per branch:
+            #   energy side  (1 - r̂_c)(1 - β_h);  positivity side ((p - r̂_c) + r̂_c (1-p)(1 - β_h)) / p
+            omr_hat = np.where(lower, np.where(p > 0, (np.maximum(-d, 0) + rc * q * omb) / p,
+                                               omr - q * kh),
+                               omr * omb)
         else:
             m = 1.0 / np.asarray(smoothness, dtype=dtype)
-            # rc - p without cancellation: near 1 subtract the complements instead.
-            d = np.where(p <= 0.5, rc - p, q - omr)
             s = np.sqrt(rc * omr)
             ms = np.where(s > 0, m * s, zero)
             den = rc * q + p * omr + np.hypot(d, ms)
@@ -283,12 +295,20 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
             den_b = den + q * two_omr_bh
             beta = np.where(den_b > 0, two_omr_bh / den_b, np.where(omr > 0, dtype.type(1), zero))
             beta = np.where(np.isinf(m), zero, beta)
+            # 1 - r̂ = c_0 + (1-p) t (1 - β_h) with c_0 = (1-u)²/d the Bézier weight of (0, 0);
+            # when c_0 is the smaller of c_0, c_2 use the conic t² = 4 w² c_0 c_2 (no cancellation)
+            c0 = omr - q * t
+            c2 = rc - p * t
+            c0 = np.where((c0 < c2) & (c2 > 0), (m * t) ** 2 / (4.0 * c2), c0)
+            omr_hat = np.maximum(c0, 0) + q * t * omb
             if np.any(np.isinf(smoothness)):  # mixed per-texel w with some w = ∞: Eq. 7 there
-                kh7, beta7 = haze_intensity(rc, p, q, haziness, None)
+                kh7, beta7, omr7 = _haze_terms(rc, p, q, haziness, None)
                 inf = np.isinf(smoothness)
                 kh = np.where(inf, kh7, kh)
                 beta = np.where(inf, beta7, beta)
-    return kh.astype(dtype, copy=False), np.clip(beta, 0, 1).astype(dtype, copy=False)
+                omr_hat = np.where(inf, omr7, omr_hat)
+    return (kh.astype(dtype, copy=False), np.clip(beta, 0, 1).astype(dtype, copy=False),
+            np.clip(omr_hat, 0, 1).astype(dtype, copy=False))
 
 
 def _on_positivity_side(rc, omr, p, q):
@@ -297,18 +317,19 @@ def _on_positivity_side(rc, omr, p, q):
     return np.where(p <= 0.5, rc <= p, omr >= q)
 
 
-def gulbrandsen_ior(reflectivity, edge_tint):
+def gulbrandsen_ior(reflectivity, edge_tint, one_minus_r=None):
     """Gulbrandsen 2014, "Artist Friendly Metallic Fresnel": (r, g) -> (η, κ), per channel.
 
     Printed form: η = g (1-r)/(1+r) + (1-g)(1+√r)/(1-√r), κ = sqrt((r(η+1)² - (η-1)²)/(1-r)).
     Deviation: κ is rewritten (docs/mapping.md) as
         κ = 2√r sqrt( g/(1+r) · ( g/(1+r) + 2 (1-g) / (1-√r)² ) ),
     a sum of non-negative terms: the printed numerator cancels catastrophically as r -> 1.
-    1 - √r is computed as (1-r)/(1+√r).  r must be < 1 (the caller limits it)."""
+    1 - √r is computed as (1-r)/(1+√r).  r must be < 1 (the caller limits it); pass
+    ``one_minus_r`` when 1 - r is known more accurately than by subtraction (r -> 1)."""
     r = reflectivity
     g = edge_tint
     s = np.sqrt(r)
-    omr = 1.0 - r
+    omr = 1.0 - r if one_minus_r is None else one_minus_r
     ops = 1.0 + s
     one_minus_s = omr / ops
     n_dielectric = ops / one_minus_s
@@ -335,10 +356,10 @@ def gulbrandsen_inverse(ior, extinction):
     return r, g
 
 
-def dielectric_ior(reflectivity):
+def dielectric_ior(reflectivity, one_minus_r=None):
     """η = (1+√r)/(1-√r) (paper, footnote of §2.3 and §2.4), as (1+√r)²/(1-r)."""
     s = np.sqrt(reflectivity)
-    return (1.0 + s) ** 2 / (1.0 - reflectivity)
+    return (1.0 + s) ** 2 / (1.0 - reflectivity if one_minus_r is None else one_minus_r)
 
 
 # --------------------------------------------------------------------------------------------
@@ -479,7 +500,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
 
     # -- haze intensity (Eq. 7 / Eqs. 12-15) on the max channel --------------------------------
     rc_max = rc.max(axis=-1)
-    kh, beta = haze_intensity(rc_max, p, q, bh, w)
+    kh, beta, omr_max = _haze_terms(rc_max, p, q, bh, w)
 
     # -- Eq. 5 with the core's chroma: r = r_c + (1-p) k̂_h c,  c = r_c / r̂_c ------------------
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -487,14 +508,17 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
     halo = (q * kh)[..., None]
     r = np.minimum(rc + halo * chroma, one)
     r_max = np.minimum(rc_max + q * kh, one)
+    # 1 - r per channel without cancellation: 1 - c r̂ = (1 - c) + c (1 - r̂)
+    one_minus_r = (1.0 - chroma) + chroma * omr_max[..., None]
 
     # -- Fresnel parameters --------------------------------------------------------------------
     eps = np.finfo(dtype).eps
-    r_fresnel = np.minimum(r, one - eps)
-    if np.any(r > one - eps):
-        v.clamped["reflectivity at 1 (η, κ use 1 - ε)"] = int(np.count_nonzero((r > one - eps).any(-1)))
-    eta, kappa = gulbrandsen_ior(r_fresnel, g)
-    eta_d = dielectric_ior(np.minimum(r_max, one - eps))
+    at_one = one_minus_r < eps
+    if np.any(at_one):
+        v.clamped["reflectivity at 1 (η, κ use 1 - ε)"] = int(np.count_nonzero(at_one.any(-1)))
+    one_minus_r = np.maximum(one_minus_r, eps)
+    eta, kappa = gulbrandsen_ior(np.minimum(r, one - eps), g, one_minus_r)
+    eta_d = dielectric_ior(np.minimum(r_max, one - eps), np.maximum(omr_max, eps))
 
     out = HazeMapping(
         beta=beta.astype(dtype, copy=False),
