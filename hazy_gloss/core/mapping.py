@@ -457,8 +457,9 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
     if np.any(wx == big) or np.any(wy == big):
         v.clamped["alpha_wide overflow"] = int(np.count_nonzero((wx == big) | (wy == big)))
     # spread = α_w - α_n exactly as Eq. 8 defines it (no cancellation).
-    sx = lx * gm
-    sy = ly * gm
+    with np.errstate(over="ignore"):
+        sx = np.minimum(lx * gm, big)
+        sy = np.minimum(ly * gm, big)
     nx, ny = ax, ay
     lo, hi = (None, alpha_max)
     if distribution == "ASHIKHMIN_SHIRLEY":
@@ -623,8 +624,10 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     bad_r = ~((r >= 0) & (r <= 1))
     flag("reflectivity outside [0, 1]", bad_r)
     r = np.clip(np.nan_to_num(r), 0, 1)
-    # rounding leaves g a few ulps outside [0, 1] for points on the manifold's edges (g = 0, 1)
-    tol = 64 * np.finfo(dtype).eps
+    # rounding leaves g a few ulps outside [0, 1] for points on the manifold's edges (g = 0, 1);
+    # recovering g from η divides by n_d - n_m ~ 1/(1-r), so the slack grows like ε/(1-r)
+    eps = np.finfo(dtype).eps
+    tol = 64 * eps / np.maximum(1.0 - r, eps)
     g = np.where((g < 0) & (g >= -tol), 0.0, np.where((g > 1) & (g <= 1 + tol), 1.0, g)).astype(dtype)
     bad_g = ~((g >= 0) & (g <= 1))
     flag("edge tint outside [0, 1] (not on Gulbrandsen's manifold)", bad_g)
@@ -636,10 +639,14 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
         lx = np.where(gm > 0, (wx - ax) / gm, 0.0).astype(dtype)
         ly = np.where(gm > 0, (wy - ay) / gm, 0.0).astype(dtype)
     flag("alpha_wide < alpha (negative haze extent)", (lx < 0) | (ly < 0))
+    flag("alpha_wide > alpha = 0 (Eq. 8 gives alpha_wide = 0 there)", (gm <= 0) & ((wx > ax) | (wy > ay)))
     lx, ly = np.maximum(lx, 0), np.maximum(ly, 0)
-    if alpha_max is not None:
-        flag(f"alpha_wide at the renderer limit {alpha_max:g} (extent beyond it lost)",
-             (wx >= alpha_max) | (wy >= alpha_max))
+    limit = alpha_max
+    if distribution == "ASHIKHMIN_SHIRLEY":  # Cycles clamps AS roughness to <= 1 anyway
+        limit = min(alpha_max or _AS_ALPHA_RANGE[1], _AS_ALPHA_RANGE[1])
+    if limit is not None:
+        flag(f"alpha_wide at the renderer limit {limit:g} (extent beyond it lost)",
+             (wx >= limit) | (wy >= limit))
     wx, wy = np.maximum(wx, ax), np.maximum(wy, ay)
 
     probe = haze_mapping(np.zeros(shape + (3,), dtype), 0.0, (ax, ay), np.zeros(shape, dtype), (lx, ly),
@@ -665,12 +672,14 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
             den = rc_max * q + p * omr + np.hypot(d, np.where(s > 0, m * s, 0.0))
             sigma = den / (2.0 * omr)
         bh = np.where(core_gain > 0, b * sigma / core_gain, np.inf)
-    no_effect = (rc_max >= 1.0) & (b > 0)
+    # r̂_c = 1 within rounding (the forward mapping evaluates Fresnel at r = 1 - ε there)
+    at_one = rc_max >= 1.0 - 4 * eps
+    no_effect = at_one & (b > 0)
     flag("core reflectivity 1 leaves no room for haze (haziness not recoverable)", no_effect)
     # Exactly reproduced but not unique: several perceptual points map to this physical one.
-    unique = ~((rc_max >= 1.0)  # k̂_h = 0 for every β_h
+    unique = ~(at_one  # k̂_h = 0 for every β_h
                | (r_max <= 0.0)  # r = 0: η = 1, κ = 0 whatever g
-               | ((gm <= 0.0) & ((lx > 0) | (ly > 0) | (wx > ax) | (wy > ay))))  # α_n = 0
+               | (gm <= 0.0))  # α_n = 0: α_w = 0 for every λ_h
     bh = np.where(np.isnan(bh) | (rc_max >= 1.0), 0.0, bh)
     over = bh >= 1.0
     flag("haziness >= 1 (beyond the energy/positivity bounds or the Bézier's reach)", over)

@@ -322,10 +322,6 @@ def test_texture_any_garbage_is_finite(vals, dtype, smooth):
         assert out.clamped.get("smoothness <= 0 or NaN") == 1
 
 
-@pytest.mark.xfail(strict=True, reason="numpy RuntimeWarning 'overflow encountered in multiply' "
-                   "leaks out of haze_mapping for texels clamped to the float max (alpha or "
-                   "haze_extent = inf): mapping.py computes the spread s = λ sqrt(α_x α_y) outside "
-                   "np.errstate (results are still finite)")
 def test_texture_no_numpy_warnings_leak():
     args = (np.array([[0.5] * 3, [0.2] * 3]), 0.0, (np.array([np.inf, 0.1]), np.array([np.inf, 0.1])),
             np.array([0.3, 0.3]), (np.array([np.inf, 2.0]), np.array([np.inf, 2.0])))

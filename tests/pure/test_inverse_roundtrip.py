@@ -158,9 +158,6 @@ def test_breaks_alpha_wide_at_alpha_max():
     assert float(inv.haze_extent[0]) < 9.0  # the extent beyond the limit is lost
 
 
-@pytest.mark.xfail(strict=True, reason="inverse_haze_mapping does not flag α_w at Cycles' "
-                   "Ashikhmin-Shirley roughness clamp (α <= 1) unless alpha_max is given: "
-                   "λ_h is silently not recovered with exact=True")
 def test_breaks_alpha_wide_at_ashikhmin_shirley_limit():
     kw = dict(core_reflectivity=0.3, edge_tint=0.0, alpha=0.2, haziness=0.4, haze_extent=9.0,
               distribution="ASHIKHMIN_SHIRLEY", smoothness=None, alpha_max=None)
@@ -195,11 +192,6 @@ def test_breaks_core_reflectivity_one_roundtrip_legacy():
         assert bool(inv.exact) and not bool(inv.unique)
 
 
-@pytest.mark.xfail(strict=True, reason="conductor input (η, κ) of a perceptual r_c = 1: the "
-                   "forward mapping evaluates Gulbrandsen at r = 1 - eps, so the inverse recovers "
-                   "r̂ = 1 - O(eps) < 1 and marks the texel unique=True although β_h (0.6 -> 0) is "
-                   "not recoverable; the r_c >= 1 test of `unique` needs a few-ulp tolerance "
-                   "(the legacy path, r = 1 exactly, is flagged)")
 @pytest.mark.parametrize("w", [None, 2.0])
 def test_breaks_core_reflectivity_one_roundtrip_conductor(w):
     kw = dict(core_reflectivity=1.0, edge_tint=0.5, alpha=0.1, haziness=0.6, haze_extent=2.0,
@@ -222,10 +214,6 @@ def test_not_unique_where_a_parameter_has_no_effect():
     assert bool(inv.exact) and bool(inv.unique)
 
 
-@pytest.mark.xfail(strict=True, reason="α_n = 0 (so α_w = 0 for every λ_h): inverse_haze_mapping "
-                   "returns unique=True although λ_h is not recoverable; its `unique` test "
-                   "((gm <= 0) & (λ > 0 | α_w > α_n)) only fires when α_w > α_n = 0, a physical "
-                   "input that is not even reproducible (see the next test)")
 @pytest.mark.parametrize("alpha", [0.0, (0.0, 0.2)])
 def test_not_unique_at_zero_alpha(alpha):
     out = haze_mapping(0.4, 0.0, alpha, 0.3, 5.0)
@@ -234,9 +222,6 @@ def test_not_unique_at_zero_alpha(alpha):
     assert not bool(inv.unique)
 
 
-@pytest.mark.xfail(strict=True, reason="physical α_n = 0 < α_w: no λ_h reproduces it (Eq. 8 gives "
-                   "α_w = α_n + λ sqrt(α_x α_y) = 0), yet inverse_haze_mapping reports exact=True "
-                   "(and unique=False) with nothing in clamped")
 def test_breaks_alpha_wide_above_zero_alpha():
     inv = inverse_haze_mapping(0.3, 0.0, (0.1, 0.1), reflectivity=0.5)
     assert not bool(inv.exact)
@@ -314,11 +299,6 @@ def test_boundary_edge_tint_is_not_flagged(eta, kappa, g):
     assert bool(inv.exact), inv.clamped
 
 
-@pytest.mark.xfail(strict=True, reason="the few-ulp tolerance on g added in 274b5d0 is absolute "
-                   "(64 eps) but the rounding error of g recovered from (η, κ) grows like "
-                   "eps/(1-r): dielectric inputs (κ = 0) with r >= ~0.9925 are still flagged off "
-                   "Gulbrandsen's manifold (e.g. η = 850.7106889749564, κ = 0 -> raw g = "
-                   "-2.38e-14)")
 def test_boundary_edge_tint_is_not_flagged_r_to_1():
     out = haze_mapping(0.9953090836814844, 0.0, 0.5, 0.0, 0.0)
     assert float(out.ior[0]) == 850.7106889749564
