@@ -60,36 +60,56 @@ def build_mapping(tb, src, *, kind, anisotropic, smooth, min_roughness, distribu
     # ---- haze intensity on r̂_c (Eq. 7 or the Bézier, Eqs. 12-15) -------------------------------
     rc_max = tb.channel_max(rc)
     omr = tb.sub(1.0, rc_max, label="1 - r̂_c")
+    omb = tb.sub(1.0, bh, label="1 - β_h")
+    low_p = tb.less(p, 0.5)
+    # p - r̂_c without cancellation: near 1 subtract the complements instead
+    p_minus_rc = tb.select(low_p, tb.sub(p, rc_max), tb.sub(omr, q), label="p - r̂_c")
     if smooth:
         w = tb.maximum(src["smoothness"], MIN_SMOOTHNESS)
-        low_p = tb.less(p, 0.5)
-        d = tb.select(low_p, tb.sub(rc_max, p), tb.sub(q, omr), label="r̂_c - p")
         ms = tb.div(tb.sqrt(tb.mul(rc_max, omr)), w)
-        hyp = tb.sqrt(tb.madd(d, d, tb.mul(ms, ms)))
+        hyp = tb.sqrt(tb.madd(p_minus_rc, p_minus_rc, tb.mul(ms, ms)))
         den = tb.add(tb.madd(rc_max, q, tb.mul(p, omr)), hyp, label="conic denominator")
         t = tb.div(tb.mul(tb.mul(rc_max, omr), 2.0), den)
         kh = tb.mul(bh, t, label="k̂_h (Eq. 15)")
         two_omr_bh = tb.mul(tb.mul(omr, bh), 2.0)
         beta = tb.div(two_omr_bh, tb.madd(q, two_omr_bh, den), label="β (Eq. 4)")
+        # 1 - r̂ = c_0 + (1-p) t (1-β_h); c_0 from the conic t² = 4w²c_0c_2 when it is the smaller
+        c0 = tb.madd(q, tb.mul(t, -1.0), omr)
+        c2 = tb.madd(p, tb.mul(t, -1.0), rc_max)
+        tw = tb.div(t, w)
+        c0_conic = tb.div(tb.mul(tw, tw), tb.mul(c2, 4.0))
+        c0 = tb.maximum(tb.select(tb.less(c0, c2), c0_conic, c0), 0.0)
+        omr_hat = tb.madd(tb.mul(q, t), omb, c0, label="1 - r̂")
     else:
         # r̂_c > p: energy branch of Eq. 7, decided on the accurate complements when p > 1/2
-        upper = tb.select(tb.less(p, 0.5), tb.less(p, rc_max), tb.less(omr, q))
+        upper = tb.select(low_p, tb.less(p, rc_max), tb.less(omr, q))
         kh = tb.mul(bh, tb.select(upper, tb.div(omr, q), tb.div(rc_max, p)), label="k̂_h (Eq. 7)")
-        sigma = tb.select(upper, tb.div(tb.mul(rc_max, q), omr), p)
-        beta = tb.div(bh, tb.madd(q, bh, sigma), label="β (Eq. 4)")
+        # β = β_h / (σ + (1-p) β_h), σ = p or r̂_c (1-p)/(1-r̂_c); the energy branch multiplied
+        # through by 1 - r̂_c so r̂_c = 1 gives β = 0 (a safe divide by 0 would give 1/(1-p))
+        beta_up = tb.div(tb.mul(bh, omr), tb.mul(q, tb.madd(bh, omr, rc_max)))
+        beta_lo = tb.div(bh, tb.madd(q, bh, p))
+        beta = tb.select(upper, beta_up, beta_lo, label="β (Eq. 4)")
+        # 1 - r̂ in non-negative terms: (1-r̂_c)(1-β_h), or ((p-r̂_c) + r̂_c (1-p)(1-β_h))/p
+        omr_lo = tb.div(tb.madd(tb.mul(rc_max, q), omb, tb.maximum(p_minus_rc, 0.0)), p)
+        omr_hat = tb.select(upper, tb.mul(omr, omb), omr_lo, label="1 - r̂")
     beta = tb.clamp(beta, 0.0, 1.0)
     out["beta"] = beta
     out["halo_intensity"] = kh
+    omr_hat = tb.maximum(omr_hat, 1.0 - ONE_MINUS_ULP)
 
     # ---- Eq. 5 with the core's chroma: r = r_c (1 + (1-p) k̂_h / r̂_c) ---------------------------
     gain = tb.add(1.0, tb.div(tb.mul(q, kh), rc_max), label="r̂ / r̂_c")
     r = tb.vmath("MINIMUM", tb.vscale(rc, gain), ONE_MINUS_ULP, label="r")
     out["reflectivity"] = r
+    # 1 - r per channel without cancellation: (1 - c) + c (1 - r̂), c = r_c / r̂_c
+    # a true division (not a scale by 1/r̂_c), so the max channel's chroma is exactly 1
+    chroma = tb.vmath("DIVIDE", rc, rc_max, label="chroma c")
+    omr_v = tb.vmath("MULTIPLY_ADD", chroma, omr_hat, tb.vmath("SUBTRACT", 1.0, chroma), label="1 - r")
+    omr_v = tb.vmath("MAXIMUM", omr_v, 1.0 - ONE_MINUS_ULP)
 
     if kind == "CONDUCTOR":
         g = tb.vmath("MINIMUM", tb.vmath("MAXIMUM", src["edge_tint"], 0.0), 1.0, label="g")
         s = tb.vmath("POWER", r, 0.5, label="√r")
-        omr_v = tb.vmath("SUBTRACT", 1.0, r)
         ops = tb.vmath("ADD", s, 1.0)
         n_d = tb.vmath("DIVIDE", tb.vmath("MULTIPLY", ops, ops), omr_v, label="(1+√r)/(1-√r)")
         n_m = tb.vmath("DIVIDE", omr_v, tb.vmath("ADD", r, 1.0), label="(1-r)/(1+r)")
@@ -105,10 +125,9 @@ def build_mapping(tb, src, *, kind, anisotropic, smooth, min_roughness, distribu
     elif kind == "DIELECTRIC":
         r_max = tb.minimum(tb.madd(q, kh, rc_max), ONE_MINUS_ULP, label="r̂")
         sq = tb.add(tb.sqrt(r_max), 1.0)
-        out["ior"] = tb.div(tb.mul(sq, sq), tb.sub(1.0, r_max), label="η = (1+√r̂)/(1-√r̂)")
-        # chroma c = r_c / r̂_c (white where r_c = 0, where it does not matter)
-        inv = tb.div(1.0, rc_max)
-        out["specular_tint"] = tb.vscale(rc, inv, label="chroma c")
+        out["ior"] = tb.div(tb.mul(sq, sq), omr_hat, label="η = (1+√r̂)/(1-√r̂)")
+        # chroma c = r_c / r̂_c (black where r_c = 0, where r̂ = 0 and it does not matter)
+        out["specular_tint"] = chroma
     else:
         out["colour_narrow"] = tb.vscale(r, tb.sub(1.0, beta), label="k_n = (1-β) r")
         out["colour_wide"] = tb.vscale(r, beta, label="k_w = β r")

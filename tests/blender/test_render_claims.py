@@ -229,6 +229,9 @@ IN_SHADER_CASES = [
     dict(core_reflectivity=(0.6, 0.2, 0.1), edge_tint=0.3, roughness=0.05, haziness=0.8, haze_extent=(3.0, 9.0), anisotropy=0.9, smoothness=4.0),
     dict(core_reflectivity=(0.04, 0.04, 0.04), edge_tint=0.0, roughness=0.1, haziness=0.5, haze_extent=5.0, smoothness=0.01),
     dict(core_reflectivity=(0.8, 0.8, 0.8), edge_tint=1.0, roughness=0.9, haziness=0.95, haze_extent=3.0, smoothness=1e4),
+    dict(core_reflectivity=(1.0, 0.5, 0.2), edge_tint=0.5, roughness=0.2, haziness=0.7, haze_extent=5.0),  # r̂_c = 1
+    dict(core_reflectivity=(0.99, 0.9, 0.5), edge_tint=0.3, roughness=0.2, haziness=0.9999, haze_extent=5.0),
+    dict(core_reflectivity=(0.7, 0.7, 0.7), edge_tint=0.6, roughness=0.2, haziness=0.999, haze_extent=4.0, smoothness=3.0),
 ]
 
 
@@ -275,7 +278,10 @@ def _emit(hg, params, output):
 
 def test_in_shader_mapping_equals_python(api, hg):
     worst = {}
+    f32 = lambda v: tuple(f32(x) for x in v) if isinstance(v, tuple) else float(np.float32(v))
     for params in IN_SHADER_CASES:
+        # the shader receives float32 inputs: map exactly those values (in float64)
+        params = {k: f32(v) for k, v in params.items()}
         p = api.normalise_parameters(dict(kind="CONDUCTOR", **params))
         m = api.map_parameters(p)
         want = {"beta": float(m.beta), "peak_ratio": float(m.peak_ratio),
@@ -288,13 +294,17 @@ def test_in_shader_mapping_equals_python(api, hg):
             got = render_plane(_emit(hg, params, output), res=(2, 2))[0]
             expected = np.broadcast_to(np.asarray(expected, dtype=np.float64), (3,))
             # relative where values are large (η, κ grow like 1/(1-r)), absolute otherwise
-            err = float(np.max(np.abs(got - expected) / np.maximum(1.0, np.abs(expected))))
-            worst[output] = max(worst.get(output, 0.0), err)
-            tol = 1e-5
             if output in ("ior", "extinction"):
-                # η, κ ~ 1/(1-r): float32 rounding of r alone moves them by 2^-24/(1-r) relative
-                tol += float(np.max(2.0 ** -22 / (1.0 - np.asarray(m.reflectivity))))
-            assert err <= tol, (params, output, got, expected)
+                # r = 1 (a perfect mirror): both sides cap 1 - r at their own ε (2^-52 vs 2^-23);
+                # what matters is that the index is huge, i.e. F = 1 - O(1/η) everywhere
+                mirror = np.asarray(m.reflectivity) >= 1.0 - 2.0 ** -23
+                if output == "ior":
+                    assert np.all(got[mirror] >= 1e6), got
+                got, expected = got[~mirror], expected[~mirror]
+            err = float(np.max(np.abs(got - expected) / np.maximum(1.0, np.abs(expected)), initial=0.0))
+            worst[output] = max(worst.get(output, 0.0), err)
+            # η, κ ~ 1/(1-r) are relative; the graph computes 1 - r without cancellation too
+            assert err <= 1e-5, (params, output, got, expected)
     record("in_shader_vs_python", worst)
 
 
