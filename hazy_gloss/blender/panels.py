@@ -1,6 +1,391 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
+"""Hazy Gloss panels: Shader Editor sidebar (tab "Hazy Gloss") and Material Properties.
+
+Both draw the same thing for the active material (:func:`draw_material`): the perceptual
+sliders, kind / distribution / in-shader vs constant mapping, presets, the mapped physical
+values read-only (β, r, η, κ, α_n, α_w, p, k̂_h from ``api.map_parameters``), warnings in plain
+words, and two plots.
+
+Plots: drawn with numpy (``utils.plots``) into previews of a ``bpy.utils.previews`` collection
+and shown with ``layout.template_icon``.  Measured in 4.5 and 5.0 (background mode): a
+collection preview takes exact pixels through ``image_pixels_float`` (stored 8-bit), also from
+``draw()`` since it is not ID data; an image data-block's ``preview`` is generated
+asynchronously by the UI from the image (size 0 in background mode, not settable) and writing
+an image in ``draw()`` is forbidden, so it is not used for the panel.  ``hazy_gloss.plot_to_image``
+writes full-resolution float copies into hidden image data-blocks (zero users: not saved).
+Plots are recomputed only when the parameters or the plot settings change.
+"""
+from collections import OrderedDict
+
 import bpy
+import bpy.utils.previews
+import numpy as np
 
-classes = ()
+from .. import api
+from ..utils import plots as plotlib
+from . import operators, preferences, properties
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+_previews = {"collection": None}
+_plot_cache = OrderedDict()  # (which, material) -> (key, preview name)
+_PLOT_CACHE_SIZE = 16
+PLOT_SIZE = 160
+
+IMAGE_NAMES = {"haze": ".Hazy Gloss · haze intensity", "brdf": ".Hazy Gloss · BRDF slice"}
+
+
+# --------------------------------------------------------------------------------------------
+# Plots
+# --------------------------------------------------------------------------------------------
+
+
+def _plot_key(p, prefs, size):
+    return (repr(sorted(p.items())), bool(prefs.plot_log_scale), float(prefs.plot_incidence), size)
+
+
+def compute_plots(mat, prefs, size=PLOT_SIZE, which=("haze", "brdf")):
+    """{"haze": rgba, "brdf": rgba} for the material's stamped parameters (display values)."""
+    p = properties.parameters(mat)
+    m = api.map_parameters(p)
+    out = {}
+    if "haze" in which:
+        out["haze"] = plotlib.haze_plot(float(np.max(p["core_reflectivity"])), float(m.peak_ratio),
+                                        p["haziness"], p["smoothness"], size=(size, size))
+    if "brdf" in which:
+        out["brdf"] = plotlib.brdf_plot(m, p["kind"], theta_i=float(prefs.plot_incidence),
+                                        size=(size, size), log=bool(prefs.plot_log_scale))
+    return out
+
+
+def plot_icon(mat, which, prefs, size=PLOT_SIZE):
+    """icon_id of an up-to-date preview of plot ``which`` ("haze" / "brdf") for ``mat``."""
+    pcoll = _previews["collection"]
+    if pcoll is None:
+        return 0
+    p = properties.parameters(mat)
+    key = _plot_key(p, prefs, size)
+    slot = (which, mat.name_full)
+    cached = _plot_cache.get(slot)
+    if cached is not None and cached[0] == key and cached[1] in pcoll:
+        _plot_cache.move_to_end(slot)
+        return pcoll[cached[1]].icon_id
+    name = f"{which}:{mat.name_full}"
+    preview = pcoll[name] if name in pcoll else pcoll.new(name)
+    try:
+        rgba = compute_plots(mat, prefs, size, which=(which,))[which]
+    except ValueError:
+        return 0
+    preview.image_size = (size, size)
+    preview.image_pixels_float.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
+    _plot_cache[slot] = (key, name)
+    _plot_cache.move_to_end(slot)
+    while len(_plot_cache) > _PLOT_CACHE_SIZE:
+        _, (_, old) = _plot_cache.popitem(last=False)
+        if old in pcoll:
+            del pcoll[old]
+    return preview.icon_id
+
+
+def plot_image(which, rgba):
+    """Write ``rgba`` (display values) into the hidden float image for ``which``; zero users,
+    no fake user, so it is never saved."""
+    name = IMAGE_NAMES[which]
+    h, w = rgba.shape[:2]
+    img = bpy.data.images.get(name)
+    if img is not None and (tuple(img.size) != (w, h) or img.library is not None):
+        bpy.data.images.remove(img)
+        img = None
+    if img is None:
+        img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+    img.use_fake_user = False
+    linear = plotlib.srgb_to_linear(rgba)
+    img.pixels.foreach_set(np.ascontiguousarray(linear, dtype=np.float32).ravel())
+    img.update()
+    return img
+
+
+# --------------------------------------------------------------------------------------------
+# Warnings and mapped values
+# --------------------------------------------------------------------------------------------
+
+_CLAMP_TEXT = {
+    "alpha_wide >": "The halo is wider than Blender allows (roughness 1), so it was narrowed: "
+                    "lower Haze Extent or Roughness",
+    "alpha_wide aspect": "The halo is more than 10 times longer one way than the other, which "
+                         "Blender's anisotropy cannot do; it was shortened",
+    "reflectivity at 1": "Reflectivity reached 1: there is no room left for haze",
+}
+
+
+def warnings_for(mat, p, m, context=None, prefs=None):
+    """Plain-language warnings for a hazy material (list of strings)."""
+    prefs = prefs or preferences.get(context)
+    out = []
+    for reason in m.clamped:
+        for key, text in _CLAMP_TEXT.items():
+            if reason.startswith(key):
+                out.append(text)
+                break
+        else:
+            out.append(reason)
+    r_max = float(np.asarray(m.reflectivity_max))
+    rc_max = float(np.max(p["core_reflectivity"]))
+    if p["kind"] == "DIELECTRIC" and r_max > prefs.dielectric_warning:
+        out.append(f"Reflectivity r = {r_max:.3f} (IOR {float(np.asarray(m.dielectric_ior)):.2f}) "
+                   f"is more than any common dielectric reflects: it will look like a metal. "
+                   f"Lower Haziness or Haze Extent")
+    elif p["kind"] == "DIELECTRIC" and p["haziness"] > 0.1:
+        out.append(f"Haziness {p['haziness']:.2f} is above the usual 0-0.1 for dielectrics: "
+                   f"haze raises the reflectivity (r = {r_max:.3f})")
+    if p["kind"] != "DIELECTRIC" and p["haziness"] > 0 and rc_max > 0.9:
+        room = (1.0 - rc_max) / max(float(np.asarray(m.peak_complement)), 1e-9)
+        out.append(f"A very bright core ({rc_max:.2f}) leaves little room for haze (energy "
+                   f"conservation): at most {min(room, 1.0):.2f} of halo intensity")
+    if p["roughness"] < api.min_roughness(p["distribution"]):
+        out.append(f"Roughness below {api.min_roughness(p['distribution'])} is raised to it: a "
+                   f"perfect mirror cannot carry a halo")
+    if p["kind"] == "LEGACY":
+        out.append("Legacy lobes have no Fresnel: reflections do not brighten at grazing angles")
+    if api.is_anisotropic(p):
+        obj = getattr(context, "object", None) if context is not None else None
+        data = getattr(obj, "data", None)
+        if p["tangent"] == "UV_MAP" and data is not None and hasattr(data, "uv_layers") \
+                and len(data.uv_layers) == 0:
+            out.append("Anisotropy follows the UV map's tangent, but the object has no UV map")
+        scene = getattr(context, "scene", None) if context is not None else None
+        if scene is not None and "EEVEE" in scene.render.engine:
+            out.append("EEVEE ignores anisotropy: render with Cycles to see it")
+    if properties.stamp_problem(mat):
+        out.append(properties.stamp_problem(mat))
+    return out
+
+
+def _fmt(v, digits=3):
+    arr = np.asarray(v, dtype=np.float64).ravel()
+    if arr.size == 1 or np.all(arr == arr[0]):
+        return f"{arr[0]:.{digits}g}"
+    return "(" + ", ".join(f"{x:.{digits}g}" for x in arr) + ")"
+
+
+def mapped_values(p, m):
+    """[(label, value text)] of the physical parameters the material renders with."""
+    rows = [("β (wide lobe)", _fmt(m.beta)), ("r = F_r(0)", _fmt(m.reflectivity))]
+    if p["kind"] == "CONDUCTOR":
+        rows += [("η", _fmt(m.ior)), ("κ", _fmt(m.extinction))]
+    elif p["kind"] == "DIELECTRIC":
+        rows += [("η", _fmt(m.dielectric_ior, 4))]
+    else:
+        rows += [("k_n, k_w", f"{_fmt(m.weight_narrow)}, {_fmt(m.weight_wide)}")]
+    ax, ay = (float(np.asarray(a)) for a in m.alpha)
+    wx, wy = (float(np.asarray(a)) for a in m.alpha_wide)
+    rows += [("α_n", _fmt((ax, ay) if ax != ay else ax, 4)),
+             ("α_w", _fmt((wx, wy) if wx != wy else wx, 4)),
+             ("p (peak ratio)", _fmt(m.peak_ratio)),
+             ("k̂_h (halo)", _fmt(m.halo_intensity))]
+    return rows
+
+
+# --------------------------------------------------------------------------------------------
+# Drawing
+# --------------------------------------------------------------------------------------------
+
+
+def draw_material(layout, context, mat, idname):
+    """The body of both panels; ``idname`` keeps their collapsible sections apart."""
+    prefs = preferences.get(context)
+    if mat is None:
+        layout.label(text="No active material", icon="INFO")
+        layout.operator("hazy_gloss.new_material", icon="ADD")
+        return
+    problem = properties.edit_problem(mat)
+    if not api.is_hazy(mat):
+        col = layout.column()
+        if mat.library is not None:
+            col.label(text="Linked from a library: read-only", icon="LIBRARY_DATA_DIRECT")
+            return
+        col.label(text=f"“{mat.name}” is not hazy", icon="INFO")
+        row = col.row(align=True)
+        row.operator("hazy_gloss.make_hazy", icon="SHADING_RENDERED")
+        row.operator("hazy_gloss.import_two_lobe_mix", text="Import Two-Lobe Mix")
+        col.operator("hazy_gloss.new_material", icon="ADD")
+        return
+    hg = properties.settings(mat)
+    p = properties.parameters(mat)
+
+    col = layout.column()
+    if problem is not None:
+        box = col.box()
+        box.alert = True
+        box.label(text=problem, icon="LIBRARY_DATA_DIRECT")
+    err = properties.error_for(mat)
+    if err and problem is None:
+        box = col.box()
+        box.alert = True
+        box.label(text=err, icon="ERROR")
+    body = col.column()
+    body.enabled = problem is None
+
+    row = body.row(align=True)
+    row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
+    row.operator("hazy_gloss.preset_add", text="", icon="ADD")
+    row.operator("hazy_gloss.preset_add", text="", icon="REMOVE").remove_active = True
+
+    body.prop(hg, "kind", expand=True)
+    split = body.column()
+    split.use_property_split = True
+    split.use_property_decorate = False
+    split.prop(hg, "distribution")
+    split.prop(hg, "shader_mapping", text="In-Shader Mapping")
+
+    core = body.box().column()
+    core.use_property_split = True
+    core.use_property_decorate = False
+    core.label(text="Core", icon="SHADING_SOLID")
+    core.prop(hg, "core_reflectivity")
+    if p["kind"] == "CONDUCTOR":
+        core.prop(hg, "edge_tint")
+    core.prop(hg, "roughness", slider=True)
+    core.prop(hg, "anisotropy", slider=True)
+    if api.is_anisotropic(p):
+        core.prop(hg, "rotation", slider=True)
+        core.prop(hg, "tangent")
+
+    haze = body.box().column()
+    haze.use_property_split = True
+    haze.use_property_decorate = False
+    haze.label(text="Haze", icon="LIGHT_SUN")
+    haze.prop(hg, "haziness", slider=True)
+    row = haze.row(align=True)
+    row.prop(hg, "haze_extent_x", text="Extent" if hg.haze_extent_linked else "Extent X")
+    row.prop(hg, "haze_extent_linked", text="", icon="LINKED" if hg.haze_extent_linked else "UNLINKED")
+    if not hg.haze_extent_linked:
+        haze.prop(hg, "haze_extent_y", text="Extent Y")
+    row = haze.row(align=True)
+    row.prop(hg, "use_smoothness", text="Smooth")
+    sub = row.row(align=True)
+    sub.active = hg.use_smoothness
+    sub.prop(hg, "smoothness", text="w")
+
+    if p["kind"] == "DIELECTRIC":
+        base = body.box().column()
+        base.use_property_split = True
+        base.use_property_decorate = False
+        base.label(text="Base", icon="MATERIAL")
+        base.prop(hg, "base_color")
+        base.prop(hg, "transmission", slider=True)
+
+    try:
+        m = api.map_parameters(p)
+    except ValueError as exc:
+        box = col.box()
+        box.alert = True
+        box.label(text=properties.plain_message(exc), icon="ERROR")
+        return
+
+    warns = warnings_for(mat, p, m, context, prefs)
+    if warns:
+        box = col.box()
+        for text in warns:
+            box.label(text=text, icon="ERROR")
+
+    header, panel = col.panel(f"{idname}_physical", default_closed=True)
+    header.label(text="Physical Values")
+    if panel is not None:
+        grid = panel.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
+        for label, value in mapped_values(p, m):
+            grid.label(text=label)
+            grid.label(text=value)
+        if p["shader_mapping"] and properties.has_hazy_nodes(mat):
+            group = mat.node_tree.nodes.get(properties.GROUP_NODE)
+            if group is not None and any(s.is_linked for s in group.inputs
+                                         if s.name not in ("Normal", "Tangent")):
+                panel.label(text="Textured inputs vary these per pixel", icon="TEXTURE")
+
+    if prefs.show_plots:
+        header, panel = col.panel(f"{idname}_plots", default_closed=False)
+        header.label(text="Plots")
+        if panel is not None:
+            row = panel.row()
+            c1 = row.column(align=True)
+            c1.template_icon(icon_value=plot_icon(mat, "haze", prefs), scale=7.0)
+            c1.label(text="Halo k_h vs core r_c")
+            c2 = row.column(align=True)
+            c2.template_icon(icon_value=plot_icon(mat, "brdf", prefs), scale=7.0)
+            c2.label(text="BRDF: core, halo, total")
+            panel.label(text="Red: bounds P, E / total · magenta: core · cyan: halo")
+            panel.operator("hazy_gloss.plot_to_image", icon="IMAGE_DATA")
+
+
+class HAZY_GLOSS_MT_presets(bpy.types.Menu):
+    bl_label = "Hazy Gloss Presets"
+    bl_idname = "HAZY_GLOSS_MT_presets"
+    preset_subdir = operators.PRESET_SUBDIR
+    preset_operator = "script.execute_preset"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.label(text="From the paper")
+        for pid, name, _desc in operators.presets.enum_items():
+            layout.operator("hazy_gloss.apply_preset", text=name).preset = pid
+        layout.separator()
+        layout.label(text="Your presets")
+        bpy.types.Menu.draw_preset(self, context)
+
+
+def _context_material(context):
+    return operators.target_material(context)
+
+
+class HAZY_GLOSS_PT_material(bpy.types.Panel):
+    bl_label = "Hazy Gloss"
+    bl_idname = "HAZY_GLOSS_PT_material"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "material", None) is not None or \
+            getattr(context, "object", None) is not None
+
+    def draw(self, context):
+        draw_material(self.layout, context, _context_material(context), "hazy_gloss_material")
+
+
+class HAZY_GLOSS_PT_shader_editor(bpy.types.Panel):
+    bl_label = "Hazy Gloss"
+    bl_idname = "HAZY_GLOSS_PT_shader_editor"
+    bl_space_type = "NODE_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Hazy Gloss"
+
+    @classmethod
+    def poll(cls, context):
+        space = getattr(context, "space_data", None)
+        if space is None or getattr(space, "tree_type", "") != "ShaderNodeTree":
+            return False
+        if getattr(space, "shader_type", "OBJECT") != "OBJECT":
+            return False
+        return _context_material(context) is not None or getattr(context, "object", None) is not None
+
+    def draw(self, context):
+        draw_material(self.layout, context, _context_material(context), "hazy_gloss_node")
+
+
+classes = (HAZY_GLOSS_MT_presets, HAZY_GLOSS_PT_material, HAZY_GLOSS_PT_shader_editor)
+
+
+def register():
+    _previews["collection"] = bpy.utils.previews.new()
+    _plot_cache.clear()
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
+    pcoll = _previews["collection"]
+    _previews["collection"] = None
+    _plot_cache.clear()
+    if pcoll is not None:
+        bpy.utils.previews.remove(pcoll)

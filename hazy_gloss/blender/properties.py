@@ -1,6 +1,526 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
+"""``Material.hazy_gloss_settings``: the perceptual parameters as UI properties.
+
+The stamp ``mat["hazy_gloss"]`` written by :mod:`hazy_gloss.api` is the only storage of the
+parameters (it travels with the .blend and is all a render farm needs).  Every parameter
+property here is a *view* on that stamp: its getter reads the stamp, its setter calls
+``api.update_material`` (through :func:`edit_material`).  So nothing has to be synced: after the
+add-on is disabled and enabled again, after undo, after loading a file written by a script or
+another machine, the panel shows what the stamp says.
+
+Why not ``Material.hazy_gloss``: in Blender 4.5 a registered property shares its storage with
+the custom property of the same name, so ``Material.hazy_gloss`` would overwrite the stamp
+(measured: writing one field of the group deleted other keys of ``mat["hazy_gloss"]``).  5.0
+keeps them apart, but one name has to work in both.
+
+A few properties are plain stored UI state: the haze-extent link toggle and what a switch
+remembers (the edge tint while the kind is not a conductor, the smoothness weight while the
+smooth mapping is off).
+
+Edits go through :func:`edit_material`, which
+- refuses linked-library and override materials with a clear message (no crash),
+- ignores re-entrant calls for the same material (a setter triggered while that material is
+  being rebuilt, e.g. by a handler or driver of the user's),
+- keeps what the user connected to the hazy nodes: textures linked into the group's inputs
+  and the links from the hazy BSDF output into other nodes (a Mix Shader, say) survive the
+  rebuild, and nodes the user moved stay where they were,
+- records a plain-language message per material when a change is refused
+  (:data:`last_error`, shown by the panel).
+"""
+import time
+
 import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
-classes = ()
+from .. import api
+from ..node_groups.lobes import NODE_DISTRIBUTIONS
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+PROPERTY_NAME = "hazy_gloss_settings"
+GROUP_NODE = api.NODE_PREFIX + " Hazy Gloss"
+
+KIND_ITEMS = (
+    ("CONDUCTOR", "Conductor", "Metal: Metallic BSDF lobes with the physical conductor Fresnel "
+     "from core reflectivity and edge tint (Gulbrandsen 2014)", 0),
+    ("DIELECTRIC", "Dielectric", "Plastic, varnish, glass: Principled BSDF specular lobes over a "
+     "base colour; keep haziness small (about 0-0.1)", 1),
+    ("LEGACY", "Legacy", "Glossy BSDF lobes without Fresnel (colours only)", 2),
+)
+DISTRIBUTION_ITEMS = (
+    ("GGX", "GGX", "GGX microfacets (all kinds)", 0),
+    ("BECKMANN", "Beckmann", "Beckmann microfacets (conductor and legacy)", 1),
+    ("MULTI_GGX", "Multiscatter GGX", "GGX with multiple-scattering energy compensation "
+     "(the peak ratio uses the single-scattering GGX peak)", 2),
+    ("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "Ashikhmin-Shirley lobes (legacy only)", 3),
+)
+TANGENT_ITEMS = (
+    ("UV_MAP", "UV Map", "Tangent from the object's UV map (the usual choice)", 0),
+    ("RADIAL_X", "Radial X", "Radial tangent around the object's X axis", 1),
+    ("RADIAL_Y", "Radial Y", "Radial tangent around the object's Y axis", 2),
+    ("RADIAL_Z", "Radial Z", "Radial tangent around the object's Z axis (Blender's default "
+     "for an unconnected Tangent)", 3),
+)
+_KIND_IDS = [i[0] for i in KIND_ITEMS]
+_DIST_IDS = [i[0] for i in DISTRIBUTION_ITEMS]
+_TANGENT_IDS = [i[0] for i in TANGENT_ITEMS]
+
+#: material session_uid -> plain-language message of the last refused change (the panel shows
+#: it).  session_uid, not the name: a file loaded later may reuse the name.
+last_error = {}
+#: Timing of the last edits in seconds (newest last), for the latency test and the panel.
+timings = []
+_busy = set()
+
+
+# --------------------------------------------------------------------------------------------
+# Reading and editing
+# --------------------------------------------------------------------------------------------
+
+
+def settings(mat):
+    return getattr(mat, PROPERTY_NAME)
+
+
+def error_for(mat):
+    """The message of the last refused change of ``mat`` (or None)."""
+    return last_error.get(mat.session_uid) if mat is not None else None
+
+
+def has_hazy_nodes(mat):
+    tree = getattr(mat, "node_tree", None)
+    return tree is not None and any(n.name.startswith(api.NODE_PREFIX + " ") for n in tree.nodes)
+
+
+def is_live(mat):
+    """A hazy material whose tree still holds the add-on's nodes."""
+    return api.is_hazy(mat) and has_hazy_nodes(mat)
+
+
+def parameters(mat):
+    """The stamped parameters, or the defaults (a non-hazy material, an unreadable stamp)."""
+    try:
+        p = api.read_parameters(mat) if mat is not None else None
+    except (ValueError, TypeError, KeyError):
+        p = None
+    return p if p is not None else api.normalise_parameters({})
+
+
+def stamp_problem(mat):
+    """Why the stamp cannot be read, in plain words, or None."""
+    if mat is None or not api.is_hazy(mat):
+        return None
+    try:
+        api.read_parameters(mat)
+    except (ValueError, TypeError, KeyError) as exc:
+        return f"The stored Hazy Gloss parameters are unreadable ({exc}); apply a preset to reset them"
+    return None
+
+
+def edit_problem(mat):
+    """Why ``mat`` cannot be edited, in plain words, or None."""
+    if mat is None:
+        return "No material"
+    lib = mat.library
+    if lib is not None:
+        return (f"“{mat.name}” is linked from the library file “{bpy.path.basename(lib.filepath)}” "
+                f"and is read-only here. Edit it in that file, or make it local "
+                f"(Object > Relations > Make Local) to change it in this one")
+    if getattr(mat, "override_library", None) is not None:
+        return (f"“{mat.name}” is a library override; its node tree cannot be rebuilt. "
+                f"Make it local to edit it")
+    if not api.is_hazy(mat):
+        return f"“{mat.name}” is not a hazy material: use Make Hazy first"
+    return None
+
+
+_PLAIN = (
+    ("haziness", "Haziness must stay below 1 (1 would break energy conservation)"),
+    ("offer", None),  # distribution / kind mismatch: the api's message is already plain
+)
+
+
+def plain_message(exc):
+    text = str(exc)
+    for key, plain in _PLAIN:
+        if key in text and plain:
+            return plain
+    return text[:1].upper() + text[1:]
+
+
+def _is_ours(node):
+    return node.name.startswith(api.NODE_PREFIX + " ")
+
+
+def _surface_socket(tree):
+    out = api._output_node(tree)
+    return out.inputs["Surface"]
+
+
+class _KeepUserLinks:
+    """Record the links between the user's nodes and the hazy nodes, restore them after a
+    rebuild.  ``dropped`` lists inputs that no longer exist (e.g. Edge Tint of a dielectric)."""
+
+    def __init__(self, mat):
+        self.tree = mat.node_tree
+        self.incoming = []  # (from_node, from_socket identifier, to input name)
+        self.outgoing = []  # (to_node, to_socket identifier)
+        self.surface_from = None
+        self.location = None
+        self.dropped = []
+        tree = self.tree
+        surf = _surface_socket(tree)
+        for link in tree.links:
+            a, b = link.from_node, link.to_node
+            if _is_ours(b) and not _is_ours(a) and b.name == GROUP_NODE:
+                self.incoming.append((a.name, link.from_socket.identifier, link.to_socket.name))
+            elif _is_ours(a) and not _is_ours(b):
+                self.location = tuple(a.location)  # the hazy BSDF's output node
+                if link.to_socket != surf:
+                    self.outgoing.append((b.name, link.to_socket.identifier))
+        if surf.is_linked:
+            src = surf.links[0].from_node
+            if not _is_ours(src):
+                self.surface_from = (src.name, surf.links[0].from_socket.identifier)
+
+    @property
+    def has_textures(self):
+        return bool(self.incoming)
+
+    def restore(self):
+        tree = self.tree
+        nodes = tree.nodes
+        surf = _surface_socket(tree)
+        ours = surf.links[0].from_socket if surf.is_linked else None
+        final = ours.node if ours is not None else None
+        if final is not None and self.location is not None:  # keep where the user put our nodes
+            dx = self.location[0] - final.location.x
+            dy = self.location[1] - final.location.y
+            if dx or dy:
+                for n in nodes:
+                    if _is_ours(n):
+                        n.location = (n.location.x + dx, n.location.y + dy)
+        if self.surface_from is not None:
+            src = nodes.get(self.surface_from[0])
+            sock = _by_identifier(src.outputs, self.surface_from[1]) if src else None
+            if sock is not None:
+                tree.links.new(sock, surf)
+        if ours is not None:
+            for to_name, ident in self.outgoing:
+                node = nodes.get(to_name)
+                sock = _by_identifier(node.inputs, ident) if node else None
+                if sock is not None:
+                    tree.links.new(ours, sock)
+        group = nodes.get(GROUP_NODE)
+        for from_name, ident, to_input in self.incoming:
+            src = nodes.get(from_name)
+            sock = _by_identifier(src.outputs, ident) if src else None
+            if sock is None:
+                continue
+            target = group.inputs.get(to_input) if group is not None else None
+            if target is None:
+                self.dropped.append(to_input)
+                continue
+            tree.links.new(sock, target)
+        # an api-made tangent node replaced by the user's tangent is left dangling: remove it
+        for n in [n for n in nodes if _is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
+            if not any(s.is_linked for s in n.outputs):
+                nodes.remove(n)
+
+
+def _by_identifier(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    return None
+
+
+def edit_material(mat, **changes):
+    """Apply perceptual ``changes`` to the hazy material ``mat`` and rebuild its nodes.
+
+    Returns ``(mapping, message)``: the HazeMapping and None, or None and the plain-language
+    reason when the change was refused (also stored in :data:`last_error`).  A re-entrant call
+    for a material that is being rebuilt is ignored (returns (None, None))."""
+    key = mat.as_pointer()
+    if key in _busy:
+        return None, None
+    problem = edit_problem(mat)
+    if problem is not None:
+        last_error[mat.session_uid] = problem
+        return None, problem
+    _busy.add(key)
+    t0 = time.perf_counter()
+    try:
+        p = api.read_parameters(mat)
+        p.update(changes)
+        p = api.normalise_parameters(p)
+        keep = _KeepUserLinks(mat)
+        if keep.has_textures and not p["shader_mapping"]:
+            names = ", ".join(sorted({i[2] for i in keep.incoming}))
+            raise ValueError(f"Textures are connected to {names}: constant mapping cannot use "
+                             f"them. Keep in-shader mapping, or disconnect them first")
+        m = api.update_material(mat, **changes)
+        keep.restore()
+    except (ValueError, TypeError) as exc:
+        msg = plain_message(exc)
+        last_error[mat.session_uid] = msg
+        return None, msg
+    finally:
+        _busy.discard(key)
+    timings.append(time.perf_counter() - t0)
+    del timings[:-200]
+    if keep.dropped:
+        last_error[mat.session_uid] = ("Disconnected (no such input any more): "
+                                     + ", ".join(keep.dropped))
+    else:
+        last_error.pop(mat.session_uid, None)
+    return m, None
+
+
+# --------------------------------------------------------------------------------------------
+# Property getters and setters (views on the stamp)
+# --------------------------------------------------------------------------------------------
+
+
+def _set(pg, **changes):
+    mat = pg.id_data
+    _, msg = edit_material(mat, **changes)
+    if msg:
+        print(f"Hazy Gloss: {mat.name}: {msg}")
+
+
+def _get_float(key):
+    def get(self):
+        return float(parameters(self.id_data)[key])
+    return get
+
+
+def _set_float(key):
+    def set_(self, value):
+        _set(self, **{key: float(value)})
+    return set_
+
+
+def _get_rgb(key):
+    def get(self):
+        return tuple(parameters(self.id_data)[key])
+    return get
+
+
+def _set_rgb(key):
+    def set_(self, value):
+        _set(self, **{key: tuple(float(x) for x in value)})
+    return set_
+
+
+def _get_kind(self):
+    return _KIND_IDS.index(parameters(self.id_data)["kind"])
+
+
+def _set_kind(self, value):
+    kind = _KIND_IDS[value]
+    mat = self.id_data
+    p = parameters(mat)
+    if kind == p["kind"]:
+        return
+    changes = {"kind": kind}
+    if p["distribution"] not in NODE_DISTRIBUTIONS[kind]:
+        changes["distribution"] = "GGX"
+    if p["kind"] == "CONDUCTOR":  # remember the edge tint; dielectrics have none
+        self.edge_tint_memory = p["edge_tint"]
+    if kind == "CONDUCTOR":
+        changes["edge_tint"] = tuple(self.edge_tint_memory)
+    _set(self, **changes)
+
+
+def _get_distribution(self):
+    return _DIST_IDS.index(parameters(self.id_data)["distribution"])
+
+
+def _set_distribution(self, value):
+    _set(self, distribution=_DIST_IDS[value])
+
+
+def _get_tangent(self):
+    return _TANGENT_IDS.index(parameters(self.id_data)["tangent"])
+
+
+def _set_tangent(self, value):
+    _set(self, tangent=_TANGENT_IDS[value])
+
+
+def _get_extent(axis):
+    def get(self):
+        return float(parameters(self.id_data)["haze_extent"][axis])
+    return get
+
+
+def _set_extent(axis):
+    def set_(self, value):
+        x, y = parameters(self.id_data)["haze_extent"]
+        if self.haze_extent_linked:
+            x = y = float(value)
+        elif axis == 0:
+            x = float(value)
+        else:
+            y = float(value)
+        _set(self, haze_extent=(x, y))
+    return set_
+
+
+def _set_linked(self, value):
+    self["haze_extent_linked_"] = bool(value)
+    if value:  # linking makes the halo isotropic: y follows x
+        x, y = parameters(self.id_data)["haze_extent"]
+        if x != y and api.is_hazy(self.id_data):
+            _set(self, haze_extent=(x, x))
+
+
+def _get_linked(self):
+    """Linked when the user linked them (the default) and the extents are equal: a preset or a
+    script that makes the halo anisotropic shows as unlinked."""
+    x, y = parameters(self.id_data)["haze_extent"]
+    return bool(self.get("haze_extent_linked_", True)) and x == y
+
+
+def _get_use_smooth(self):
+    return parameters(self.id_data)["smoothness"] is not None
+
+
+def _set_use_smooth(self, value):
+    w = parameters(self.id_data)["smoothness"]
+    if bool(value) == (w is not None):
+        return
+    if value:
+        _set(self, smoothness=float(self.smoothness_memory))
+    else:
+        self.smoothness_memory = w
+        _set(self, smoothness=None)
+
+
+def _get_smoothness(self):
+    w = parameters(self.id_data)["smoothness"]
+    return float(w) if w is not None else float(self.smoothness_memory)
+
+
+def _set_smoothness(self, value):
+    if parameters(self.id_data)["smoothness"] is None:
+        self.smoothness_memory = float(value)
+    else:
+        _set(self, smoothness=float(value))
+
+
+def _get_bool(key):
+    def get(self):
+        return bool(parameters(self.id_data)[key])
+    return get
+
+
+def _set_bool(key):
+    def set_(self, value):
+        _set(self, **{key: bool(value)})
+    return set_
+
+
+_NO_ANIM = set()  # rebuilding node trees per frame is not what anyone wants (and farms
+#                   without the add-on would not do it): parameters are not animatable
+
+
+class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
+    """Perceptual hazy-gloss parameters of a material (a view on mat["hazy_gloss"])"""
+
+    kind: EnumProperty(name="Kind", items=KIND_ITEMS, get=_get_kind, set=_set_kind,
+                       options=_NO_ANIM)
+    distribution: EnumProperty(name="Distribution", items=DISTRIBUTION_ITEMS,
+                               get=_get_distribution, set=_set_distribution, options=_NO_ANIM,
+                               description="Microfacet distribution of both lobes")
+    core_reflectivity: FloatVectorProperty(
+        name="Core Reflectivity", subtype="COLOR", size=3, min=0.0, max=1.0,
+        get=_get_rgb("core_reflectivity"), set=_set_rgb("core_reflectivity"), options=_NO_ANIM,
+        description="r_c: reflectivity of the sharp core at normal incidence (linear RGB). "
+                    "Haze never changes the brightness of the highlight's peak")
+    edge_tint: FloatVectorProperty(
+        name="Edge Tint", subtype="COLOR", size=3, min=0.0, max=1.0,
+        get=_get_rgb("edge_tint"), set=_set_rgb("edge_tint"), options=_NO_ANIM,
+        description="g: colour towards grazing angles (Gulbrandsen 2014); black = "
+                    "dielectric-like Fresnel")
+    roughness: FloatProperty(
+        name="Roughness", min=0.0, max=1.0, subtype="FACTOR", precision=3,
+        get=_get_float("roughness"), set=_set_float("roughness"), options=_NO_ANIM,
+        description="Core roughness, Blender's convention R = √α (the paper's α_n is R²)")
+    anisotropy: FloatProperty(
+        name="Anisotropy", min=0.0, max=1.0, subtype="FACTOR",
+        get=_get_float("anisotropy"), set=_set_float("anisotropy"), options=_NO_ANIM,
+        description="Stretch of the core along the tangent (Metallic BSDF convention, "
+                    "at most 10:1)")
+    rotation: FloatProperty(
+        name="Rotation", min=0.0, max=1.0, subtype="FACTOR",
+        get=_get_float("rotation"), set=_set_float("rotation"), options=_NO_ANIM,
+        description="Rotation of the tangent, in turns")
+    tangent: EnumProperty(name="Tangent", items=TANGENT_ITEMS, get=_get_tangent,
+                          set=_set_tangent, options=_NO_ANIM,
+                          description="Tangent used by anisotropic lobes")
+    haziness: FloatProperty(
+        name="Haziness", min=0.0, max=0.9999, soft_min=0.0, soft_max=0.99, subtype="FACTOR",
+        precision=3, get=_get_float("haziness"), set=_set_float("haziness"), options=_NO_ANIM,
+        description="β_h: proportion of the halo the energy and positivity bounds allow. "
+                    "About 0-0.1 for dielectrics, up to 0.99 for metals")
+    haze_extent_x: FloatProperty(
+        name="Haze Extent", min=0.0, max=1000.0, soft_max=20.0,
+        get=_get_extent(0), set=_set_extent(0), options=_NO_ANIM,
+        description="λ_h: width of the halo in units of the core's roughness "
+                    "(α_w = α_n + λ_h √(α_n^x α_n^y)); along the tangent when unlinked")
+    haze_extent_y: FloatProperty(
+        name="Haze Extent Y", min=0.0, max=1000.0, soft_max=20.0,
+        get=_get_extent(1), set=_set_extent(1), options=_NO_ANIM,
+        description="λ_h^y: width of the halo across the tangent")
+    haze_extent_linked: BoolProperty(
+        name="Link Haze Extents", get=_get_linked, set=_set_linked, options=_NO_ANIM,
+        description="One haze extent for both directions (isotropic halo)")
+    use_smoothness: BoolProperty(
+        name="Smooth Haze", get=_get_use_smooth, set=_set_use_smooth, options=_NO_ANIM,
+        description="Use the rational Bézier mapping (Eqs. 12-15) instead of the piecewise "
+                    "linear Eq. 7: no kink where r_c = p (useful with textured reflectivity)")
+    smoothness: FloatProperty(
+        name="Smoothness", min=1e-4, max=1e6, soft_min=0.5, soft_max=16.0,
+        get=_get_smoothness, set=_set_smoothness, options=_NO_ANIM,
+        description="w: weight of the Bézier; larger is closer to Eq. 7, smaller is smoother "
+                    "but reaches less haze")
+    shader_mapping: BoolProperty(
+        name="In-Shader Mapping", get=_get_bool("shader_mapping"), set=_set_bool("shader_mapping"),
+        options=_NO_ANIM,
+        description="Compute the mapping in the shader (a node group whose inputs take "
+                    "textures) instead of constants computed here (leaner, faster to render)")
+    base_color: FloatVectorProperty(
+        name="Base Color", subtype="COLOR", size=3, min=0.0, max=1.0,
+        get=_get_rgb("base_color"), set=_set_rgb("base_color"), options=_NO_ANIM,
+        description="Diffuse colour under a dielectric's specular layer")
+    transmission: FloatProperty(
+        name="Transmission", min=0.0, max=1.0, subtype="FACTOR",
+        get=_get_float("transmission"), set=_set_float("transmission"), options=_NO_ANIM,
+        description="Transmission weight of a dielectric (the BTDF shares β, η and α)")
+    # plain stored UI state
+    edge_tint_memory: FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0), options={"HIDDEN"})
+    smoothness_memory: FloatProperty(default=2.0, min=1e-4, options={"HIDDEN"})
+
+
+#: Names of the parameter properties, in the order a preset sets them.
+PRESET_PROPERTIES = ("kind", "distribution", "shader_mapping", "core_reflectivity", "edge_tint",
+                     "roughness", "anisotropy", "rotation", "tangent", "haziness",
+                     "haze_extent_linked", "haze_extent_x", "haze_extent_y", "use_smoothness",
+                     "smoothness", "base_color", "transmission")
+
+classes = (HazyGlossMaterialSettings,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    setattr(bpy.types.Material, PROPERTY_NAME, PointerProperty(type=HazyGlossMaterialSettings))
+
+
+def unregister():
+    if hasattr(bpy.types.Material, PROPERTY_NAME):
+        delattr(bpy.types.Material, PROPERTY_NAME)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
+    last_error.clear()
+    _busy.clear()

@@ -3,7 +3,8 @@
 import importlib
 
 # Order matters: properties before the operators and panels that use them.
-_MODULE_NAMES = ("properties", "operators", "convert", "composite_ops", "panels", "menus")
+_MODULE_NAMES = ("preferences", "properties", "operators", "convert", "composite_ops", "panels",
+                 "menus")
 
 _modules = []
 
