@@ -128,7 +128,7 @@ def find_core_bsdf(tree):
             continue
         node = sock.node
         seen.add(node.name)
-        if node.bl_idname in CORE_NODES and not node.mute:
+        if node.bl_idname in CORE_NODES and not node.mute and not properties._is_ours(node):
             return node
         if node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
             queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
@@ -363,6 +363,16 @@ def replace_with_hazy(mat, replaced, p, links):
     return m, dropped
 
 
+MAPS_STAMP = "hazy_gloss_maps"  # written by blender/convert.py (a tree driven by converted maps)
+
+
+def maps_problem(mat):
+    if mat is not None and MAPS_STAMP in mat:
+        return (f"“{mat.name}” is driven by converted texture maps: convert the maps again "
+                f"(Convert Maps) to change it")
+    return None
+
+
 def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, shader_mapping=None):
     """Convert ``mat`` in place.  Returns (status, message, notes): status "FINISHED" (converted),
     "NOOP" (already hazy) or "ERROR"."""
@@ -372,6 +382,8 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, shader_mapping=None):
         return "ERROR", problem, []
     if properties.is_live(mat):
         return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
     tree = mat.node_tree
@@ -431,7 +443,7 @@ def find_two_lobe_mix(tree):
             srcs = [_source(s) for s in shaders]
             nodes = [s.node if s is not None else None for s in srcs]
             if len(nodes) == 2 and all(n is not None and n.bl_idname in _LOBE_NODES and not n.mute
-                                       for n in nodes) and nodes[0].bl_idname == nodes[1].bl_idname \
+                                       and not properties._is_ours(n) for n in nodes) and nodes[0].bl_idname == nodes[1].bl_idname \
                     and nodes[0] != nodes[1]:
                 return node, nodes[0], nodes[1]
             queue.extend(srcs)
@@ -469,6 +481,8 @@ def import_two_lobe_mix(mat):
         return "ERROR", problem, []
     if properties.is_live(mat):
         return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
     found = find_two_lobe_mix(mat.node_tree)
     if found is None:
         return ("ERROR", f"“{mat.name}” has no Mix Shader of two Glossy or two Metallic BSDFs "

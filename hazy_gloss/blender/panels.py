@@ -31,6 +31,7 @@ _PLOT_CACHE_SIZE = 16
 PLOT_SIZE = 160
 
 IMAGE_NAMES = {"haze": ".Hazy Gloss · haze intensity", "brdf": ".Hazy Gloss · BRDF slice"}
+RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # hazy_gloss/composite.py
 
 
 # --------------------------------------------------------------------------------------------
@@ -202,6 +203,10 @@ def draw_material(layout, context, mat, idname):
         if mat.library is not None:
             col.label(text="Linked from a library: read-only", icon="LIBRARY_DATA_DIRECT")
             return
+        if operators.maps_problem(mat):
+            col.label(text=operators.maps_problem(mat), icon="TEXTURE")
+            col.operator("hazy_gloss.convert_maps", icon="IMAGE_DATA")
+            return
         col.label(text=f"“{mat.name}” is not hazy", icon="INFO")
         row = col.row(align=True)
         row.operator("hazy_gloss.make_hazy", icon="SHADING_RENDERED")
@@ -221,6 +226,9 @@ def draw_material(layout, context, mat, idname):
         box = col.box()
         box.alert = True
         box.label(text=err, icon="ERROR")
+    if RECOMPOSITE_STAMP in mat:
+        col.label(text="In recomposite mode: a change here rebuilds the normal material",
+                  icon="NODE_COMPOSITING")
     body = col.column()
     body.enabled = problem is None
 

@@ -674,6 +674,28 @@ def test_make_hazy_reports_and_refuses(env):
     assert env.api.is_hazy(mat2)
 
 
+def test_material_driven_by_converted_maps_is_left_alone(env):
+    """A tree wired by Convert Maps (stamp "hazy_gloss_maps", the api stamp removed) must not be
+    "converted" again by Make Hazy or Import Two-Lobe Mix: that would throw the maps away."""
+    api = env.api
+    mat = api.create_material("Mapped", haziness=0.5)  # stands in for the wired lean tree
+    del mat["hazy_gloss"]
+    mat["hazy_gloss_maps"] = {"version": 1, "kind": "CONDUCTOR"}
+    sig = tree_signature(mat)
+    for op in (bpy.ops.hazy_gloss.make_hazy, bpy.ops.hazy_gloss.import_two_lobe_mix):
+        with pytest.raises(RuntimeError, match="converted texture maps"):
+            op(material=mat.name)
+    assert tree_signature(mat) == sig
+    log = draw_panel(env.panels.HAZY_GLOSS_PT_material, fake_context(mat))
+    assert "hazy_gloss.convert_maps" in ops_drawn(log)
+    assert "hazy_gloss.make_hazy" not in ops_drawn(log)
+    # a material in recomposite mode (hazy_gloss/composite.py) says what an edit does
+    rc = api.create_material("Recomposited")
+    rc["hazy_gloss_recomposite"] = {"version": 2}
+    log = draw_panel(env.panels.HAZY_GLOSS_PT_material, fake_context(rc))
+    assert any("recomposite mode" in t for t in labels(log))
+
+
 # ------------------------------------------------------------------------------------------------
 # Two-lobe mix import
 # ------------------------------------------------------------------------------------------------
