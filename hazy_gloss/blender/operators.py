@@ -786,7 +786,7 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
 
     bl_idname = "hazy_gloss.plot_to_image"
     bl_label = "Plots to Images"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}
 
     material: StringProperty(**_MATERIAL_PROP)
     size: bpy.props.IntProperty(name="Size", default=512, min=64, max=2048)

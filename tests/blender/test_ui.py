@@ -1209,3 +1209,15 @@ def test_undo_and_reload_do_not_crash(env, tmp_path):
     settings(mat).haziness = 0.6
     assert api.read_parameters(mat)["haziness"] == pytest.approx(0.6)
     assert not env.props._busy
+
+
+def test_operator_conventions(env):
+    """bl_idname hazy_gloss.<name> for class HAZY_GLOSS_OT_<name>, undoable, with a docstring."""
+    for cls in env.ops.classes:
+        name = cls.__name__
+        assert name.startswith("HAZY_GLOSS_OT_")
+        assert cls.bl_idname == "hazy_gloss." + name[len("HAZY_GLOSS_OT_"):]
+        assert {"REGISTER", "UNDO"} <= set(cls.bl_options), name
+        assert (cls.__doc__ or "").strip(), name
+        mod, fn = cls.bl_idname.split(".")
+        getattr(getattr(bpy.ops, mod), fn).get_rna_type()  # registered
