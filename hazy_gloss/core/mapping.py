@@ -256,12 +256,13 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
     Taylor window; this closed form is the same root with no division by b - 1 and no
     cancellation anywhere, and reduces exactly to Eq. 7 at w = ∞.
     """
-    kh, beta, _ = _haze_terms(core_max, p, q, haziness, smoothness)
+    kh, beta, _, _ = _haze_terms(core_max, p, q, haziness, smoothness)
     return kh, beta
 
 
 def _haze_terms(core_max, p, q, haziness, smoothness=None):
-    """(k̂_h, β, 1 - r̂), the last without cancellation as r̂ -> 1 (see docs/mapping.md §6)."""
+    """(k̂_h, β, 1 - r̂, 1 - β), the last two without cancellation as r̂ -> 1 or β -> 1
+    (see docs/mapping.md §6)."""
     rc = core_max
     omr = 1.0 - rc
     dtype = np.result_type(rc)
@@ -283,11 +284,19 @@ def _haze_terms(core_max, p, q, haziness, smoothness=None):
             omr_hat = np.where(lower, np.where(p > 0, (np.maximum(-d, 0) + rc * q * omb) / p,
                                                omr - q * kh),
                                omr * omb)
+            # 1 - β = (σ - p β_h)/(σ + (1-p) β_h): p (1-β_h)/(p + (1-p) β_h) on the positivity
+            # side, ((r̂_c - p) + p (1-r̂_c)(1-β_h)) / ((1-p)(r̂_c + β_h (1-r̂_c))) on the energy side
+            den_lo = p + q * haziness
+            omb_lo = np.where(den_lo > 0, p * omb / den_lo, zero)
+            den_up = q * (rc + haziness * omr)
+            omb_up = np.where(den_up > 0, (np.maximum(d, 0) + p * omr * omb) / den_up, dtype.type(1))
+            one_minus_beta = np.where(lower, omb_lo, omb_up)
         else:
             m = 1.0 / np.asarray(smoothness, dtype=dtype)
             s = np.sqrt(rc * omr)
             ms = np.where(s > 0, m * s, zero)
-            den = rc * q + p * omr + np.hypot(d, ms)
+            hyp = np.hypot(d, ms)
+            den = rc * q + p * omr + hyp
             t = np.where(den > 0, 2.0 * rc * omr / den, zero)
             t = np.where(np.isinf(m), zero, t)
             kh = haziness * t
@@ -301,14 +310,21 @@ def _haze_terms(core_max, p, q, haziness, smoothness=None):
             c2 = rc - p * t
             c0 = np.where((c0 < c2) & (c2 > 0), (m * t) ** 2 / (4.0 * c2), c0)
             omr_hat = np.maximum(c0, 0) + q * t * omb
+            # 1 - β = ((r̂_c - p) + hyp + 2p(1-r̂_c)(1-β_h)) / (den + 2(1-p)β_h(1-r̂_c)), with
+            # (r̂_c - p) + hypot(r̂_c - p, m s) = (m s)² / (hyp - (r̂_c - p)) when r̂_c < p
+            d_hyp = np.where(d >= 0, d + hyp, np.where(hyp - d > 0, ms * ms / (hyp - d), zero))
+            one_minus_beta = np.where(den_b > 0, (d_hyp + 2.0 * p * omr * omb) / den_b,
+                                      1.0 - beta)
             if np.any(np.isinf(smoothness)):  # mixed per-texel w with some w = ∞: Eq. 7 there
-                kh7, beta7, omr7 = _haze_terms(rc, p, q, haziness, None)
+                kh7, beta7, omr7, omb7 = _haze_terms(rc, p, q, haziness, None)
                 inf = np.isinf(smoothness)
                 kh = np.where(inf, kh7, kh)
                 beta = np.where(inf, beta7, beta)
                 omr_hat = np.where(inf, omr7, omr_hat)
+                one_minus_beta = np.where(inf, omb7, one_minus_beta)
     return (kh.astype(dtype, copy=False), np.clip(beta, 0, 1).astype(dtype, copy=False),
-            np.clip(omr_hat, 0, 1).astype(dtype, copy=False))
+            np.clip(omr_hat, 0, 1).astype(dtype, copy=False),
+            np.clip(one_minus_beta, 0, 1).astype(dtype, copy=False))
 
 
 def _on_positivity_side(rc, omr, p, q):
@@ -501,7 +517,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
 
     # -- haze intensity (Eq. 7 / Eqs. 12-15) on the max channel --------------------------------
     rc_max = rc.max(axis=-1)
-    kh, beta, omr_max = _haze_terms(rc_max, p, q, bh, w)
+    kh, beta, omr_max, one_minus_beta = _haze_terms(rc_max, p, q, bh, w)
 
     # -- Eq. 5 with the core's chroma: r = r_c + (1-p) k̂_h c,  c = r_c / r̂_c ------------------
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -537,7 +553,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
         edge_tint=g,
         haziness=bh,
         haze_extent=(lx, ly),
-        weight_narrow=((1.0 - beta)[..., None] * r).astype(dtype, copy=False),
+        weight_narrow=(one_minus_beta[..., None] * r).astype(dtype, copy=False),
         weight_wide=(beta[..., None] * r).astype(dtype, copy=False),
         dielectric_ior=eta_d.astype(dtype, copy=False),
         distribution=distribution,

@@ -151,6 +151,10 @@ def errors64(out, ref):
         else rel_err(kw_[c], ref["weight_wide"][c]) for c in range(3))
     b = float(ref["beta"])
     cond_n = max(1.0, b / max(1.0 - b, EPS64))
+    # k_n = (1-β) r: the code forms 1 - β without cancellation (docs/mapping.md §6): asserted raw
+    errs["weight_narrow (raw)"] = max(
+        0.0 if (abs(float(ref["weight_narrow"][c])) < TINY64 and abs(kn_[c]) < TINY64)
+        else rel_err(kn_[c], ref["weight_narrow"][c]) for c in range(3))
     errs["weight_narrow/cond"] = max(
         0.0 if (abs(float(ref["weight_narrow"][c])) < TINY64 and abs(kn_[c]) < TINY64)
         else rel_err(kn_[c], ref["weight_narrow"][c]) for c in range(3)) / cond_n
@@ -160,7 +164,7 @@ def errors64(out, ref):
 #: Fields of errors64 that must be <= REL64.
 STRICT64 = ("beta", "peak_ratio", "peak_complement", "halo_intensity", "reflectivity_max",
             "alpha_wide", "reflectivity", "ior (raw)", "extinction (raw)", "dielectric_ior (raw)",
-            "weight_wide")
+            "weight_wide", "weight_narrow (raw)")
 #: End-to-end η, κ: relative error / condition number must be below this (a few ulp of r).
 COND_TOL64 = 16 * EPS64 + REL64
 
