@@ -10,7 +10,6 @@ Roughness is Blender's R = √α (α = R²).  Perceptual parameters are stamped 
 an ID property (``mat["hazy_gloss"]``), so a file saved with hazy materials keeps them and renders
 identically where the add-on is not installed (only built-in nodes are used).
 """
-import bpy
 import numpy as np
 
 from .blender import compat
@@ -106,8 +105,102 @@ def _output_node(tree):
     return n
 
 
+GROUP_NODE = NODE_PREFIX + " Hazy Gloss"
+
+
+def is_ours(node):
+    """A node the add-on built (and rebuilds); everything else in the tree is the user's."""
+    return node.name.startswith(NODE_PREFIX + " ")
+
+
+_is_ours = is_ours
+
+
+def _surface_socket(tree):
+    out = _output_node(tree)
+    return out.inputs["Surface"]
+
+
+class _UserLinks:
+    """Record the links between the user's nodes and the hazy nodes, restore them after a
+    rebuild.  ``dropped`` lists inputs that no longer exist (e.g. Edge Tint of a dielectric)."""
+
+    def __init__(self, mat):
+        self.tree = mat.node_tree
+        self.incoming = []  # (from_node, from_socket identifier, to input name)
+        self.outgoing = []  # (to_node, to_socket identifier)
+        self.surface_from = None
+        self.location = None
+        self.dropped = []
+        tree = self.tree
+        surf = _surface_socket(tree)
+        for link in tree.links:
+            a, b = link.from_node, link.to_node
+            if _is_ours(b) and not _is_ours(a) and b.name == GROUP_NODE:
+                self.incoming.append((a.name, link.from_socket.identifier, link.to_socket.name))
+            elif _is_ours(a) and not _is_ours(b):
+                self.location = tuple(a.location)  # the hazy BSDF's output node
+                if link.to_socket != surf:
+                    self.outgoing.append((b.name, link.to_socket.identifier))
+        if surf.is_linked:
+            src = surf.links[0].from_node
+            if not _is_ours(src):
+                self.surface_from = (src.name, surf.links[0].from_socket.identifier)
+
+    @property
+    def has_textures(self):
+        return bool(self.incoming)
+
+    def restore(self):
+        tree = self.tree
+        nodes = tree.nodes
+        surf = _surface_socket(tree)
+        ours = surf.links[0].from_socket if surf.is_linked else None
+        final = ours.node if ours is not None else None
+        if final is not None and self.location is not None:  # keep where the user put our nodes
+            dx = self.location[0] - final.location.x
+            dy = self.location[1] - final.location.y
+            if dx or dy:
+                for n in nodes:
+                    if _is_ours(n):
+                        n.location = (n.location.x + dx, n.location.y + dy)
+        if self.surface_from is not None:
+            src = nodes.get(self.surface_from[0])
+            sock = _by_identifier(src.outputs, self.surface_from[1]) if src else None
+            if sock is not None:
+                tree.links.new(sock, surf)
+        if ours is not None:
+            for to_name, ident in self.outgoing:
+                node = nodes.get(to_name)
+                sock = _by_identifier(node.inputs, ident) if node else None
+                if sock is not None:
+                    tree.links.new(ours, sock)
+        group = nodes.get(GROUP_NODE)
+        for from_name, ident, to_input in self.incoming:
+            src = nodes.get(from_name)
+            sock = _by_identifier(src.outputs, ident) if src else None
+            if sock is None:
+                continue
+            target = group.inputs.get(to_input) if group is not None else None
+            if target is None:
+                self.dropped.append(to_input)
+                continue
+            tree.links.new(sock, target)
+        # an api-made tangent node replaced by the user's tangent is left dangling: remove it
+        for n in [n for n in nodes if _is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
+            if not any(s.is_linked for s in n.outputs):
+                nodes.remove(n)
+
+
+def _by_identifier(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    return None
+
+
 def _remove_ours(tree):
-    for n in [n for n in tree.nodes if n.name.startswith(NODE_PREFIX + " ")]:
+    for n in [n for n in tree.nodes if is_ours(n)]:
         tree.nodes.remove(n)
 
 
@@ -254,13 +347,28 @@ def create_material(name, *, kind="CONDUCTOR", core_reflectivity=(0.5, 0.5, 0.5)
 
 
 def update_material(mat, **changes):
-    """Change some perceptual parameters of a hazy material and rebuild its tree.
+    """Change some perceptual parameters of a hazy material and rebuild its hazy nodes, keeping
+    the user's links into the group (textures) and out of the BSDF (e.g. into a Mix Shader).
     Returns the HazeMapping of the new parameters."""
+    return update_material_links(mat, **changes)[0]
+
+
+def update_material_links(mat, **changes):
+    """:func:`update_material`, also returning the group inputs whose links had to be dropped
+    because the new configuration has no such input (e.g. Edge Tint of a dielectric)."""
     p = read_parameters(mat)
     if p is None:
         raise ValueError(f"material {mat.name!r} is not a hazy material")
     p.update(changes)
-    return apply(mat, normalise_parameters(p))
+    p = normalise_parameters(p)
+    keep = _UserLinks(mat)
+    if keep.has_textures and not p["shader_mapping"]:
+        names = ", ".join(sorted({i[2] for i in keep.incoming}))
+        raise ValueError(f"Textures are connected to {names}: constant mapping cannot use "
+                         f"them. Keep in-shader mapping, or disconnect them first")
+    m = apply(mat, p)
+    keep.restore()
+    return m, keep.dropped
 
 
 __all__ = ("create_material", "update_material", "read_parameters", "is_hazy", "map_parameters",

@@ -36,7 +36,7 @@ from .. import api
 from ..node_groups.lobes import NODE_DISTRIBUTIONS
 
 PROPERTY_NAME = "hazy_gloss_settings"
-GROUP_NODE = api.NODE_PREFIX + " Hazy Gloss"
+GROUP_NODE = api.GROUP_NODE
 
 KIND_ITEMS = (
     ("CONDUCTOR", "Conductor", "Metal: Metallic BSDF lobes with the physical conductor Fresnel "
@@ -146,91 +146,7 @@ def plain_message(exc):
     return text[:1].upper() + text[1:]
 
 
-def _is_ours(node):
-    return node.name.startswith(api.NODE_PREFIX + " ")
-
-
-def _surface_socket(tree):
-    out = api._output_node(tree)
-    return out.inputs["Surface"]
-
-
-class _KeepUserLinks:
-    """Record the links between the user's nodes and the hazy nodes, restore them after a
-    rebuild.  ``dropped`` lists inputs that no longer exist (e.g. Edge Tint of a dielectric)."""
-
-    def __init__(self, mat):
-        self.tree = mat.node_tree
-        self.incoming = []  # (from_node, from_socket identifier, to input name)
-        self.outgoing = []  # (to_node, to_socket identifier)
-        self.surface_from = None
-        self.location = None
-        self.dropped = []
-        tree = self.tree
-        surf = _surface_socket(tree)
-        for link in tree.links:
-            a, b = link.from_node, link.to_node
-            if _is_ours(b) and not _is_ours(a) and b.name == GROUP_NODE:
-                self.incoming.append((a.name, link.from_socket.identifier, link.to_socket.name))
-            elif _is_ours(a) and not _is_ours(b):
-                self.location = tuple(a.location)  # the hazy BSDF's output node
-                if link.to_socket != surf:
-                    self.outgoing.append((b.name, link.to_socket.identifier))
-        if surf.is_linked:
-            src = surf.links[0].from_node
-            if not _is_ours(src):
-                self.surface_from = (src.name, surf.links[0].from_socket.identifier)
-
-    @property
-    def has_textures(self):
-        return bool(self.incoming)
-
-    def restore(self):
-        tree = self.tree
-        nodes = tree.nodes
-        surf = _surface_socket(tree)
-        ours = surf.links[0].from_socket if surf.is_linked else None
-        final = ours.node if ours is not None else None
-        if final is not None and self.location is not None:  # keep where the user put our nodes
-            dx = self.location[0] - final.location.x
-            dy = self.location[1] - final.location.y
-            if dx or dy:
-                for n in nodes:
-                    if _is_ours(n):
-                        n.location = (n.location.x + dx, n.location.y + dy)
-        if self.surface_from is not None:
-            src = nodes.get(self.surface_from[0])
-            sock = _by_identifier(src.outputs, self.surface_from[1]) if src else None
-            if sock is not None:
-                tree.links.new(sock, surf)
-        if ours is not None:
-            for to_name, ident in self.outgoing:
-                node = nodes.get(to_name)
-                sock = _by_identifier(node.inputs, ident) if node else None
-                if sock is not None:
-                    tree.links.new(ours, sock)
-        group = nodes.get(GROUP_NODE)
-        for from_name, ident, to_input in self.incoming:
-            src = nodes.get(from_name)
-            sock = _by_identifier(src.outputs, ident) if src else None
-            if sock is None:
-                continue
-            target = group.inputs.get(to_input) if group is not None else None
-            if target is None:
-                self.dropped.append(to_input)
-                continue
-            tree.links.new(sock, target)
-        # an api-made tangent node replaced by the user's tangent is left dangling: remove it
-        for n in [n for n in nodes if _is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
-            if not any(s.is_linked for s in n.outputs):
-                nodes.remove(n)
-
-
-def _by_identifier(sockets, identifier):
-    for s in sockets:
-        if s.identifier == identifier:
-            return s
-    return None
+_is_ours = api.is_ours
 
 
 def edit_material(mat, **changes):
@@ -249,16 +165,7 @@ def edit_material(mat, **changes):
     _busy.add(key)
     t0 = time.perf_counter()
     try:
-        p = api.read_parameters(mat)
-        p.update(changes)
-        p = api.normalise_parameters(p)
-        keep = _KeepUserLinks(mat)
-        if keep.has_textures and not p["shader_mapping"]:
-            names = ", ".join(sorted({i[2] for i in keep.incoming}))
-            raise ValueError(f"Textures are connected to {names}: constant mapping cannot use "
-                             f"them. Keep in-shader mapping, or disconnect them first")
-        m = api.update_material(mat, **changes)
-        keep.restore()
+        m, dropped = api.update_material_links(mat, **changes)
     except (ValueError, TypeError) as exc:
         msg = plain_message(exc)
         last_error[mat.session_uid] = msg
@@ -267,9 +174,9 @@ def edit_material(mat, **changes):
         _busy.discard(key)
     timings.append(time.perf_counter() - t0)
     del timings[:-200]
-    if keep.dropped:
+    if dropped:
         last_error[mat.session_uid] = ("Disconnected (no such input any more): "
-                                     + ", ".join(keep.dropped))
+                                     + ", ".join(dropped))
     else:
         last_error.pop(mat.session_uid, None)
     return m, None
