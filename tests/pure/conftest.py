@@ -38,8 +38,8 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         return
     terminalreporter.section("hazy_gloss: worst errors against the mpmath reference")
     terminalreporter.write_line(
-        "  float64: relative error (ior/cond, extinction/cond, dielectric_ior/cond, "
-        "weight_narrow/cond: relative error divided by the condition number of the quantity; "
-        "ior@r, extinction@r: Gulbrandsen stage at the code's own r).  float32: absolute error.")
+        "  float64: relative error ('/cond': divided by the condition number of the quantity; "
+        "'@r': reference Gulbrandsen at the code's rounded r, informative only).  "
+        "float32: absolute error.")
     for line in lines:
         terminalreporter.write_line(line)

@@ -12,9 +12,11 @@ Prints
 3. Eq. 7 near its branch point as p -> 1: error vs λ_h at r_c within ulps of p;
 4. the bijection table of inverse_haze_mapping (where it holds / breaks, flagged or not).
 
-η/κ "(raw)" are end-to-end relative errors; "/cond" divides them by the condition number
-1/(1-r) of η(r), κ(r) (the float64 rounding of r is amplified by it in any implementation);
-"@r" is the Gulbrandsen stage evaluated at the code's own r.
+η/κ "(raw)" are end-to-end relative errors (asserted since c4fe0fd, which computes 1 - r without
+cancellation); "/cond" divides them by the condition number 1/(1-r) of η(r), κ(r); "@r" compares
+with the reference Gulbrandsen at the code's reported (rounded) r — only meaningful for an
+implementation that derives η, κ from that rounded r, so since c4fe0fd it shows the rounding
+of r amplified by 1/(1-r) (reported, not asserted).
 """
 from __future__ import annotations
 

@@ -352,3 +352,49 @@ def test_eq7_branch_selection_near_p_one(dtype, lam, w):
                                 f"{mpmath.nstr(ref['halo_intensity'], 17)} "
                                 f"β={mpmath.nstr(ref['beta'], 17)}; {errs}")
     assert not failures, "\n".join(failures[:10])
+
+
+# ------------------------------------------------------------------------------------------------
+# alpha_max when α_w exceeds it by less than half an ulp (disagreement with the reference)
+# ------------------------------------------------------------------------------------------------
+
+_F32 = np.float32
+_ALPHA_MAX_CASES = [
+    # α_n = alpha_max = 1, λ_h tiny: exact α_w = 1 + λ > 1 is limited to 1 = α_n, so p = 1,
+    # q = 0 and Eq. 7 gives k_h = β_h r_c (as the code itself does for λ_h = 0 and λ_h = 1);
+    # mapping.py rounds α_w to 1, sees no limiting (wx > hi is False) and keeps the unlimited
+    # spread λ sqrt(α_x α_y) for 1 - p: q = 2e-8, energy branch, k_h = 0.
+    ("f32 rc=1 alpha=1 lam=1e-8", dict(core_reflectivity=_F32(1.0), edge_tint=_F32(0.0),
+                                       alpha=_F32(1.0), haziness=_F32(0.5),
+                                       haze_extent=_F32(1e-8), alpha_max=1.0), "halo_intensity"),
+    ("f64 rc=1 alpha=1 lam=1e-20", dict(core_reflectivity=1.0, edge_tint=0.0, alpha=1.0,
+                                        haziness=0.5, haze_extent=1e-20, alpha_max=1.0),
+     "halo_intensity"),
+    # found by hypothesis: 1 - p is 50% off (x axis limited to α_n = 1 but its spread kept)
+    ("f64 alpha=(1, .5) lam=1e-20 q", dict(core_reflectivity=0.0, edge_tint=0.0,
+                                           alpha=(1.0, 0.5), haziness=0.0, haze_extent=1e-20,
+                                           alpha_max=1.0), "peak_complement"),
+    ("f32 alpha=(1, .5) lam=3e-8 Bezier", dict(core_reflectivity=_F32(0.99999994),
+                                               edge_tint=_F32(0.0), alpha=(_F32(1.0), _F32(0.5)),
+                                               haziness=_F32(0.5), haze_extent=_F32(3e-8),
+                                               alpha_max=1.0, smoothness=_F32(2.0)),
+     "peak_complement"),
+]
+
+
+@pytest.mark.xfail(strict=True, reason="alpha_max: when the exact α_w exceeds alpha_max by less "
+                   "than half an ulp, mapping.py rounds α_w to alpha_max, does not count it as "
+                   "limited (wx > hi is False) and keeps the unlimited spread λ sqrt(αx αy) in "
+                   "1 - p; with α_n = alpha_max the true 1 - p is 0 (k_h = 0 instead of β_h r_c "
+                   "at r_c = 1).  Limiting the spread as min(λ sqrt(αx αy), hi - α_n) fixes it.")
+@pytest.mark.parametrize("case", _ALPHA_MAX_CASES, ids=[c[0] for c in _ALPHA_MAX_CASES])
+def test_alpha_max_within_half_ulp(case):
+    name, kw, field = case
+    is32 = isinstance(kw["haziness"], np.floating) and kw["haziness"].dtype == np.float32
+    out = haze_mapping(**kw)
+    ref = S.reference_for(dict(kw, distribution="GGX"), eps=S.EPS32 if is32 else S.EPS64)
+    errs = {f: S.rel_err(getattr(out, f), ref[f])
+            for f in ("halo_intensity", "beta", "peak_complement")}
+    assert errs[field] <= (S.ABS32 if is32 else S.REL64), (
+        f"{name}: {S.describe(kw)}: code {field}={float(getattr(out, field))!r}, reference "
+        f"{mpmath.nstr(ref[field], 17)}; errors {errs}")
