@@ -40,7 +40,7 @@ TABLE3 = {
 }
 
 
-def _sphere(name, location, material, radius=0.42):
+def analytic_sphere(name, location, material, radius=0.5):
     """An analytic sphere: a geometry-nodes point, which Cycles renders as an exact sphere."""
     obj = bpy.data.objects.new(name, bpy.data.meshes.new(name))
     bpy.context.scene.collection.objects.link(obj)
@@ -57,6 +57,7 @@ def _sphere(name, location, material, radius=0.42):
     ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
     ng.links.new(setm.outputs[0], out.inputs[0])
     mod.node_group = ng
+    obj.data.materials.append(material)  # so material-slot lookups find it
     return obj
 
 
@@ -138,7 +139,7 @@ def build_scene(api):
         z = 1.1 * (1 - r)
         for c, (label, mat) in enumerate(zip(labels, mats)):
             x = 1.0 * (c - 2)
-            _sphere(mat.name, (x, 0.0, z), mat)
+            analytic_sphere(mat.name, (x, 0.0, z), mat, radius=0.42)
             _label(label, (x, -0.6, z - 0.53), size=0.09)
 
     cam = bpy.data.cameras.new("HG camera")

@@ -31,29 +31,12 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hazy_gloss  # noqa: E402
+from gallery import analytic_sphere  # noqa: E402  (scripts/ is on sys.path)
 
 ORIGINAL = {"metal": 0.15, "plastic": 0.02}
 EDITED = {"metal": 0.9, "plastic": 0.2}
 
 
-def _sphere(name, location, material, radius=0.5):
-    """An analytic sphere: a geometry-nodes point, which Cycles renders as an exact sphere."""
-    obj = bpy.data.objects.new(name, bpy.data.meshes.new(name))
-    bpy.context.scene.collection.objects.link(obj)
-    obj.location = location
-    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
-    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    pts = ng.nodes.new("GeometryNodePoints")
-    pts.inputs["Count"].default_value = 1
-    pts.inputs["Radius"].default_value = radius
-    setm = ng.nodes.new("GeometryNodeSetMaterial")
-    setm.inputs["Material"].default_value = material
-    out = ng.nodes.new("NodeGroupOutput")
-    ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
-    ng.links.new(setm.outputs[0], out.inputs[0])
-    obj.modifiers.new("points", "NODES").node_group = ng
-    obj.data.materials.append(material)
-    return obj
 
 
 def _diffuse(name, colour):
@@ -126,9 +109,9 @@ def build_scene(api, samples, scale):
                                        roughness=0.1, haziness=ORIGINAL["plastic"], haze_extent=8.0,
                                        base_color=(0.02, 0.05, 0.12)),
     }
-    _sphere("Metal", (-1.15, 0.0, 0.5), mats["metal"])
-    _sphere("Plastic", (0.0, 0.25, 0.5), mats["plastic"])
-    _sphere("Plain", (1.15, 0.0, 0.5), _diffuse("Plain", (0.6, 0.25, 0.15)))
+    analytic_sphere("Metal", (-1.15, 0.0, 0.5), mats["metal"])
+    analytic_sphere("Plastic", (0.0, 0.25, 0.5), mats["plastic"])
+    analytic_sphere("Plain", (1.15, 0.0, 0.5), _diffuse("Plain", (0.6, 0.25, 0.15)))
     mesh = bpy.data.meshes.new("Floor")
     mesh.from_pydata([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], [], [(0, 1, 2, 3)])
     floor = bpy.data.objects.new("Floor", mesh)

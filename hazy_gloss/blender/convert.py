@@ -33,7 +33,7 @@ from ..convert import ConversionError
 
 UDIM_TOKEN = "<UDIM>"
 STAMP = "hazy_gloss_maps"
-NODE_PREFIX = "HG"
+from ..api import NODE_PREFIX, _output_node, _remove_ours  # noqa: E402  (one definition)
 _LINEAR_NAMES = ("Linear Rec.709", "Linear", "Linear BT.709")
 _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
@@ -501,23 +501,6 @@ def _image_for(path):
         except ValueError:  # another drive
             pass
     return img
-
-
-def _remove_ours(tree):
-    for n in [n for n in tree.nodes if n.name.startswith(NODE_PREFIX + " ")]:
-        tree.nodes.remove(n)
-
-
-def _output_node(tree):
-    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    for n in outs:
-        if n.is_active_output:
-            return n
-    if outs:
-        return outs[0]
-    n = tree.nodes.new("ShaderNodeOutputMaterial")
-    n.location = (1800, 0)
-    return n
 
 
 def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 0.0),

@@ -184,7 +184,7 @@ class _Validator:
         lo_v = dtype.type(lo)
         hi_v = dtype.type(hi)
         nan = np.isnan(arr)
-        self._count(f"{name} is NaN (set to {lo:g})", per_texel(nan))
+        self._count(f"{name} is NaN" + ("" if self.strict else f" (set to {lo:g})"), per_texel(nan))
         below = (arr <= lo_v) if lo_open else (arr < lo_v)
         below &= ~nan
         if lo_open:
@@ -447,6 +447,11 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
     shape = _broadcast_shape(named)
     if strict is None:
         strict = shape == ()
+    # a scalar call runs on one-texel arrays: numpy 1.x would promote float32 0-d arrays mixed
+    # with Python floats to float64, so scalar and texture calls would round differently
+    scalar = shape == ()
+    if scalar:
+        shape = (1,)
 
     v = _Validator(strict)
     big = float(np.finfo(dtype).max)
@@ -485,11 +490,13 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
         hi_v = dtype.type(hi if hi is not None else big)
         cnx, cny = np.clip(nx, lo_v, hi_v), np.clip(ny, lo_v, hi_v)
         cwx, cwy = np.clip(wx, lo_v, hi_v), np.clip(wy, lo_v, hi_v)
-        limited = (wx > hi_v) | (wy > hi_v)
+        # the exact α_w exceeds the limit iff spread > limit - α_n (α_w itself may round onto it)
+        over_x, over_y = sx > hi_v - cnx, sy > hi_v - cny
+        limited = over_x | over_y
         if np.any(limited):
             v.clamped[f"alpha_wide > {float(hi_v):g} (renderer limit)"] = int(np.count_nonzero(limited))
-        sx = np.where((cnx != nx) | (cwx != wx), cwx - cnx, sx)
-        sy = np.where((cny != ny) | (cwy != wy), cwy - cny, sy)
+        sx = np.where(cnx != nx, cwx - cnx, np.minimum(sx, hi_v - cnx))
+        sy = np.where(cny != ny, cwy - cny, np.minimum(sy, hi_v - cny))
         nx, ny, wx, wy = cnx, cny, cwx, cwy
     if max_aspect is not None:
         k = dtype.type(max_aspect)
@@ -560,7 +567,21 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
         smoothness=smoothness,
         clamped=v.clamped,
     )
+    if scalar:
+        out = _squeeze_texel(out)
     return out
+
+
+def _squeeze_texel(out):
+    """Drop the one-texel axis a scalar call ran on."""
+    def sq(a):
+        if isinstance(a, tuple):
+            return tuple(sq(x) for x in a)
+        return a[0] if isinstance(a, np.ndarray) and a.ndim and a.shape[0] == 1 else a
+    fields = {f: sq(getattr(out, f)) for f in out.__dataclass_fields__
+              if f not in ("distribution", "smoothness", "clamped")}
+    return HazeMapping(distribution=out.distribution, smoothness=out.smoothness,
+                       clamped=out.clamped, **fields)
 
 
 def _zero_alpha_limit(a_this, a_other, extent, p_axis, q_axis, distribution):

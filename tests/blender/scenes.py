@@ -358,6 +358,15 @@ def _points_sphere_group(material, radius):
     return tree
 
 
+def analytic_sphere(name, location, material, radius=0.5):
+    """A sphere Cycles renders exactly (a geometry-nodes point of ``radius``) at ``location``."""
+    obj = _link(bpy.data.objects.new(name, bpy.data.meshes.new(name)))
+    obj.location = location
+    obj.modifiers.new("points", "NODES").node_group = _points_sphere_group(material, radius)
+    obj.data.materials.append(material)
+    return obj
+
+
 def furnace_sphere_scene(material, world_strength=1.0, *, radius=1.0, view_dir=(0.0, 0.0),
                          ortho_scale=None):
     """An exact sphere (a geometry-nodes point of radius ``radius``, which Cycles renders as an

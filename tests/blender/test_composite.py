@@ -15,29 +15,21 @@ One scene: a hazy conductor sphere (lean tree), a hazy dielectric sphere with a 
 - the operators: setup, idempotence, clear.
 """
 import importlib
-import json
 import os
 import time
-from pathlib import Path
 
 import bpy
 import numpy as np
 import pytest
 
 import scenes
+from measurements import record
 
-OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
 RES = (64, 48)
 ORIGINAL = dict(conductor=0.3, dielectric=0.05)
 EDITED = 0.7  # β_h for every hazy pixel after the edit
 
 
-def record(name, data):
-    OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"{name}.json"
-    old = json.loads(path.read_text()) if path.exists() else {}
-    old.setdefault(f"blender {bpy.app.version_string}", {}).update(data)
-    path.write_text(json.dumps(old, indent=1, default=float))
 
 
 @pytest.fixture
@@ -47,23 +39,6 @@ def mods(hg, clean_file):
     return api, comp
 
 
-def _sphere(name, location, material, radius=0.5):
-    obj = bpy.data.objects.new(name, bpy.data.meshes.new(name))
-    bpy.context.scene.collection.objects.link(obj)
-    obj.location = location
-    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
-    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    pts = ng.nodes.new("GeometryNodePoints")
-    pts.inputs["Count"].default_value = 1
-    pts.inputs["Radius"].default_value = radius
-    setm = ng.nodes.new("GeometryNodeSetMaterial")
-    setm.inputs["Material"].default_value = material
-    out = ng.nodes.new("NodeGroupOutput")
-    ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
-    ng.links.new(setm.outputs[0], out.inputs[0])
-    obj.modifiers.new("points", "NODES").node_group = ng
-    obj.data.materials.append(material)
-    return obj
 
 
 def _diffuse(name, colour):
@@ -94,9 +69,9 @@ def build_scene(api, *, samples, bounces, world=0.0, res=RES, spread=0.62):
                                           haziness=ORIGINAL["dielectric"], haze_extent=8.0,
                                           base_color=(0.05, 0.2, 0.08), shader_mapping=True),
     }
-    _sphere("Conductor", (-spread, 0.0, 0.5), mats["conductor"])
-    _sphere("Dielectric", (spread, 0.0, 0.5), mats["dielectric"])
-    _sphere("Plain", (0.0, 1.0, 0.3), _diffuse("Plain Diffuse", (0.7, 0.2, 0.2)), radius=0.3)
+    scenes.analytic_sphere("Conductor", (-spread, 0.0, 0.5), mats["conductor"])
+    scenes.analytic_sphere("Dielectric", (spread, 0.0, 0.5), mats["dielectric"])
+    scenes.analytic_sphere("Plain", (0.0, 1.0, 0.3), _diffuse("Plain Diffuse", (0.7, 0.2, 0.2)), radius=0.3)
     plane = bpy.data.objects.new("Ground", scenes._plane_mesh("Ground", 8.0))
     scene.collection.objects.link(plane)
     plane.data.materials.append(_diffuse("Ground Diffuse", (0.5, 0.5, 0.5)))
@@ -344,7 +319,7 @@ def test_operators_setup_and_clear(mods):
     scene = bpy.context.scene
     mats = build_scene(api, samples=1, bounces=0)
     legacy_as = api.create_material("HG Test AS", kind="LEGACY", distribution="ASHIKHMIN_SHIRLEY")
-    _sphere("AS", (0.0, -1.0, 0.3), legacy_as, radius=0.2)
+    scenes.analytic_sphere("AS", (0.0, -1.0, 0.3), legacy_as, radius=0.2)
     surface_before = {m.name: m.node_tree.nodes["Material Output"].inputs["Surface"].links[0].from_node.name
                       for m in (*mats.values(), legacy_as)}
     n_layers = len(scene.view_layers)

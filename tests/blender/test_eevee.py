@@ -12,7 +12,7 @@ import bpy
 import numpy as np
 
 import scenes
-from test_render_claims import record
+from measurements import record
 
 MATERIALS = {
     "conductor lean": dict(kind="CONDUCTOR", core_reflectivity=(0.9, 0.6, 0.3), edge_tint=(1.0, 0.8, 0.5),

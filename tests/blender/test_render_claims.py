@@ -8,10 +8,7 @@ the physical parameters it is given come from hazy_gloss.core (the code under te
 analytic side evaluates the BRDF).
 """
 import importlib
-import json
 import math
-import os
-from pathlib import Path
 
 import bpy
 import numpy as np
@@ -19,17 +16,10 @@ import pytest
 
 import analytic
 import scenes
+from measurements import record
 
-OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
 
 
-def record(name, data):
-    """Measured figures for docs (tests assert; this keeps the numbers)."""
-    OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"{name}.json"
-    old = json.loads(path.read_text()) if path.exists() else {}
-    old.setdefault(f"blender {bpy.app.version_string}", {}).update(data)
-    path.write_text(json.dumps(old, indent=1, default=float))
 
 
 @pytest.fixture
@@ -86,7 +76,6 @@ def test_peak_invariance(api, case, anisotropy, shader_mapping):
 @pytest.mark.parametrize("case", ["conductor", "conductor_aniso", "dielectric", "dielectric_aniso",
                                   "legacy", "legacy_aniso", "beckmann", "clamped_wide"])
 def test_analytic_agreement(api, hg, case):
-    core = importlib.import_module(hg.__name__ + ".core")
     conv = importlib.import_module(hg.__name__ + ".utils.conventions")
     params = dict(roughness=0.3, haziness=0.6, haze_extent=4.0)
     dist = "GGX"
@@ -159,7 +148,7 @@ def _profile(mat):
     scenes.setup_render("CYCLES", samples=1, resolution=(256, 4), bounces=0)
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
-    setup = scenes.flat_plane_scene(mat, light_dir=(0.0, 0.0), strength=0.0, ortho_scale=4.0)
+    scenes.flat_plane_scene(mat, light_dir=(0.0, 0.0), strength=0.0, ortho_scale=4.0)
     light = bpy.data.lights.new("HG point", "POINT")
     light.energy = 100.0
     light.shadow_soft_size = 0.0

@@ -23,13 +23,9 @@ What each group of tests compares:
 import importlib
 import json
 import os
-import statistics
 import subprocess
 import sys
-import tempfile
-import textwrap
 import time
-from pathlib import Path
 from types import SimpleNamespace
 
 import bpy
@@ -37,17 +33,11 @@ import numpy as np
 import pytest
 
 import scenes
+from measurements import record
 
-OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
 V5 = bpy.app.version >= (5, 0, 0)
 
 
-def record(name, data):
-    OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"{name}.json"
-    old = json.loads(path.read_text()) if path.exists() else {}
-    old.setdefault(f"blender {bpy.app.version_string}", {}).update(data)
-    path.write_text(json.dumps(old, indent=1, default=float))
 
 
 @pytest.fixture

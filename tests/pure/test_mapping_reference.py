@@ -382,11 +382,6 @@ _ALPHA_MAX_CASES = [
 ]
 
 
-@pytest.mark.xfail(strict=True, reason="alpha_max: when the exact α_w exceeds alpha_max by less "
-                   "than half an ulp, mapping.py rounds α_w to alpha_max, does not count it as "
-                   "limited (wx > hi is False) and keeps the unlimited spread λ sqrt(αx αy) in "
-                   "1 - p; with α_n = alpha_max the true 1 - p is 0 (k_h = 0 instead of β_h r_c "
-                   "at r_c = 1).  Limiting the spread as min(λ sqrt(αx αy), hi - α_n) fixes it.")
 @pytest.mark.parametrize("case", _ALPHA_MAX_CASES, ids=[c[0] for c in _ALPHA_MAX_CASES])
 def test_alpha_max_within_half_ulp(case):
     name, kw, field = case
