@@ -3,6 +3,8 @@
 with increasing haziness, α_n = 0.01, λ_h = 7) plus the Table 3 materials, rendered with Cycles.
 
     .venv/bin/python scripts/gallery.py [--out out/gallery.png] [--samples 48] [--scale 1.0]
+    .venv/bin/python scripts/gallery.py --rows haziness --out docs/img/sweep_haziness.png
+    .venv/bin/python scripts/gallery.py --rows extent --out docs/img/sweep_extent.png
 
 Runs on the bpy module; loads the add-on the way scripts do (repo root on sys.path).
 """
@@ -58,6 +60,7 @@ def analytic_sphere(name, location, material, radius=0.5):
     ng.links.new(setm.outputs[0], out.inputs[0])
     mod.node_group = ng
     obj.data.materials.append(material)  # so material-slot lookups find it
+    obj.visible_glossy = False  # each sphere reflects the studio only, not its neighbours
     return obj
 
 
@@ -70,6 +73,7 @@ def _label(text, location, size=0.11):
     bpy.context.scene.collection.objects.link(obj)
     obj.location = location
     obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # face the camera (which looks along +Y)
+    obj.visible_glossy = False
     mat = bpy.data.materials.get("HG label") or bpy.data.materials.new("HG label")
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
@@ -82,10 +86,9 @@ def _label(text, location, size=0.11):
     curve.materials.append(mat)
 
 
-def build_scene(api):
-    bpy.ops.wm.read_homefile(use_empty=True)
-    scene = bpy.context.scene
-    # environment: dark with a bright horizon band, so reflections show a sharp edge and its halo
+def studio(scene):
+    """Dark environment with a bright horizon band (reflections show a sharp edge and its halo)
+    and two small, strong area lights (sharp highlights with visible halos)."""
     world = bpy.data.worlds.new("HG gallery")
     scene.world = world
     if bpy.app.version < (5, 0, 0):
@@ -112,7 +115,6 @@ def build_scene(api):
     nt.links.new(mapz.outputs[0], ramp.inputs[0])
     nt.links.new(ramp.outputs[0], bg.inputs[0])
     nt.links.new(bg.outputs[0], out.inputs[0])
-    # two small, strong area lights: sharp highlights with visible halos
     for loc, energy in (((3.0, -4.0, 5.0), 600.0), ((-4.0, -2.0, 2.0), 250.0)):
         light = bpy.data.lights.new("HG key", "AREA")
         light.size = 0.15
@@ -123,40 +125,87 @@ def build_scene(api):
         direction = -obj.location.normalized()
         obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
 
-    rows = []
-    dielectric = [api.create_material(f"Fig3 dielectric {h}", kind="DIELECTRIC", core_reflectivity=0.04,
-                                      roughness=R_01, haziness=h, haze_extent=7.0,
-                                      base_color=(0.03, 0.12, 0.05))
-                  for h in FIG3_HAZINESS_DIELECTRIC]
-    rows.append(([f"haziness {h:g}" for h in FIG3_HAZINESS_DIELECTRIC], dielectric))
-    conductor = [api.create_material(f"Fig3 conductor {h}", kind="CONDUCTOR", core_reflectivity=0.5,
-                                     edge_tint=1.0, roughness=R_01, haziness=h, haze_extent=7.0)
-                 for h in FIG3_HAZINESS_CONDUCTOR]
-    rows.append(([f"haziness {h:g}" for h in FIG3_HAZINESS_CONDUCTOR], conductor))
-    table = [api.create_material(name, **params) for name, params in TABLE3.items()]
-    rows.append((list(TABLE3), table))
-    for r, (labels, mats) in enumerate(rows):
-        z = 1.1 * (1 - r)
-        for c, (label, mat) in enumerate(zip(labels, mats)):
-            x = 1.0 * (c - 2)
-            analytic_sphere(mat.name, (x, 0.0, z), mat, radius=0.42)
-            _label(label, (x, -0.6, z - 0.53), size=0.09)
 
+def sphere_rows(scene, rows, *, ortho_scale=5.2):
+    """rows: [(labels, materials)], five per row, laid out top to bottom, camera framing them."""
+    for r, (labels, mats) in enumerate(rows):
+        z = 1.1 * ((len(rows) - 1) / 2 - r)
+        for c, (label, mat) in enumerate(zip(labels, mats)):
+            x = 1.0 * (c - (len(mats) - 1) / 2)
+            analytic_sphere(mat.name, (x, 0.0, z), mat, radius=0.42)
+            _label(label, (x, 0.45, z - 0.53), size=0.09)  # behind: not reflected
     cam = bpy.data.cameras.new("HG camera")
     cam.type = "ORTHO"
-    cam.ortho_scale = 5.2
+    cam.ortho_scale = ortho_scale
     cam_obj = bpy.data.objects.new("HG camera", cam)
     scene.collection.objects.link(cam_obj)
     cam_obj.location = (0.0, -10.0, 0.0)
     cam_obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
     scene.camera = cam_obj
-    return scene
 
 
-def render(out_path, samples=48, scale=1.0):
+def gallery_rows(api):
+    dielectric = [api.create_material(f"Fig3 dielectric {h}", kind="DIELECTRIC", core_reflectivity=0.04,
+                                      roughness=R_01, haziness=h, haze_extent=7.0,
+                                      base_color=(0.03, 0.12, 0.05))
+                  for h in FIG3_HAZINESS_DIELECTRIC]
+    conductor = [api.create_material(f"Fig3 conductor {h}", kind="CONDUCTOR", core_reflectivity=0.5,
+                                     edge_tint=1.0, roughness=R_01, haziness=h, haze_extent=7.0)
+                 for h in FIG3_HAZINESS_CONDUCTOR]
+    table = [api.create_material(name, **params) for name, params in TABLE3.items()]
+    return [([f"haziness {h:g}" for h in FIG3_HAZINESS_DIELECTRIC], dielectric),
+            ([f"haziness {h:g}" for h in FIG3_HAZINESS_CONDUCTOR], conductor),
+            (list(TABLE3), table)]
+
+
+def sweep_rows(api, which):
+    """Parameter sweeps for the docs (paper Figures 4 and 8)."""
+    from hazy_gloss.node_groups.builder import TreeBuilder
+    from hazy_gloss.node_groups.lobes import build_lobes
+    base = dict(kind="CONDUCTOR", core_reflectivity=(0.9, 0.62, 0.35), edge_tint=(1.0, 0.85, 0.6),
+                roughness=R_01)
+    if which == "haziness":  # Figure 8: β_h (ours) vs the physical mix weight β of Eq. 1
+        hs = (0.0, 0.25, 0.5, 0.75, 0.95)
+        ours = [api.create_material(f"βh {h}", haziness=h, haze_extent=7.0, **base) for h in hs]
+        m = api.map_parameters(api.normalise_parameters(dict(base, haziness=0.95, haze_extent=7.0)))
+        top = float(m.beta)
+        betas = [top * h / hs[-1] for h in hs]
+        physical = []
+        for b in betas:  # a hand-built mix: same lobes and Fresnel as β_h = 0, β moved by hand
+            mat = api.create_material(f"β {b:.2f}", haziness=0.0, haze_extent=7.0, **base)
+            tree = mat.node_tree
+            api._remove_ours(tree)
+            core = api.map_parameters(api.normalise_parameters(dict(base, haziness=0.0)))
+            tb = TreeBuilder(tree, prefix=api.NODE_PREFIX)
+            bsdf = build_lobes(tb, "CONDUCTOR", "GGX", beta=b,
+                               narrow=dict(roughness=R_01, anisotropy=None, rotation=None),
+                               wide=dict(roughness=R_01 * math.sqrt(8.0), anisotropy=None, rotation=None),
+                               fresnel=dict(ior=tuple(map(float, core.ior)),
+                                            extinction=tuple(map(float, core.extinction))),
+                               shared={}, depth=1)
+            tree.links.new(bsdf, api._output_node(tree).inputs["Surface"])
+            physical.append(mat)
+        return [([f"haziness {h:g}" for h in hs], ours),
+                ([f"mix weight {b:.2f}" for b in betas], physical)]
+    if which == "extent":  # Figure 4: haze extent, isotropic and anisotropic
+        ext = (1.0, 3.0, 7.0, 15.0, 30.0)
+        iso = [api.create_material(f"λ {e}", haziness=0.8, haze_extent=e, **base) for e in ext]
+        aniso_ext = ((1.0, 1.0), (10.0, 1.0), (1.0, 10.0), (20.0, 3.0), (3.0, 20.0))
+        aniso = [api.create_material(f"λ {e}", haziness=0.8, haze_extent=e, tangent="RADIAL_Z", **base)
+                 for e in aniso_ext]
+        return [([f"extent {e:g}" for e in ext], iso),
+                ([f"extent x {x:g}, y {y:g}" for x, y in aniso_ext], aniso)]
+    raise ValueError(which)
+
+
+def render(out_path, samples=48, scale=1.0, rows="gallery"):
     hazy_gloss.register()
     from hazy_gloss import api
-    scene = build_scene(api)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    studio(scene)
+    spheres = gallery_rows(api) if rows == "gallery" else sweep_rows(api, rows)
+    sphere_rows(scene, spheres)
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
@@ -167,7 +216,7 @@ def render(out_path, samples=48, scale=1.0):
     except TypeError:
         scene.cycles.use_denoising = False
     scene.render.resolution_x = int(1040 * scale)
-    scene.render.resolution_y = int(680 * scale)
+    scene.render.resolution_y = int((680 if len(spheres) == 3 else 460) * scale)
     scene.view_settings.view_transform = "AgX" if "AgX" in [
         i.identifier for i in scene.view_settings.bl_rna.properties["view_transform"].enum_items] else "Filmic"
     scene.render.image_settings.file_format = "PNG"
@@ -183,8 +232,10 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(REPO, "out", "gallery.png"))
     ap.add_argument("--samples", type=int, default=48)
     ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--rows", choices=("gallery", "haziness", "extent"), default="gallery",
+                    help="the gallery, or a parameter sweep for the docs")
     args = ap.parse_args(argv)
-    seconds = render(args.out, args.samples, args.scale)
+    seconds = render(args.out, args.samples, args.scale, args.rows)
     print(f"hazy_gloss gallery: wrote {os.path.abspath(args.out)} ({seconds:.0f} s render, "
           f"{args.samples} samples)")
 

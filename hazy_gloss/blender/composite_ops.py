@@ -98,7 +98,55 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
         return {"FINISHED"}
 
 
-classes = (HAZY_GLOSS_OT_setup_recomposite, HAZY_GLOSS_OT_clear_recomposite,
-           HAZY_GLOSS_OT_load_recomposite)
+def draw_operators(layout):
+    col = layout.column(align=True)
+    col.operator(HAZY_GLOSS_OT_setup_recomposite.bl_idname, icon="RENDERLAYERS")
+    col.operator(HAZY_GLOSS_OT_load_recomposite.bl_idname, icon="NODE_COMPOSITING")
+    col.operator(HAZY_GLOSS_OT_clear_recomposite.bl_idname, icon="X")
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+
+class HAZY_GLOSS_PT_recomposite(bpy.types.Panel):
+    """Properties > View Layer: edit haziness after the render (paper §4.3)."""
+    bl_idname = "HAZY_GLOSS_PT_recomposite"
+    bl_label = "Hazy Gloss Recomposite"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and context.scene.render.engine == "CYCLES"
+
+    def draw(self, context):
+        draw_operators(self.layout)
+
+
+class HAZY_GLOSS_MT_recomposite(bpy.types.Menu):
+    """Render > Hazy Gloss Recomposite (also what F3 search finds)."""
+    bl_idname = "HAZY_GLOSS_MT_recomposite"
+    bl_label = "Hazy Gloss Recomposite"
+
+    def draw(self, context):
+        draw_operators(self.layout)
+
+
+def draw_render_menu(self, context):
+    self.layout.separator()
+    self.layout.menu(HAZY_GLOSS_MT_recomposite.bl_idname)
+
+
+classes = (HAZY_GLOSS_OT_setup_recomposite, HAZY_GLOSS_OT_clear_recomposite,
+           HAZY_GLOSS_OT_load_recomposite, HAZY_GLOSS_PT_recomposite, HAZY_GLOSS_MT_recomposite)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    bpy.types.TOPBAR_MT_render.append(draw_render_menu)
+
+
+def unregister():
+    bpy.types.TOPBAR_MT_render.remove(draw_render_menu)
+    _unregister_classes()

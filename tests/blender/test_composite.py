@@ -381,3 +381,24 @@ def test_exr_reader_codecs(mods, tmp_path):
         got = np.stack([ch[k] for k in ("R", "G", "B", "A")], axis=-1)
         assert np.array_equal(got, buf), codec
     os.remove(path)
+
+
+def test_recomposite_entry_points(hg):
+    """The operators are reachable from Render > Hazy Gloss Recomposite (so F3 finds them) and a
+    View Layer properties panel; both go away when the add-on is disabled."""
+    ops = importlib.import_module(hg.__name__ + ".blender.composite_ops")
+    assert ops.draw_render_menu in bpy.types.TOPBAR_MT_render._dyn_ui_initialize()
+    assert hasattr(bpy.types, "HAZY_GLOSS_PT_recomposite")
+    drawn = []
+
+    class Layout:
+        def column(self, align=False):
+            return self
+
+        def operator(self, idname, icon=None):
+            assert idname.split(".")[1] in dir(bpy.ops.hazy_gloss), idname
+            drawn.append(idname)
+
+    ops.draw_operators(Layout())
+    assert drawn == ["hazy_gloss.setup_recomposite", "hazy_gloss.load_recomposite",
+                     "hazy_gloss.clear_recomposite"]
