@@ -113,8 +113,6 @@ def is_ours(node):
     return node.name.startswith(NODE_PREFIX + " ")
 
 
-_is_ours = is_ours
-
 
 def _surface_socket(tree):
     out = _output_node(tree)
@@ -136,15 +134,15 @@ class _UserLinks:
         surf = _surface_socket(tree)
         for link in tree.links:
             a, b = link.from_node, link.to_node
-            if _is_ours(b) and not _is_ours(a) and b.name == GROUP_NODE:
+            if is_ours(b) and not is_ours(a) and b.name == GROUP_NODE:
                 self.incoming.append((a.name, link.from_socket.identifier, link.to_socket.name))
-            elif _is_ours(a) and not _is_ours(b):
+            elif is_ours(a) and not is_ours(b):
                 self.location = tuple(a.location)  # the hazy BSDF's output node
                 if link.to_socket != surf:
                     self.outgoing.append((b.name, link.to_socket.identifier))
         if surf.is_linked:
             src = surf.links[0].from_node
-            if not _is_ours(src):
+            if not is_ours(src):
                 self.surface_from = (src.name, surf.links[0].from_socket.identifier)
 
     @property
@@ -162,7 +160,7 @@ class _UserLinks:
             dy = self.location[1] - final.location.y
             if dx or dy:
                 for n in nodes:
-                    if _is_ours(n):
+                    if is_ours(n):
                         n.location = (n.location.x + dx, n.location.y + dy)
         if self.surface_from is not None:
             src = nodes.get(self.surface_from[0])
@@ -187,7 +185,7 @@ class _UserLinks:
                 continue
             tree.links.new(sock, target)
         # an api-made tangent node replaced by the user's tangent is left dangling: remove it
-        for n in [n for n in nodes if _is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
+        for n in [n for n in nodes if is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
             if not any(s.is_linked for s in n.outputs):
                 nodes.remove(n)
 
