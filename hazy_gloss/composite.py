@@ -859,16 +859,7 @@ def _compositor_builder(tree):
     math_id = _math_id()
 
     class CompositorBuilder(TreeBuilder):
-        def math(self, op, a, b=None, c=None, *, label=None, clamp=False):
-            d = 1 + max(self.depth_of(a), self.depth_of(b), self.depth_of(c))
-            n = self.node(math_id, operation=op, use_clamp=clamp, label=label)
-            self.place(n, d)
-            self.feed(n.inputs[0], a)
-            if b is not None:
-                self.feed(n.inputs[1], b)
-            if c is not None:
-                self.feed(n.inputs[2], c)
-            return n.outputs[0]
+        MATH_NODE = math_id
 
         def separate(self, colour):
             n = self.node("CompositorNodeSeparateColor", depth=1 + self.depth_of(colour))

@@ -11,6 +11,9 @@ NodeSocket = bpy.types.NodeSocket
 
 
 class TreeBuilder:
+    #: the scalar Math node type (the compositor's builder swaps in its own)
+    MATH_NODE = "ShaderNodeMath"
+
     def __init__(self, tree, *, x0=0.0, y0=0.0, prefix="HG"):
         self.tree = tree
         self.nodes = tree.nodes
@@ -63,7 +66,7 @@ class TreeBuilder:
     # -- scalar math --------------------------------------------------------------------------
     def math(self, op, a, b=None, c=None, *, label=None, clamp=False):
         d = 1 + max(self.depth_of(a), self.depth_of(b), self.depth_of(c))
-        n = self.node("ShaderNodeMath", operation=op, use_clamp=clamp, label=label)
+        n = self.node(self.MATH_NODE, operation=op, use_clamp=clamp, label=label)
         self.place(n, d)
         self.feed(n.inputs[0], a)
         if b is not None:
