@@ -170,7 +170,7 @@ class _Validator:
         n = int(np.count_nonzero(bad))
         if n:
             if self.strict:
-                raise ValueError(reason)
+                raise ValueError(f"haze_mapping: {reason}")
             self.clamped[reason] = self.clamped.get(reason, 0) + n
 
     def check(self, arr, name, lo, hi, *, hi_open=False, lo_open=False, texel_axis=None):
@@ -193,7 +193,11 @@ class _Validator:
         above = (arr >= hi_v) if hi_open else (arr > hi_v)
         if hi_open:
             hi_v = np.nextafter(hi_v, dtype.type(-np.inf))
-        self._count(f"{name} {'>=' if hi_open else '>'} {hi:g}", per_texel(above))
+        inf = np.isposinf(arr)
+        if np.any(inf) and not np.isinf(hi_v):  # say "inf", not "> 1.8e308"
+            self._count(f"{name} is +inf", per_texel(inf & (hi_v == np.finfo(dtype).max)))
+        self._count(f"{name} {'>=' if hi_open else '>'} {hi:g}",
+                    per_texel(above & ~(inf & (hi_v == np.finfo(dtype).max))))
         if not (nan.any() or below.any() or above.any()):
             return arr
         out = np.where(nan | below, lo_v, arr)
