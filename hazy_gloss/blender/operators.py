@@ -806,6 +806,27 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class HAZY_GLOSS_MT_material(bpy.types.Menu):
+    """Shader Editor > Node > Hazy Gloss and the material specials menu: the material operators
+    live in menus so F3 menu search finds them."""
+    bl_idname = "HAZY_GLOSS_MT_material"
+    bl_label = "Hazy Gloss"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator(HAZY_GLOSS_OT_make_hazy.bl_idname)
+        layout.operator(HAZY_GLOSS_OT_new_material.bl_idname)
+        layout.operator(HAZY_GLOSS_OT_import_two_lobe_mix.bl_idname)
+        layout.menu("HAZY_GLOSS_MT_presets", text="Apply Hazy Preset")
+
+
+def draw_menu_entry(self, context):
+    self.layout.menu(HAZY_GLOSS_MT_material.bl_idname)
+
+
+#: Menus the entry is added to (each exists in 4.5 and 5.0).
+_MENUS = ("NODE_MT_node", "MATERIAL_MT_context_menu")
+
 classes = (
     HAZY_GLOSS_OT_make_hazy,
     HAZY_GLOSS_OT_import_two_lobe_mix,
@@ -813,15 +834,20 @@ classes = (
     HAZY_GLOSS_OT_apply_preset,
     HAZY_GLOSS_OT_preset_add,
     HAZY_GLOSS_OT_plot_to_image,
+    HAZY_GLOSS_MT_material,
 )
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    for name in _MENUS:
+        getattr(bpy.types, name).append(draw_menu_entry)
 
 
 def unregister():
+    for name in _MENUS:
+        getattr(bpy.types, name).remove(draw_menu_entry)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
     last_reports.clear()

@@ -52,3 +52,26 @@ def test_bad_values_raise_before_touching_the_tree(api):
             api.update_material(mat, **bad)
     assert sorted(n.name for n in mat.node_tree.nodes) == names
     assert api.read_parameters(mat)["haziness"] == 0.5
+
+
+def test_material_operators_are_in_menus(hg):
+    """F3 menu search finds what menus list: the material operators are in Node > Hazy Gloss and
+    the material specials menu; the entry leaves with the add-on."""
+    import bpy
+    ops = importlib.import_module(hg.__name__ + ".blender.operators")
+    for name in ("NODE_MT_node", "MATERIAL_MT_context_menu"):
+        assert ops.draw_menu_entry in getattr(bpy.types, name)._dyn_ui_initialize()
+    listed = []
+
+    class Layout:
+        def operator(self, idname, **kw):
+            assert idname.split(".")[1] in dir(bpy.ops.hazy_gloss), idname
+            listed.append(idname)
+
+        def menu(self, idname, **kw):
+            assert hasattr(bpy.types, idname), idname
+            listed.append(idname)
+
+    ops.HAZY_GLOSS_MT_material.draw(type("M", (), {"layout": Layout()})(), None)
+    assert listed == ["hazy_gloss.make_hazy", "hazy_gloss.new_material",
+                      "hazy_gloss.import_two_lobe_mix", "HAZY_GLOSS_MT_presets"]
