@@ -86,10 +86,10 @@ def _label(text, location, size=0.11):
     curve.materials.append(mat)
 
 
-def studio(scene):
-    """Dark environment with a bright horizon band (reflections show a sharp edge and its halo)
-    and two small, strong area lights (sharp highlights with visible halos)."""
-    world = bpy.data.worlds.new("HG gallery")
+def band_world(scene, name, stops):
+    """A world whose colour is a constant-interpolated ramp over the direction's height:
+    ``stops`` = [(position in [0, 1] from straight down to straight up, RGBA), ...]."""
+    world = bpy.data.worlds.new(name)
     scene.world = world
     if bpy.app.version < (5, 0, 0):
         world.use_nodes = True
@@ -97,24 +97,30 @@ def studio(scene):
     nt.nodes.clear()
     coord = nt.nodes.new("ShaderNodeTexCoord")
     sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    mapz = nt.nodes.new("ShaderNodeMapRange")
+    mapz.inputs[1].default_value = -1.0
     ramp = nt.nodes.new("ShaderNodeValToRGB")
     cr = ramp.color_ramp
     cr.interpolation = "CONSTANT"
-    cr.elements[0].position = 0.0
-    cr.elements[0].color = (0.002, 0.002, 0.003, 1)
-    cr.elements[1].position = 0.52
-    cr.elements[1].color = (0.6, 0.62, 0.7, 1)
-    e = cr.elements.new(0.62)
-    e.color = (0.01, 0.012, 0.02, 1)
+    for i, (pos, colour) in enumerate(stops):
+        e = cr.elements[i] if i < len(cr.elements) else cr.elements.new(pos)
+        e.position = pos
+        e.color = colour
     bg = nt.nodes.new("ShaderNodeBackground")
     out = nt.nodes.new("ShaderNodeOutputWorld")
     nt.links.new(coord.outputs["Generated"], sep.inputs[0])
-    mapz = nt.nodes.new("ShaderNodeMapRange")
     nt.links.new(sep.outputs["Z"], mapz.inputs[0])
-    mapz.inputs[1].default_value = -1.0
     nt.links.new(mapz.outputs[0], ramp.inputs[0])
     nt.links.new(ramp.outputs[0], bg.inputs[0])
     nt.links.new(bg.outputs[0], out.inputs[0])
+    return world
+
+
+def studio(scene):
+    """Dark environment with a bright horizon band (reflections show a sharp edge and its halo)
+    and two small, strong area lights (sharp highlights with visible halos)."""
+    band_world(scene, "HG gallery", [(0.0, (0.002, 0.002, 0.003, 1)), (0.52, (0.6, 0.62, 0.7, 1)),
+                                     (0.62, (0.01, 0.012, 0.02, 1))])
     for loc, energy in (((3.0, -4.0, 5.0), 600.0), ((-4.0, -2.0, 2.0), 250.0)):
         light = bpy.data.lights.new("HG key", "AREA")
         light.size = 0.15

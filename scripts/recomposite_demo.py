@@ -31,7 +31,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hazy_gloss  # noqa: E402
-from gallery import analytic_sphere  # noqa: E402  (scripts/ is on sys.path)
+from gallery import analytic_sphere, band_world  # noqa: E402  (scripts/ is on sys.path)
 
 ORIGINAL = {"metal": 0.15, "plastic": 0.02}
 EDITED = {"metal": 0.9, "plastic": 0.2}
@@ -53,32 +53,9 @@ def _diffuse(name, colour):
 
 
 def _world(scene):
-    world = bpy.data.worlds.new("HG demo")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    nt = world.node_tree
-    nt.nodes.clear()
-    coord = nt.nodes.new("ShaderNodeTexCoord")
-    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
-    mapz = nt.nodes.new("ShaderNodeMapRange")
-    mapz.inputs[1].default_value = -1.0
-    ramp = nt.nodes.new("ShaderNodeValToRGB")
-    cr = ramp.color_ramp
-    cr.interpolation = "CONSTANT"
-    cr.elements[0].position = 0.0
-    cr.elements[0].color = (0.02, 0.02, 0.025, 1)
-    cr.elements[1].position = 0.5
-    cr.elements[1].color = (0.05, 0.07, 0.12, 1)
-    cr.elements.new(0.62).color = (1.6, 1.6, 1.7, 1)  # a bright band 14-30° above the horizon
-    cr.elements.new(0.75).color = (0.04, 0.06, 0.1, 1)
-    bg = nt.nodes.new("ShaderNodeBackground")
-    out = nt.nodes.new("ShaderNodeOutputWorld")
-    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
-    nt.links.new(sep.outputs["Z"], mapz.inputs[0])
-    nt.links.new(mapz.outputs[0], ramp.inputs[0])
-    nt.links.new(ramp.outputs[0], bg.inputs[0])
-    nt.links.new(bg.outputs[0], out.inputs[0])
+    band_world(scene, "HG demo", [(0.0, (0.02, 0.02, 0.025, 1)), (0.5, (0.05, 0.07, 0.12, 1)),
+                                  (0.62, (1.6, 1.6, 1.7, 1)),  # a bright band 14-30° above the horizon
+                                  (0.75, (0.04, 0.06, 0.1, 1))])
 
 
 def build_scene(api, samples, scale):
