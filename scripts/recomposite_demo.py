@@ -249,7 +249,8 @@ def main(argv=None):
         layers = per_layer[name]
         trace = sum(v[0] for k, v in layers.items() if k in comp.LAYERS)
         sync = sum(v[1] for k, v in layers.items() if k in comp.LAYERS)
-        return {"path tracing s (4 layers)": trace, "x original path tracing": trace / base_trace,
+        return {"path tracing s (4 layers)": trace, "x original path tracing":
+                trace / base_trace if base_trace > 0 else None,  # tiny renders time as 0 s
                 "synchronisation s (4 layers)": sync}
 
     m = {
