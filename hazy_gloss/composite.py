@@ -793,70 +793,24 @@ def clear_recomposite(scene):
                 pass
         scene.render.use_single_layer = state.get("use_single_layer", False)
         del scene[STAMP]
-    tree = _compositor_tree(scene, create=False)
+    from .blender import compat
+    tree = compat.compositor_tree(scene, create=False)
     if tree is not None:
         for n in [n for n in tree.nodes if n.name.startswith(RC_PREFIX + " ")]:
             tree.nodes.remove(n)
 
 
 # ============================================================================================
-# bpy glue: compositor.  Every 4.5 / 5.0 difference of the compositor is in this section.
+# bpy glue: compositor (the version differences are in blender/compat.py)
 # ============================================================================================
-# 4.5: the scene owns ``scene.node_tree`` (``scene.use_nodes``), output = Composite node,
-#      math = CompositorNodeMath.
-# 5.0: a CompositorNodeTree node group is assigned to ``scene.compositing_node_group``, output =
-#      its Group Output, math = ShaderNodeMath (CompositorNodeMath and Composite are gone).
-
-
-def _compositor_new_api():
-    import bpy
-    return "compositing_node_group" in bpy.types.Scene.bl_rna.properties
-
-
-def _math_id():
-    return "ShaderNodeMath" if _compositor_new_api() else "CompositorNodeMath"
-
-
-def _compositor_tree(scene, create=True):
-    """The scene's compositor tree (created and enabled when ``create``)."""
-    import bpy
-    if _compositor_new_api():
-        tree = scene.compositing_node_group
-        if tree is None and create:
-            tree = bpy.data.node_groups.new(f"{scene.name} Compositing", "CompositorNodeTree")
-            tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-            scene.compositing_node_group = tree
-        return tree
-    if create:
-        scene.use_nodes = True
-    return scene.node_tree
-
-
-def _compositor_output(tree):
-    """The input socket that is the compositor's result."""
-    if _compositor_new_api():
-        if not any(i.in_out == "OUTPUT" for i in tree.interface.items_tree
-                   if getattr(i, "item_type", "SOCKET") == "SOCKET"):
-            tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        out = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
-        if out is None:
-            out = tree.nodes.new("NodeGroupOutput")
-            out.name = f"{RC_PREFIX} Output"
-            out.location = (900, 0)
-        return out.inputs[0]
-    out = next((n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"), None)
-    if out is None:
-        out = tree.nodes.new("CompositorNodeComposite")
-        out.name = f"{RC_PREFIX} Composite"
-        out.location = (900, 0)
-    return out.inputs["Image"]
 
 
 def _compositor_builder(tree):
     """A TreeBuilder whose scalar math and colour split use the compositor's nodes."""
     from .node_groups.builder import TreeBuilder
 
-    math_id = _math_id()
+    from .blender import compat
+    math_id = compat.compositor_math_node()
 
     class CompositorBuilder(TreeBuilder):
         MATH_NODE = math_id
@@ -999,10 +953,11 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
     ``haziness`` / ``core_reflectivity``: new values (factors set to 1); None keeps.
     Returns the group node."""
     import bpy
-    tree = _compositor_tree(scene)
+    from .blender import compat
+    tree = compat.compositor_tree(scene)
     for n in [n for n in tree.nodes if n.name.startswith(RC_PREFIX + " ")]:
         tree.nodes.remove(n)
-    out_socket = _compositor_output(tree)
+    out_socket = compat.compositor_output(tree, f"{RC_PREFIX} Output")
     group = tree.nodes.new("CompositorNodeGroup")
     group.node_tree = ensure_compositor_group()
     group.name = f"{RC_PREFIX} Recomposite"

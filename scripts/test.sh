@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# Run every test: all of tests/ with bpy 5.0.1, then tests/blender again with bpy 4.5 LTS.
+# Run every test: the pure (bpy-free) tests once, then the Blender tests under each supported
+# Blender: 5.3 (.venv), 5.2 LTS (.venv52) and 4.5 LTS (.venv45).
 #
 #   bash scripts/test.sh                 # everything
-#   bash scripts/test.sh -k furnace -x   # extra arguments go to both pytest runs
+#   bash scripts/test.sh -k furnace -x   # extra arguments go to every pytest run
 #
-# Exits non-zero if either run fails.  Blender tests never skip here (HAZY_GLOSS_REQUIRE_BPY=1
-# turns a missing bpy into an error).
+# Exits non-zero if any run fails.  Blender tests never skip here (HAZY_GLOSS_REQUIRE_BPY=1
+# turns a missing bpy into an error); the add-on's own DeprecationWarnings are errors there
+# (tests/blender/conftest.py).
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,11 +22,11 @@ trap 'rm -rf "$LOG_DIR"' EXIT
 
 SUMMARIES=()
 STATUS=0
+T0=$(date +%s)
 
-# run LABEL PYTHON PATHS... -- EXTRA_ARGS...
+# run LABEL PYTHON LOGNAME TARGET EXTRA_ARGS...
 run() {
-    local label="$1" py="$2" log="$LOG_DIR/$3.log" start end rc summary verdict
-    local target="$4"
+    local label="$1" py="$2" log="$LOG_DIR/$3.log" target="$4" start end rc summary verdict
     shift 4
     echo
     echo "=== $label: $py -m pytest $target -q $* ==="
@@ -45,12 +47,16 @@ run() {
     SUMMARIES+=("$label: $verdict - ${summary:-no summary} [wall $((end - start)) s]")
 }
 
-run "bpy $(.venv/bin/python -c 'import importlib.metadata as m; print(m.version("bpy"))') (tests/)" \
-    .venv/bin/python main tests "$@"
-run "bpy $(.venv45/bin/python -c 'import importlib.metadata as m; print(m.version("bpy"))') (tests/blender)" \
-    .venv45/bin/python lts tests/blender "$@"
+bpy_version() {
+    "$1" -c 'import importlib.metadata as m; print(m.version("bpy"))'
+}
+
+run "pure (no bpy)" .venv/bin/python pure tests/pure "$@"
+run "bpy $(bpy_version .venv/bin/python) (tests/blender)" .venv/bin/python b53 tests/blender "$@"
+run "bpy $(bpy_version .venv52/bin/python) LTS (tests/blender)" .venv52/bin/python b52 tests/blender "$@"
+run "bpy $(bpy_version .venv45/bin/python) LTS (tests/blender)" .venv45/bin/python b45 tests/blender "$@"
 
 echo
-echo "=== summary ==="
+echo "=== summary (total wall $(( $(date +%s) - T0 )) s) ==="
 for line in "${SUMMARIES[@]}"; do echo "$line"; done
 exit $STATUS

@@ -1,12 +1,19 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Every difference between Blender 4.5 LTS and 5.0 that the add-on meets, in one place."""
+"""Every difference between Blender 4.5 LTS, 5.2 LTS and 5.3 that the add-on meets, in one place.
+
+Features are detected from RNA where Blender offers that (no property is read just to see
+whether it exists: reading a deprecated property warns), versions where behaviour changed
+without an API change.  docs/blender-versions.md lists what changed and when.
+"""
 import bpy
 
 VERSION = bpy.app.version
 
+_SCENE_PROPS = bpy.types.Scene.bl_rna.properties
+
 
 def eevee_engine_id():
-    """5.0 accepts only BLENDER_EEVEE; 4.2-4.5 call the new EEVEE BLENDER_EEVEE_NEXT."""
+    """5.x accepts only BLENDER_EEVEE; 4.2-4.5 call the new EEVEE BLENDER_EEVEE_NEXT."""
     items = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
     return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in items else "BLENDER_EEVEE"
 
@@ -25,12 +32,114 @@ def exact_conductor_fresnel():
     return VERSION >= (5, 0, 0)
 
 
+def metallic_thin_film():
+    """5.3 added Thin Film Thickness / IOR inputs to the Metallic BSDF (Principled had them
+    since 4.2)."""
+    return _node_has_input("ShaderNodeBsdfMetallic", "Thin Film Thickness")
+
+
+_INPUTS = {}
+
+
+def _node_has_input(bl_idname, name):
+    """Whether a shader node type has an input socket ``name`` (probed once on a scratch tree)."""
+    key = (bl_idname, name)
+    if key not in _INPUTS:
+        tree = bpy.data.node_groups.new(".hazy_gloss_probe", "ShaderNodeTree")
+        try:
+            node = tree.nodes.new(bl_idname)
+            for sock in node.inputs:
+                _INPUTS[(bl_idname, sock.name)] = True
+            _INPUTS.setdefault(key, False)
+        finally:
+            bpy.data.node_groups.remove(tree)
+    return _INPUTS[key]
+
+
 def shader_add_menu():
     """The menu whose contents the Shader Editor's Add menu (Shift+A) draws.
 
-    4.5 and 5.0 both define ``NODE_MT_shader_node_add_all`` (``NODE_MT_add`` draws it with
-    ``menu_contents`` when the edited tree is a shader tree; 5.0 generates it from a base class).
-    Older or future versions without it fall back to ``NODE_MT_add``, which is shared by all node
-    editors: draw functions appended to it must check ``space_data.tree_type`` themselves."""
+    4.5 and 5.x define ``NODE_MT_shader_node_add_all`` (``NODE_MT_add`` draws it with
+    ``menu_contents`` when the edited tree is a shader tree).  Versions without it fall back to
+    ``NODE_MT_add``, which is shared by all node editors: draw functions appended to it must
+    check ``space_data.tree_type`` themselves."""
     menu = getattr(bpy.types, "NODE_MT_shader_node_add_all", None)
     return menu if menu is not None else bpy.types.NODE_MT_add
+
+
+# --------------------------------------------------------------------------------------------
+# Compositor
+#   4.5:      the scene owns ``scene.node_tree`` (``scene.use_nodes``); output = Composite node;
+#             math = CompositorNodeMath.
+#   5.0-5.2:  a CompositorNodeTree group in ``scene.compositing_node_group``; output = its Group
+#             Output; math = ShaderNodeMath (CompositorNodeMath and Composite are gone).
+#   5.3:      ``scene.compositing_node_group`` is deprecated (removal in 6.0); the scene holds a
+#             stack ``scene.compositor_effects`` whose effects each have a ``node_group``.
+# --------------------------------------------------------------------------------------------
+
+COMPOSITOR_EFFECT = "Hazy Gloss"
+
+
+def compositor_uses_groups():
+    """5.0+: compositor trees are node groups with a Group Output."""
+    return "compositor_effects" in _SCENE_PROPS or "compositing_node_group" in _SCENE_PROPS
+
+
+def compositor_math_node():
+    return "ShaderNodeMath" if compositor_uses_groups() else "CompositorNodeMath"
+
+
+def _effect(scene, create):
+    effects = scene.compositor_effects
+    eff = effects.active
+    if eff is None:
+        eff = next(iter(effects), None)
+    if eff is None and create:
+        eff = effects.new(name=COMPOSITOR_EFFECT)
+    return eff
+
+
+def compositor_tree(scene, create=True):
+    """The scene's compositor tree (created and enabled when ``create``), or None."""
+    if "compositor_effects" in _SCENE_PROPS:
+        eff = _effect(scene, create)
+        if eff is None:
+            return None
+        if eff.node_group is None and create:
+            eff.node_group = _new_compositor_group(scene)
+        return eff.node_group
+    if "compositing_node_group" in _SCENE_PROPS:
+        tree = scene.compositing_node_group
+        if tree is None and create:
+            tree = _new_compositor_group(scene)
+            scene.compositing_node_group = tree
+        return tree
+    if create:
+        scene.use_nodes = True
+    return scene.node_tree
+
+
+def _new_compositor_group(scene):
+    tree = bpy.data.node_groups.new(f"{scene.name} Compositing", "CompositorNodeTree")
+    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    return tree
+
+
+def compositor_output(tree, name, location=(900, 0)):
+    """The input socket that is the compositor's result (created, named ``name``, if missing)."""
+    if compositor_uses_groups():
+        if not any(i.in_out == "OUTPUT" for i in tree.interface.items_tree
+                   if getattr(i, "item_type", "SOCKET") == "SOCKET"):
+            tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        out = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
+        if out is None:
+            out = tree.nodes.new("NodeGroupOutput")
+            out.name = name
+            out.location = location
+        return out.inputs[0]
+    out = next((n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"), None)
+    if out is None:
+        out = tree.nodes.new("CompositorNodeComposite")
+        out.name = name
+        out.location = location
+    return out.inputs["Image"]

@@ -193,3 +193,9 @@ def clean_file(addon_module):
     if not is_enabled():
         _enable()
     yield bpy.context
+
+
+def pytest_configure(config):
+    # The add-on's own use of deprecated Blender API is an error (Blender's RNA deprecation
+    # warnings are attributed to the calling module); other modules' warnings stay warnings.
+    config.addinivalue_line("filterwarnings", rf"error::DeprecationWarning:{MODULE_NAME}")

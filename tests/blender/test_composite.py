@@ -243,7 +243,8 @@ def test_compositor_group_matches_numpy(mods, tmp_path):
     mats = build_scene(api, samples=4, bounces=0)
     comp.setup_recomposite(scene)
     # live: the group fed by Render Layers nodes runs at render time; the EXR gets "Composite"
-    live = comp._compositor_tree(scene).nodes["HG RC Recomposite"]
+    compat = importlib.import_module(api.__name__.rpartition(".")[0] + ".blender.compat")
+    live = compat.compositor_tree(scene).nodes["HG RC Recomposite"]
     live.inputs["New Haziness"].default_value = 0.85
     live.inputs["Haziness Factor"].default_value = 1.0
     passes, _, path = passes_render(scene, comp, tmp_path)
