@@ -168,7 +168,7 @@ def naive_loop(hg_api, arrays, crop):
     """api.map_parameters per texel (float64 scalars), on a crop: seconds per texel."""
     import numpy as np
     from hazy_gloss.core import haze_mapping
-    from hazy_gloss.utils.conventions import (ALPHA_MAX, MAX_ASPECT, alpha_from_roughness,
+    from hazy_gloss.core.conventions import (ALPHA_MAX, MAX_ASPECT, alpha_from_roughness,
                                               lobe_from_alpha, metallic_anisotropy)
     t = time.perf_counter()
     for i in range(crop):

@@ -139,7 +139,7 @@ def rows():
 
 
 def _alpha(c, dtype):
-    from hazy_gloss.utils.conventions import alpha_from_roughness
+    from hazy_gloss.core.conventions import alpha_from_roughness
     R_ = c["R"] if c["raw_alpha"] else max(c["R"], MIN_R)
     ax, ay = alpha_from_roughness(R_, c["a"])
     return np.asarray(ax, np.float64).astype(dtype), np.asarray(ay, np.float64).astype(dtype)
@@ -512,7 +512,7 @@ def q8_srgb(x):
 def quantisation():
     """Worst relative change of each output when one input map is stored in 8 bits."""
     from hazy_gloss.core import haze_mapping
-    from hazy_gloss.utils.conventions import alpha_from_roughness
+    from hazy_gloss.core.conventions import alpha_from_roughness
     n = 2001
     specs = [  # (input, encoding, sweep, quantiser)
         ("core_reflectivity", "8-bit sRGB (colour map)", np.linspace(0.0, 1.0, n), q8_srgb),

@@ -55,7 +55,7 @@ def main():
     import bpy
     from hazy_gloss import api, convert as hconv
     from hazy_gloss.core import haze_mapping
-    from hazy_gloss.utils.conventions import ALPHA_MAX, MAX_ASPECT, MIN_ROUGHNESS
+    from hazy_gloss.core.conventions import ALPHA_MAX, MAX_ASPECT, MIN_ROUGHNESS
     import perf_scene as P
     import scenes
 

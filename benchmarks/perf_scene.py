@@ -145,7 +145,7 @@ def _new_material(name):
 
 def physical(api, params):
     """The physical values of Eq. 1 for ``params`` (api.map_parameters) in node conventions."""
-    from hazy_gloss.utils.conventions import (alpha_from_roughness, lobe_from_alpha,
+    from hazy_gloss.core.conventions import (alpha_from_roughness, lobe_from_alpha,
                                               metallic_anisotropy)
     p = api.normalise_parameters(dict(params))
     m = api.map_parameters(p)

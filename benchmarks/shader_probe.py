@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Evaluate the in-shader haze mapping (node_groups/mapping_graph.py) in Cycles, one case per
+"""Evaluate the in-shader haze mapping (core/node_math.py emitted as nodes) in Cycles, one case per
 pixel: the graph's outputs are rendered as emission on a plane seen by an orthographic camera
 (the approach of tests/blender/test_render_claims.py::_emit), its inputs come from float32 Image
 Textures (Closest), so each pixel reads one texel: many cases per render, float32 throughout as
@@ -45,12 +45,14 @@ def _scene(k):
     return plane
 
 
-def probe(cases, *, anisotropic, smooth, min_roughness=None, distribution="GGX",
-          packs=PACKS, return_raw=False):
+def probe(cases, *, anisotropic, smooth, distribution="GGX", packs=PACKS, return_raw=False):
     """cases: dict of float32 arrays over N cases: core_reflectivity (N, 3), edge_tint (N, 3),
     roughness, anisotropy, haziness, haze_extent_x, haze_extent_y, smoothness (N,).
     Returns {output name: array (N,) or (N, 3)} as Cycles computed them."""
-    from hazy_gloss.node_groups import builder, groups, mapping_graph as graph
+    from hazy_gloss.blender.nodes.builder import TreeBuilder
+    from hazy_gloss.blender.nodes.emit import emit
+    from hazy_gloss.core import node_math
+    from hazy_gloss.core.graph import Graph
 
     n = len(cases["roughness"])
     k = max(4, int(math.ceil(math.sqrt(n))))  # Blender renders at least 4x4
@@ -78,7 +80,7 @@ def probe(cases, *, anisotropic, smooth, min_roughness=None, distribution="GGX",
         if nd.bl_idname != "ShaderNodeOutputMaterial":
             tree.nodes.remove(nd)
     out = next(nd for nd in tree.nodes if nd.bl_idname == "ShaderNodeOutputMaterial")
-    tb = builder.TreeBuilder(tree)
+    tb = TreeBuilder(tree)
     tex = {}
     for key, img in imgs.items():
         t = tb.node("ShaderNodeTexImage")
@@ -86,15 +88,16 @@ def probe(cases, *, anisotropic, smooth, min_roughness=None, distribution="GGX",
         t.interpolation = "Closest"
         t.extension = "EXTEND"
         tex[key] = t.outputs["Color"]
-    s1 = tb.separate(tex["s1"])
-    s2 = tb.separate(tex["s2"])
-    src = dict(core_reflectivity=tex["rc"], edge_tint=tex["g"], roughness=s1[0],
-               anisotropy=s2[1], rotation=0.0, haziness=s1[1], haze_extent_x=s1[2],
-               haze_extent_y=s2[0], smoothness=s2[2] if smooth else None)
-    mr = groups.min_roughness(distribution) if min_roughness is None else min_roughness
-    m = graph.build_mapping(tb, src, kind="CONDUCTOR", anisotropic=anisotropic, smooth=smooth,
-                            min_roughness=mr, distribution=distribution)
-    m["alpha_wide_x"], m["alpha_wide_y"] = m["alpha_wide"]
+    g = Graph()
+    t = {key: g.input(key, vector=True) for key in tex}
+    s1, s2 = g.separate(t["s1"]), g.separate(t["s2"])
+    src = dict(core_reflectivity=t["rc"], edge_tint=t["g"], roughness=s1[0], anisotropy=s2[1],
+               rotation=0.0, haziness=s1[1], haze_extent_x=s1[2], haze_extent_y=s2[0],
+               smoothness=s2[2] if smooth else None)
+    mx = node_math.mapping(g, src, kind="CONDUCTOR", anisotropic=anisotropic, smooth=smooth,
+                           distribution=distribution)
+    mx["alpha_wide_x"], mx["alpha_wide_y"] = mx.pop("alpha_wide")
+    m = emit(tb, g, mx, tex)
     for key, sock in tex.items():  # the texel values as Cycles reads them
         m[f"texel_{key}"] = sock
     em = tb.node("ShaderNodeEmission")

@@ -28,10 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core import haze_mapping
-from .utils.conventions import (ALPHA_MAX, MAX_ASPECT, MIN_ROUGHNESS, alpha_from_roughness,
-                                glossy_anisotropy, lobe_from_alpha, metallic_anisotropy,
-                                metallic_to_glossy_anisotropy)
+from . import constants as K
+from .core.lobes import describe
+from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, sanitise
 
 __all__ = (
     "ConversionError",
@@ -40,7 +39,6 @@ __all__ = (
     "MappedMaps",
     "PARAMETERS",
     "DEFAULTS",
-    "KINDS",
     "FILE_FORMATS",
     "resolve_inputs",
     "output_specs",
@@ -57,16 +55,6 @@ __all__ = (
     "ConversionResult",
 )
 
-KINDS = ("CONDUCTOR", "DIELECTRIC", "LEGACY")
-#: Lobe distributions each kind's node offers (mirrors node_groups.lobes.NODE_DISTRIBUTIONS,
-#: which this bpy-free module cannot import; tests check they agree).
-NODE_DISTRIBUTIONS = {
-    "CONDUCTOR": ("GGX", "BECKMANN", "MULTI_GGX"),
-    "DIELECTRIC": ("GGX", "MULTI_GGX"),
-    "LEGACY": ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY"),
-}
-#: Smallest roughness per distribution (mirrors node_groups.groups.min_roughness).
-MIN_ROUGHNESS_AS = 0.0101
 FILE_FORMATS = ("OPEN_EXR", "PNG")
 
 #: Perceptual parameters a map (or a constant) can give, with their role: colour maps are
@@ -83,22 +71,18 @@ PARAMETERS = {
 }
 #: Accepted spellings that are folded into PARAMETERS by resolve_inputs.
 ALIASES = ("alpha", "haze_extent")
-#: Values of the parameters the user does not give (api.DEFAULTS).
-DEFAULTS = dict(core_reflectivity=0.5, edge_tint=0.0, roughness=0.1, anisotropy=0.0,
-                rotation=0.0, haziness=0.5, haze_extent_x=5.0, haze_extent_y=5.0)
-
-#: haziness is kept below 1 (the largest float32 below 1, as haze_mapping does).
-_HAZINESS_MAX = float(np.nextafter(np.float32(1), np.float32(0)))
-_F32_MAX = float(np.finfo(np.float32).max)
+#: Values of the parameters the user does not give: those of one material
+#: (core.parameters.DEFAULTS), grey colours as one number.
+DEFAULTS = dict(core_reflectivity=_API_DEFAULTS["core_reflectivity"][0],
+                edge_tint=_API_DEFAULTS["edge_tint"][0], roughness=_API_DEFAULTS["roughness"],
+                anisotropy=_API_DEFAULTS["anisotropy"], rotation=_API_DEFAULTS["rotation"],
+                haziness=_API_DEFAULTS["haziness"], haze_extent_x=_API_DEFAULTS["haze_extent"][0],
+                haze_extent_y=_API_DEFAULTS["haze_extent"][1])
 
 
 class ConversionError(ValueError):
     """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is
     one line meant for the user."""
-
-
-def min_roughness(distribution):
-    return MIN_ROUGHNESS_AS if distribution == "ASHIKHMIN_SHIRLEY" else MIN_ROUGHNESS
 
 
 # --------------------------------------------------------------------------------------------
@@ -147,21 +131,19 @@ def _constant(label, range_key, role, value):
         raise ConversionError(f"{label}: expected a number, got {value!r}")
     if not np.all(np.isfinite(arr)):
         raise ConversionError(f"{label}: constant must be finite, got {value!r}")
-    lo, hi = _RANGES[range_key]
+    lo, hi = _range(range_key)
     if np.any(arr < lo) or (hi is not None and np.any(arr > hi)):
-        rng = f"[{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
-        if range_key == "haziness":
-            rng = "[0, 1)"
+        rng = f"[{lo:g}, {hi:g}]" if hi is not None and np.isfinite(hi) else f">= {lo:g}"
         raise ConversionError(f"{label}: constant {value!r} is outside {rng}")
     out = arr.astype(np.float32)
     return out if role == "colour" else out[0]
 
 
-#: Valid range of each input (None: unbounded above).  Haziness 1 is clamped to just below.
-_RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "roughness": (0.0, 1.0),
-           "alpha": (0.0, 1.0), "anisotropy": (0.0, 1.0), "rotation": (-math.inf, None),
-           "haziness": (0.0, _HAZINESS_MAX), "haze_extent_x": (0.0, None),
-           "haze_extent_y": (0.0, None)}
+#: Valid range of each input: one material's ranges (core.parameters.RANGES), α like R.
+def _range(key):
+    if key == "alpha":
+        return _API_RANGES["roughness"]
+    return _API_RANGES["haze_extent" if key.startswith("haze_extent") else key]
 
 
 def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None,
@@ -175,12 +157,12 @@ def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None
     (a bad constant raises, a bad texel is clamped and counted later).  ``notes`` lists harmless
     oddities (an edge tint given to a non-conductor)."""
     kind = str(kind).upper()
-    if kind not in KINDS:
-        raise ConversionError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
+    if kind not in K.KINDS:
+        raise ConversionError(f"kind must be one of {', '.join(K.KINDS)}; got {kind!r}")
     distribution = str(distribution).upper()
-    if distribution not in NODE_DISTRIBUTIONS[kind]:
+    if distribution not in K.NODE_DISTRIBUTIONS[kind]:
         raise ConversionError(f"{kind.lower()} maps support the distributions "
-                              f"{', '.join(NODE_DISTRIBUTIONS[kind])}; got {distribution!r}")
+                              f"{', '.join(K.NODE_DISTRIBUTIONS[kind])}; got {distribution!r}")
     if str(file_format).upper() not in FILE_FORMATS:
         raise ConversionError(f"file_format must be one of {', '.join(FILE_FORMATS)}; got {file_format!r}")
     if smoothness is not None:
@@ -340,6 +322,8 @@ _ANISO = {
         MapSpec("rotation_wide", 1, "wrap", "wide lobe rotation: rotation + ¼ where α_w^y > α_w^x"),
     ),
 }
+#: Map name -> HazyLobes.fresnel key, where they differ.
+_FRESNEL_KEY = {"weight_narrow": "colour_narrow", "weight_wide": "colour_wide"}
 _FRESNEL = {
     "CONDUCTOR": (
         MapSpec("ior", 3, "ratio", "η per channel (Gulbrandsen from r and g)"),
@@ -404,40 +388,6 @@ class MappedMaps:
     clamped: dict = field(default_factory=dict)  # reason -> texel count
 
 
-def _sanitise(arr, name, lo, hi, clamped, *, above_reason=None):
-    """Clamp to [lo, hi] (hi None: float32 max), NaN -> lo; count bad texels per reason (a colour
-    texel counts once however many channels are bad)."""
-    a = np.asarray(arr, dtype=np.float32)
-    per_texel = (lambda m: m.any(axis=-1)) if a.ndim == 3 else (lambda m: m)
-    lo_v = np.float32(lo)
-    hi_v = np.float32(hi if hi is not None else _F32_MAX)
-    nan = np.isnan(a)
-    below = a < lo_v
-    above = a > hi_v
-    if not (nan.any() or below.any() or above.any()):  # the common case: no per-texel pass
-        return a
-    if above_reason is None:
-        above_reason = f"{name} > {hi:g}" if hi is not None else f"{name} is +inf"
-    for reason, mask in ((f"{name} is NaN (set to {lo:g})", nan),
-                         (f"{name} < {lo:g}", below),
-                         (above_reason, above)):
-        n = int(np.count_nonzero(per_texel(mask))) if mask.any() else 0
-        if n:
-            clamped[reason] = clamped.get(reason, 0) + n
-    return np.clip(np.where(nan, lo_v, a), lo_v, hi_v).astype(np.float32)
-
-
-def _sanitise_rotation(arr, clamped):
-    """Rotation (turns) may be any finite number; NaN and ±inf -> 0."""
-    a = np.asarray(arr, dtype=np.float32)
-    bad = ~np.isfinite(a)
-    n = int(np.count_nonzero(bad))
-    if not n:
-        return a
-    clamped["rotation is not finite (set to 0)"] = clamped.get("rotation is not finite (set to 0)", 0) + n
-    return np.where(bad, np.float32(0), a).astype(np.float32)
-
-
 def _add_counts(total, new):
     for k, v in new.items():
         total[k] = total.get(k, 0) + int(v)
@@ -449,11 +399,8 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
 
     ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked
     constant (from resolve_inputs).  ``alpha_given``: the roughness entry holds α (R = √α).
-    Every texel goes through exactly what ``api.map_parameters`` does for one material:
-    R clamped to [0, 1] and raised to the mirror cut-off, (α_x, α_y) = alpha_from_roughness(R, A),
-    haze_mapping(..., alpha_max=1, max_aspect=10) in float32, then the wide lobe's roughness,
-    anisotropy and rotation in the node convention (lobe_from_alpha, metallic/glossy_anisotropy).
-    Bad texels are clamped and counted in ``clamped`` (reason -> texels).
+    Every texel goes through :func:`hazy_gloss.core.lobes.describe` in float32, as one material
+    does.  Bad texels are clamped and counted in ``clamped`` (reason -> texels).
     Tiles of ``tile_texels`` texels run on ``threads`` threads (default: one per CPU, at most 8);
     the result does not depend on either (every operation is per texel).
     ``anisotropic``: None decides from the data (any anisotropy > 0 or λ_x != λ_y); True forces
@@ -484,15 +431,12 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
             continue
         seen[id(a)] = name
         if name == "roughness" and alpha_given:
-            clean[name] = _sanitise(a, "alpha", 0.0, 1.0, clamped)
-        elif name == "rotation":
-            clean[name] = _sanitise_rotation(a, clamped)
+            clean[name] = sanitise(a, "alpha", clamped, range_name="roughness")
         elif name == "haziness":
-            clean[name] = _sanitise(a, name, 0.0, _HAZINESS_MAX, clamped,
-                                    above_reason="haziness >= 1")
+            clean[name] = sanitise(a, name, clamped, above_reason=f"haziness > {K.MAX_HAZINESS}")
         else:
-            lo, hi = _RANGES[name]
-            clean[name] = _sanitise(a, name, lo, hi, clamped)
+            clean[name] = sanitise(a, name, clamped,
+                                   range_name="haze_extent" if name.startswith("haze_extent") else None)
     if alpha_given:  # R = √α
         clean["roughness"] = np.sqrt(clean["roughness"]).astype(np.float32)
 
@@ -503,7 +447,6 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
     specs = output_specs(kind, anisotropic)
     maps = {s.name: np.empty((h, w, 3) if s.channels == 3 else (h, w), np.float32) for s in specs}
 
-    r_min = np.float32(min_roughness(distribution))
     rows = max(1, int(tile_texels) // max(w, 1))
 
     def run_tile(r0):
@@ -514,49 +457,27 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
             a = clean[name]
             return a[r0:r1] if a.ndim >= 2 else a
 
-        rough = np.maximum(tile("roughness"), r_min)
-        aniso = tile("anisotropy")
-        ax64, ay64 = alpha_from_roughness(rough, aniso)
-        ax, ay = ax64.astype(np.float32), ay64.astype(np.float32)
-        del ax64, ay64
         lx = tile("haze_extent_x")
         ly = lx if clean["haze_extent_y"] is clean["haze_extent_x"] else tile("haze_extent_y")
-        m = haze_mapping(tile("core_reflectivity"), tile("edge_tint"), (ax, ay), tile("haziness"),
-                         (lx, ly), distribution=distribution, smoothness=smoothness,
-                         alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT, strict=False)
-        sl = np.s_[r0:r1]
         shape = (r1 - r0, w)
-        maps["beta"][sl] = np.broadcast_to(m.beta, shape)
-        maps["roughness"][sl] = np.broadcast_to(rough, shape)
-        wx, wy = m.alpha_wide
-        r_w, ratio, swap = lobe_from_alpha(wx, wy)
-        maps["roughness_wide"][sl] = np.broadcast_to(r_w.astype(np.float32), shape)
+        d = describe(kind, distribution, core_reflectivity=tile("core_reflectivity"),
+                     edge_tint=tile("edge_tint"), roughness=tile("roughness"),
+                     anisotropy=tile("anisotropy"), rotation=tile("rotation"),
+                     haziness=tile("haziness"), haze_extent=(lx, ly), smoothness=smoothness,
+                     anisotropic=anisotropic, strict=False, dtype=np.float32)
+        sl = np.s_[r0:r1]
+        maps["beta"][sl] = np.broadcast_to(d.beta, shape)
+        maps["roughness"][sl] = np.broadcast_to(d.narrow.roughness, shape)
+        maps["roughness_wide"][sl] = np.broadcast_to(d.wide.roughness, shape)
         if anisotropic:
-            rot = np.broadcast_to(tile("rotation"), shape)
-            if kind == "LEGACY":
-                a_n = metallic_to_glossy_anisotropy(aniso)
-                a_w = glossy_anisotropy(ratio)
-            else:
-                a_n = aniso
-                a_w = metallic_anisotropy(ratio)
-            maps["anisotropy"][sl] = np.broadcast_to(np.asarray(a_n, np.float32), shape)
-            maps["rotation"][sl] = rot
-            maps["anisotropy_wide"][sl] = np.broadcast_to(np.asarray(a_w, np.float32), shape)
-            maps["rotation_wide"][sl] = rot + np.where(swap, np.float32(0.25), np.float32(0))
-        if kind == "CONDUCTOR":
-            maps["ior"][sl] = np.broadcast_to(m.ior, shape + (3,))
-            maps["extinction"][sl] = np.broadcast_to(m.extinction, shape + (3,))
-        elif kind == "DIELECTRIC":
-            maps["ior"][sl] = np.broadcast_to(m.dielectric_ior, shape)
-            rc = np.broadcast_to(m.core_reflectivity, shape + (3,))
-            rc_max = rc.max(axis=-1, keepdims=True)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                tint = np.where(rc_max > 0, rc / rc_max, np.float32(1))
-            maps["specular_tint"][sl] = tint
-        else:
-            maps["weight_narrow"][sl] = np.broadcast_to(m.weight_narrow, shape + (3,))
-            maps["weight_wide"][sl] = np.broadcast_to(m.weight_wide, shape + (3,))
-        return m.clamped
+            maps["anisotropy"][sl] = np.broadcast_to(d.narrow.anisotropy, shape)
+            maps["rotation"][sl] = np.broadcast_to(d.narrow.rotation, shape)
+            maps["anisotropy_wide"][sl] = np.broadcast_to(d.wide.anisotropy, shape)
+            maps["rotation_wide"][sl] = np.broadcast_to(d.wide.rotation, shape)
+        for spec in _FRESNEL[kind]:
+            values = d.fresnel[spec.name if spec.name in d.fresnel else _FRESNEL_KEY[spec.name]]
+            maps[spec.name][sl] = np.broadcast_to(values, shape + ((3,) if spec.channels == 3 else ()))
+        return d.clamped
 
     starts = list(range(0, h, rows))
     workers = max(1, min(int(threads or os.cpu_count() or 1), len(starts), 8))

@@ -5,12 +5,11 @@
     .venv/bin/python scripts/build.py [--output-dir DIR] [--keep-stage]
 
 Steps (all inside one bpy session, a few seconds):
-1. stage the package in a temp dir: symlinks dereferenced (``node_groups/`` and
-   ``blender_manifest.toml`` are symlinks in the repo), no ``__pycache__``/``*.pyc``, no tests,
-   docs, benchmarks or caches;
-2. generate the asset library with the staged code: ``assets/hazy_gloss_nodes.blend`` holding
-   every node group (``all_configurations()`` + ``ensure_group``), each marked as an asset with
-   a description and a catalog under "Hazy Gloss", and ``assets/blender_assets.cats.txt``;
+1. stage the package in a temp dir: ``hazy_gloss/`` plus the top-level ``blender_manifest.toml``,
+   no ``__pycache__``/``*.pyc``, no tests, docs, benchmarks or caches;
+2. generate the asset library with the staged code (``node_groups/build_library.py``):
+   ``assets/hazy_gloss_nodes.blend`` holding every node group, each marked as an asset with a
+   description and a catalog under "Hazy Gloss", and ``assets/blender_assets.cats.txt``;
 3. build the zip with Blender's own tooling, ``bl_pkg.cli_extension(["build", ...])`` (what
    ``blender --command extension build`` runs), then ``["validate", ZIP]``;
 4. check the zip: the files we expect, nothing we exclude, no symlinks.
@@ -64,14 +63,13 @@ def _ignore(directory, names):
 
 
 def stage_package(stage_root):
-    """Copy the package to ``stage_root/hazy_gloss`` with symlinks dereferenced."""
+    """Copy the package and the manifest to ``stage_root/hazy_gloss``."""
     stage = Path(stage_root) / PACKAGE_DIR.name
     shutil.copytree(PACKAGE_DIR, stage, symlinks=False, ignore=_ignore)
+    shutil.copyfile(MANIFEST, stage / MANIFEST.name)
     for path in stage.rglob("*"):
         if path.is_symlink():
             raise RuntimeError(f"staged a symlink: {path}")
-    if not (stage / "blender_manifest.toml").is_file():
-        raise RuntimeError("blender_manifest.toml missing from the staged package")
     return stage
 
 
@@ -84,54 +82,25 @@ def _purge_bytecode(root):
 
 def build_asset_library(stage):
     """Write assets/hazy_gloss_nodes.blend (+ catalogs) with the *staged* code."""
-    import bpy
-
-    bpy.ops.wm.read_homefile(use_empty=True)
-    for ng in list(bpy.data.node_groups):
-        bpy.data.node_groups.remove(ng)
-
     sys.dont_write_bytecode = True  # importing the staged package must not write into it
     sys.path.insert(0, str(stage.parent))
+    sys.path.insert(0, str(REPO_ROOT / "node_groups"))
     try:
         for name in [n for n in sys.modules if n == stage.name or n.startswith(stage.name + ".")]:
             del sys.modules[name]
         import importlib
-        groups = importlib.import_module(f"{stage.name}.node_groups.groups")
-        menus = importlib.import_module(f"{stage.name}.blender.menus")
-        if not Path(groups.__file__).resolve().is_relative_to(stage.resolve()):
-            raise RuntimeError(f"imported {groups.__file__}, not the staged package")
-
-        asset_dir = stage / ASSET_DIRNAME
-        asset_dir.mkdir()
-        (asset_dir / menus.CATALOG_FILE).write_text(menus.catalog_definitions(), encoding="utf-8")
-        manifest = read_manifest()
-        built = []
-        for config in groups.all_configurations():
-            ng = groups.ensure_group(*config)
-            if ng in built:
-                raise RuntimeError(f"two configurations share the group {ng.name!r}")
-            kind = config[0]
-            ng.asset_mark()
-            data = ng.asset_data
-            data.description = menus.describe(*config)
-            data.catalog_id = menus.catalog_id(menus.catalog_path(kind))
-            for attr, value in (("author", manifest.get("maintainer", "")),
-                                ("license", ", ".join(manifest.get("license", ()))),
-                                ("copyright", ", ".join(manifest.get("copyright", ())))):
-                if hasattr(data, attr):
-                    setattr(data, attr, value)
-            for tag in ("Hazy Gloss", menus.KIND_LABELS[kind]):
-                data.tags.new(tag, skip_if_exists=True)
-            built.append(ng)
-        blend = asset_dir / menus.ASSET_BLEND
-        bpy.data.libraries.write(str(blend), set(built), fake_user=True, compress=True)
-        if not blend.is_file():
-            raise RuntimeError(f"{blend} was not written")
-        log(f"asset library: {len(built)} node groups -> {blend.relative_to(stage)} "
+        from build_library import build_library
+        pkg = importlib.import_module(stage.name)
+        if not Path(pkg.__file__).resolve().is_relative_to(stage.resolve()):
+            raise RuntimeError(f"imported {pkg.__file__}, not the staged package")
+        names = build_library(stage.name, stage / ASSET_DIRNAME, read_manifest())
+        blend = stage / ASSET_DIRNAME / "hazy_gloss_nodes.blend"
+        log(f"asset library: {len(names)} node groups -> {blend.relative_to(stage)} "
             f"({blend.stat().st_size} bytes)")
-        return [ng.name for ng in built]
+        return names
     finally:
         sys.path.remove(str(stage.parent))
+        sys.path.remove(str(REPO_ROOT / "node_groups"))
         for name in [n for n in sys.modules if n == stage.name or n.startswith(stage.name + ".")]:
             del sys.modules[name]
         _purge_bytecode(stage)
@@ -159,7 +128,7 @@ def check_zip(zip_path, stage):
     if names != staged:
         problems.append(f"zip differs from the stage: missing {sorted(staged - names)}, "
                         f"extra {sorted(names - staged)}")
-    for required in ("__init__.py", "blender_manifest.toml", "node_groups/groups.py",
+    for required in ("__init__.py", "blender_manifest.toml", "blender/nodes/groups.py",
                      f"{ASSET_DIRNAME}/hazy_gloss_nodes.blend",
                      f"{ASSET_DIRNAME}/blender_assets.cats.txt"):
         if required not in names:

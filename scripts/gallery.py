@@ -166,8 +166,9 @@ def gallery_rows(api):
 
 def sweep_rows(api, which):
     """Parameter sweeps for the docs (paper Figures 4 and 8)."""
-    from hazy_gloss.node_groups.builder import TreeBuilder
-    from hazy_gloss.node_groups.lobes import build_lobes
+    from hazy_gloss.blender.nodes.builder import TreeBuilder
+    from hazy_gloss.blender import material
+    from hazy_gloss.blender.nodes.lobes import build_lobes
     base = dict(kind="CONDUCTOR", core_reflectivity=(0.9, 0.62, 0.35), edge_tint=(1.0, 0.85, 0.6),
                 roughness=R_01)
     if which == "haziness":  # Figure 8: β_h (ours) vs the physical mix weight β of Eq. 1
@@ -180,16 +181,16 @@ def sweep_rows(api, which):
         for b in betas:  # a hand-built mix: same lobes and Fresnel as β_h = 0, β moved by hand
             mat = api.create_material(f"β {b:.2f}", haziness=0.0, haze_extent=7.0, **base)
             tree = mat.node_tree
-            api._remove_ours(tree)
+            material.remove_ours(tree)
             core = api.map_parameters(api.normalise_parameters(dict(base, haziness=0.0)))
-            tb = TreeBuilder(tree, prefix=api.NODE_PREFIX)
+            tb = TreeBuilder(tree, roles=True)
             bsdf = build_lobes(tb, "CONDUCTOR", "GGX", beta=b,
                                narrow=dict(roughness=R_01, anisotropy=None, rotation=None),
                                wide=dict(roughness=R_01 * math.sqrt(8.0), anisotropy=None, rotation=None),
                                fresnel=dict(ior=tuple(map(float, core.ior)),
                                             extinction=tuple(map(float, core.extinction))),
                                shared={}, depth=1)
-            tree.links.new(bsdf, api._output_node(tree).inputs["Surface"])
+            tree.links.new(bsdf, material.output_node(tree).inputs["Surface"])
             physical.append(mat)
         return [([f"haziness {h:g}" for h in hs], ours),
                 ([f"mix weight {b:.2f}" for b in betas], physical)]

@@ -31,6 +31,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hazy_gloss  # noqa: E402
+from hazy_gloss import exr, recomposite as rc  # noqa: E402  (bpy-free)
 from gallery import analytic_sphere, band_world  # noqa: E402  (scripts/ is on sys.path)
 
 ORIGINAL = {"metal": 0.15, "plastic": 0.02}
@@ -123,7 +124,7 @@ def render_original_only(scene, comp, path):
     comp_on = scene.render.use_compositing
     try:
         for vl in scene.view_layers:
-            vl.use = vl.name not in comp.LAYERS
+            vl.use = vl.name not in rc.LAYERS
         scene.render.use_compositing = False
         seconds = _render_to(scene, path)
     finally:
@@ -145,7 +146,7 @@ def layer_times(comp, path):
     """{layer: (path tracing s, synchronisation s)} from the Cycles metadata of an EXR."""
     with open(path, "rb") as fh:
         data = fh.read()
-    attrs, _ = comp._exr_header(data, 8)
+    attrs, _ = exr._exr_header(data, 8)
     out = {}
     for key, (_, raw) in attrs.items():
         if key.startswith("cycles.") and key.endswith(".render_time"):
@@ -185,7 +186,7 @@ def main(argv=None):
 
     hazy_gloss.register()
     from hazy_gloss import api
-    from hazy_gloss import composite as comp
+    from hazy_gloss.blender import composite as comp
 
     tmp = tempfile.mkdtemp(prefix="hg_recomposite_")
     scene, mats = build_scene(api, args.samples, args.scale)
@@ -196,14 +197,14 @@ def main(argv=None):
     t["original + 4 layers, no holdout"] = _render_to(scene, os.path.join(tmp, "noholdout.exr"))
     report = comp.setup_recomposite(scene, holdout=True)
     t["original + 4 layers, holdout"] = _render_to(scene, os.path.join(tmp, "passes.exr"))
-    passes = comp.passes_from_exr(os.path.join(tmp, "passes.exr"))
+    passes = rc.passes_from_exr(os.path.join(tmp, "passes.exr"))
     hazy = passes["mask"] > 0
 
     # the edit: keyed on the core-reflectivity AOV (metal r_c ~ 0.95, plastic 0.04)
     rc = passes["core_reflectivity"] / np.maximum(passes["mask"], 1e-6)[..., None]
     haziness = np.where(rc.max(axis=-1) > 0.2, EDITED["metal"], EDITED["plastic"]).astype(np.float32)
     t0 = time.perf_counter()
-    edited = comp.recomposite(passes, haziness=haziness)
+    edited = rc.recomposite(passes, haziness=haziness)
     t["numpy recomposite"] = time.perf_counter() - t0
 
     # the compositor group on the saved EXR (no scene render), same edit through a keyed map
@@ -225,7 +226,7 @@ def main(argv=None):
     s.color_mode = "RGBA"
     s.color_depth = "32"
     t["compositor recomposite (from EXR, no render)"] = _render_to(scene, os.path.join(tmp, "comp.exr"))
-    ch = comp.read_exr(os.path.join(tmp, "comp.exr"))
+    ch = rc.read_exr(os.path.join(tmp, "comp.exr"))
     comp_img = np.stack([ch[c] for c in "RGBA"], axis=-1)
 
     # direct re-render at the edited values
@@ -234,7 +235,7 @@ def main(argv=None):
         comp.convert_material(mat)
     comp._set_multilayer_exr(scene)
     render_original_only(scene, comp, os.path.join(tmp, "direct.exr"))
-    ch = comp.read_exr(os.path.join(tmp, "direct.exr"))
+    ch = rc.read_exr(os.path.join(tmp, "direct.exr"))
     layer = report["template"]
     direct = np.stack([ch[f"{layer}.Combined.{c}"] for c in "RGBA"], axis=-1)
 
@@ -247,8 +248,8 @@ def main(argv=None):
 
     def extra(name):
         layers = per_layer[name]
-        trace = sum(v[0] for k, v in layers.items() if k in comp.LAYERS)
-        sync = sum(v[1] for k, v in layers.items() if k in comp.LAYERS)
+        trace = sum(v[0] for k, v in layers.items() if k in rc.LAYERS)
+        sync = sum(v[1] for k, v in layers.items() if k in rc.LAYERS)
         return {"path tracing s (4 layers)": trace, "x original path tracing":
                 trace / base_trace if base_trace > 0 else None,  # tiny renders time as 0 s
                 "synchronisation s (4 layers)": sync}

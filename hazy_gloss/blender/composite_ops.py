@@ -1,9 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Operators for editing haziness after the render (hazy_gloss/composite.py, paper §4.3)."""
+"""Operators for editing haziness after the render (blender/composite.py, paper §4.3)."""
 import bpy
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 
-from .. import composite
+from .. import constants as K
+from ..recomposite import LAYERS, passes_from_exr
+from . import composite
 
 
 def _cycles(context):
@@ -35,7 +37,7 @@ class HAZY_GLOSS_OT_setup_recomposite(bpy.types.Operator):
 
     def execute(self, context):
         scene = context.scene
-        template = context.view_layer if context.view_layer.name not in composite.LAYERS else None
+        template = context.view_layer if context.view_layer.name not in LAYERS else None
         try:
             report = composite.setup_recomposite(scene, template=template,
                                                  holdout=self.holdout,
@@ -82,7 +84,7 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
 
     filepath: StringProperty(subtype="FILE_PATH")
     filter_glob: StringProperty(default="*.exr", options={"HIDDEN"})
-    haziness: FloatProperty(name="Haziness", default=0.5, min=0.0, max=0.9999, subtype="FACTOR")
+    haziness: FloatProperty(name="Haziness", default=0.5, min=0.0, max=K.MAX_HAZINESS, subtype="FACTOR")
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -90,7 +92,7 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            composite.passes_from_exr(bpy.path.abspath(self.filepath))  # validates the file
+            passes_from_exr(bpy.path.abspath(self.filepath))  # validates the file
         except (OSError, KeyError, ValueError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -98,55 +100,7 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def draw_operators(layout):
-    col = layout.column(align=True)
-    col.operator(HAZY_GLOSS_OT_setup_recomposite.bl_idname, icon="RENDERLAYERS")
-    col.operator(HAZY_GLOSS_OT_load_recomposite.bl_idname, icon="NODE_COMPOSITING")
-    col.operator(HAZY_GLOSS_OT_clear_recomposite.bl_idname, icon="X")
-
-
-class HAZY_GLOSS_PT_recomposite(bpy.types.Panel):
-    """Properties > View Layer: edit haziness after the render (paper §4.3)."""
-    bl_idname = "HAZY_GLOSS_PT_recomposite"
-    bl_label = "Hazy Gloss Recomposite"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "view_layer"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None and context.scene.render.engine == "CYCLES"
-
-    def draw(self, context):
-        draw_operators(self.layout)
-
-
-class HAZY_GLOSS_MT_recomposite(bpy.types.Menu):
-    """Render > Hazy Gloss Recomposite (also what F3 search finds)."""
-    bl_idname = "HAZY_GLOSS_MT_recomposite"
-    bl_label = "Hazy Gloss Recomposite"
-
-    def draw(self, context):
-        draw_operators(self.layout)
-
-
-def draw_render_menu(self, context):
-    self.layout.separator()
-    self.layout.menu(HAZY_GLOSS_MT_recomposite.bl_idname)
-
-
 classes = (HAZY_GLOSS_OT_setup_recomposite, HAZY_GLOSS_OT_clear_recomposite,
-           HAZY_GLOSS_OT_load_recomposite, HAZY_GLOSS_PT_recomposite, HAZY_GLOSS_MT_recomposite)
+           HAZY_GLOSS_OT_load_recomposite)
 
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
-
-
-def register():
-    _register_classes()
-    bpy.types.TOPBAR_MT_render.append(draw_render_menu)
-
-
-def unregister():
-    bpy.types.TOPBAR_MT_render.remove(draw_render_menu)
-    _unregister_classes()
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -11,29 +11,32 @@ encodings) is bpy-free in ``hazy_gloss/convert.py``; this module does what needs
 - writing float OpenEXR (default, lossless ZIP) or 16-bit PNG through ``Image.save_render`` of a
   Non-Color image with a private scene's format settings, atomically (temp file + os.replace);
 - wiring the written maps into a material's lean node tree (Image Texture nodes into the two
-  lobes and the mix, via node_groups.lobes.build_lobes);
-- the operator HAZY_GLOSS_OT_convert_maps.
+  lobes and the mix, via nodes.lobes.build_lobes).
+
+The operator is ``convert_ops.HAZY_GLOSS_OT_convert_maps``.
 """
 from __future__ import annotations
 
 import glob
 import os
 import re
-import tempfile
 import time
 import uuid
 
 import bpy
 import numpy as np
-from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
-                       StringProperty)
 
+from .. import constants as K
 from .. import convert as core
 from ..convert import ConversionError
+from ..core.graph import Graph
+from . import compat, material
+from .nodes.builder import TreeBuilder
+from .nodes.emit import emit
+from .nodes.lobes import build_lobes, tangent as tangent_node
 
 UDIM_TOKEN = "<UDIM>"
-STAMP = "hazy_gloss_maps"
-from ..api import NODE_PREFIX, _output_node, _remove_ours  # noqa: E402  (one definition)
+STAMP = K.MAPS_STAMP
 _LINEAR_NAMES = ("Linear Rec.709", "Linear", "Linear BT.709")
 _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
@@ -508,10 +511,6 @@ def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 
     """Build ``mat``'s lean physical tree from converted maps: one Image Texture (Non-Color) per
     map into the two lobes and the mix (node_groups.lobes.build_lobes with sockets).  Replaces the
     add-on's own nodes (names starting "HG "); other nodes are kept.  Returns the BSDF socket."""
-    from ..node_groups.builder import TreeBuilder
-    from ..node_groups.lobes import build_lobes
-    from . import compat
-
     report = result.report
     kind, distribution = report.kind, report.distribution
     if mat.library is not None:
@@ -519,9 +518,11 @@ def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 
     if compat.VERSION < (5, 0, 0) and not mat.use_nodes:
         mat.use_nodes = True
     tree = mat.node_tree
-    _remove_ours(tree)
-    tb = TreeBuilder(tree, prefix=NODE_PREFIX, x0=-200.0)
-    socks = {}
+    material.remove_ours(tree)
+    tb = TreeBuilder(tree, x0=-200.0, roles=True)
+    g = Graph()
+    decoded = {}
+    sources = {}
     for name, path in result.items():
         spec = result.specs[name]
         tex = tb.node("ShaderNodeTexImage", name=f"Map {name}", label=name.replace("_", " "),
@@ -529,28 +530,19 @@ def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 
         tex.image = _image_for(path)
         tex.interpolation = interpolation
         tex.extension = "REPEAT"
-        out = tex.outputs["Color"]
-        png = os.path.splitext(path)[1].lower() == ".png"
+        sources[name] = tex.outputs["Color"]
+        x = g.input(name, vector=True)  # an Image Texture gives a colour
         if spec.channels == 1:
-            sep = tb.node("ShaderNodeSeparateColor", name=f"Split {name}", depth=1)
-            tb.link(out, sep.inputs[0])
-            out = sep.outputs[0]
-            if png and spec.png == "ratio":
-                out = tb.div(out, tb.sub(1.0, out), label=f"{name}: e/(1-e)")
-            elif png and spec.png == "negate":
-                out = tb.mul(out, -1.0, label=f"{name}: -e")
-        elif png and spec.png == "ratio":
-            out = tb.vmath("DIVIDE", out, tb.vmath("SUBTRACT", 1.0, out), label=f"{name}: e/(1-e)")
-        socks[name] = out
-    shared = {"tangent": None}
-    if report.anisotropic:
-        t = tb.node("ShaderNodeTangent", name="Tangent", depth=2)
-        if tangent == "UV_MAP":
-            t.direction_type = "UV_MAP"
-        else:
-            t.direction_type = "RADIAL"
-            t.axis = tangent[-1]
-        shared["tangent"] = t.outputs[0]
+            x = g.separate(x)[0]
+        if os.path.splitext(path)[1].lower() == ".png":  # the documented PNG encodings
+            if spec.png == "ratio":
+                x = (g.vmath("DIVIDE", x, g.vmath("SUBTRACT", 1.0, x)) if spec.channels == 3
+                     else g.div(x, g.sub(1.0, x)))
+            elif spec.png == "negate":
+                x = g.mul(x, -1.0)
+        decoded[name] = x
+    socks = emit(tb, g, decoded, sources)
+    shared = {"tangent": tangent_node(tb, tangent, 2) if report.anisotropic else None}
     narrow = dict(roughness=socks["roughness"], anisotropy=None, rotation=None)
     wide = dict(roughness=socks["roughness_wide"], anisotropy=None, rotation=None)
     if report.anisotropic:
@@ -563,259 +555,13 @@ def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 
                        base_color=tuple(base_color), transmission=float(transmission))
     else:
         fresnel = dict(colour_narrow=socks["weight_narrow"], colour_wide=socks["weight_wide"])
-    depth = 1 + max(tb._depth.values(), default=0)
+    depth = 1 + tb.max_depth
     bsdf = build_lobes(tb, kind, distribution, beta=socks["beta"], narrow=narrow, wide=wide,
                        fresnel=fresnel, shared=shared, depth=depth)
-    for n in tb.created:  # math nodes are unnamed: prefix them so a re-wire removes them
-        if not n.name.startswith(NODE_PREFIX + " "):
-            n.name = f"{NODE_PREFIX} {n.name}"
-    out = _output_node(tree)
+    out = material.output_node(tree)
     tree.links.new(bsdf, out.inputs["Surface"])
-    if "hazy_gloss" in mat:  # its constants no longer describe this texture-driven tree
-        del mat["hazy_gloss"]
+    if K.STAMP in mat:  # its constants no longer describe this texture-driven tree
+        del mat[K.STAMP]
     mat[STAMP] = {"version": 1, "kind": kind, "distribution": distribution,
                   "anisotropic": int(report.anisotropic), "maps": dict(result)}
     return bsdf
-
-
-# --------------------------------------------------------------------------------------------
-# Operator
-# --------------------------------------------------------------------------------------------
-
-#: (property stem, label, role) of the maps the operator offers.
-_MAPS = (
-    ("core_reflectivity", "Core Reflectivity", "colour"),
-    ("edge_tint", "Edge Tint", "colour"),
-    ("roughness", "Roughness", "data"),
-    ("anisotropy", "Anisotropy", "data"),
-    ("rotation", "Rotation", "data"),
-    ("haziness", "Haziness", "data"),
-    ("haze_extent", "Haze Extent", "data"),
-    ("haze_extent_y", "Haze Extent Y", "data"),
-)
-
-_KIND_ITEMS = [("CONDUCTOR", "Conductor", "Metallic BSDF lobes, η and κ maps"),
-               ("DIELECTRIC", "Dielectric", "Principled BSDF lobes, η and specular tint maps"),
-               ("LEGACY", "Legacy", "Glossy BSDF lobes (no Fresnel), weight maps")]
-_DIST_ITEMS = [("GGX", "GGX", ""), ("BECKMANN", "Beckmann", ""),
-               ("MULTI_GGX", "Multiscatter GGX", ""), ("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "")]
-
-
-def _fallback_dir(mat_name):
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", mat_name or "maps")
-    return os.path.join(tempfile.gettempdir(), "hazy_gloss_maps", safe)
-
-
-class HAZY_GLOSS_OT_convert_maps(bpy.types.Operator):
-    """Convert perceptual hazy-gloss maps (haziness, haze extent, core reflectivity...) into
-    physical maps and wire them into the active material's lean node tree"""
-
-    bl_idname = "hazy_gloss.convert_maps"
-    bl_label = "Convert Hazy Gloss Maps"
-    bl_options = {"REGISTER", "UNDO"}
-
-    kind: EnumProperty(name="Kind", items=_KIND_ITEMS, default="CONDUCTOR")
-    distribution: EnumProperty(name="Distribution", items=_DIST_ITEMS, default="GGX")
-
-    core_reflectivity_image: StringProperty(name="Core Reflectivity Map",
-                                            description="Image datablock (colour, decoded to linear)")
-    core_reflectivity_path: StringProperty(name="Core Reflectivity File", subtype="FILE_PATH")
-    core_reflectivity: FloatVectorProperty(name="Core Reflectivity", subtype="COLOR", size=3,
-                                           min=0.0, max=1.0, default=(0.5, 0.5, 0.5))
-    edge_tint_image: StringProperty(name="Edge Tint Map")
-    edge_tint_path: StringProperty(name="Edge Tint File", subtype="FILE_PATH")
-    edge_tint: FloatVectorProperty(name="Edge Tint", subtype="COLOR", size=3, min=0.0, max=1.0,
-                                   default=(0.0, 0.0, 0.0))
-    roughness_image: StringProperty(name="Roughness Map", description="Non-Color map of R = √α")
-    roughness_path: StringProperty(name="Roughness File", subtype="FILE_PATH")
-    roughness: FloatProperty(name="Roughness", min=0.0, max=1.0, default=0.1, subtype="FACTOR")
-    anisotropy_image: StringProperty(name="Anisotropy Map")
-    anisotropy_path: StringProperty(name="Anisotropy File", subtype="FILE_PATH")
-    anisotropy: FloatProperty(name="Anisotropy", min=0.0, max=1.0, default=0.0, subtype="FACTOR")
-    rotation_image: StringProperty(name="Rotation Map")
-    rotation_path: StringProperty(name="Rotation File", subtype="FILE_PATH")
-    rotation: FloatProperty(name="Rotation", default=0.0)
-    haziness_image: StringProperty(name="Haziness Map")
-    haziness_path: StringProperty(name="Haziness File", subtype="FILE_PATH")
-    haziness: FloatProperty(name="Haziness", min=0.0, max=0.9999, default=0.5, subtype="FACTOR")
-    haze_extent_image: StringProperty(name="Haze Extent Map", description="Both axes, or X")
-    haze_extent_path: StringProperty(name="Haze Extent File", subtype="FILE_PATH")
-    haze_extent: FloatProperty(name="Haze Extent", min=0.0, default=5.0)
-    anisotropic_extent: BoolProperty(name="Separate Y Extent", default=False,
-                                     description="Give the haze extent along Y separately")
-    haze_extent_y_image: StringProperty(name="Haze Extent Y Map")
-    haze_extent_y_path: StringProperty(name="Haze Extent Y File", subtype="FILE_PATH")
-    haze_extent_y: FloatProperty(name="Haze Extent Y", min=0.0, default=5.0)
-    use_smoothness: BoolProperty(name="Smooth Variation", default=False,
-                                 description="Use the rational Bézier (Eqs. 12-15) instead of Eq. 7")
-    smoothness: FloatProperty(name="Smoothness", min=1e-4, default=2.0)
-    base_color: FloatVectorProperty(name="Base Color", subtype="COLOR", size=3, min=0.0, max=1.0,
-                                    default=(0.0, 0.0, 0.0))
-    transmission: FloatProperty(name="Transmission", min=0.0, max=1.0, default=0.0)
-
-    directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="//hazy_maps/",
-                              description="Where the physical maps are written ('//' = next to "
-                                          "the .blend; an unsaved file uses a temp folder)")
-    prefix: StringProperty(name="File Prefix", default="")
-    file_format: EnumProperty(name="Format", default="OPEN_EXR", items=[
-        ("OPEN_EXR", "OpenEXR (float)", "32-bit float, lossless ZIP"),
-        ("PNG", "PNG 16-bit", "Unbounded maps stored with documented encodings")])
-    resample: BoolProperty(name="Resample", default=False,
-                           description="Resample maps of other sizes to the largest (bilinear)")
-    wire: BoolProperty(name="Wire Into Active Material", default=True)
-    interpolation: EnumProperty(name="Interpolation", default="Linear", items=[
-        ("Linear", "Linear", ""), ("Closest", "Closest", ""), ("Cubic", "Cubic", "")])
-
-    def _source(self, stem):
-        name = getattr(self, stem + "_image")
-        if name:
-            img = bpy.data.images.get(name)
-            if img is None:
-                raise ConversionError(f"{stem}: no image datablock named {name!r}")
-            return img
-        path = getattr(self, stem + "_path")
-        if path:
-            return path
-        return None
-
-    def _inputs(self):
-        inputs = {}
-        for stem in ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "rotation",
-                     "haziness"):
-            if stem == "edge_tint" and self.kind != "CONDUCTOR":
-                continue
-            src = self._source(stem)
-            if src is None:
-                value = getattr(self, stem)
-                src = tuple(value) if stem in ("core_reflectivity", "edge_tint") else value
-            inputs[stem] = src
-        x = self._source("haze_extent")
-        x = x if x is not None else self.haze_extent
-        if self.anisotropic_extent:
-            y = self._source("haze_extent_y")
-            inputs["haze_extent_x"] = x
-            inputs["haze_extent_y"] = y if y is not None else self.haze_extent_y
-        else:
-            inputs["haze_extent"] = x
-        return inputs
-
-    def invoke(self, context, event):
-        return context.window_manager.invoke_props_dialog(self, width=420)
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.prop(self, "kind")
-        layout.prop(self, "distribution")
-        for stem, label, _role in _MAPS:
-            if stem == "edge_tint" and self.kind != "CONDUCTOR":
-                continue
-            if stem == "haze_extent_y":
-                layout.prop(self, "anisotropic_extent")
-                if not self.anisotropic_extent:
-                    continue
-            box = layout.box()
-            box.label(text=label)
-            box.prop_search(self, stem + "_image", bpy.data, "images", text="Image")
-            box.prop(self, stem + "_path", text="File")
-            if not getattr(self, stem + "_image") and not getattr(self, stem + "_path"):
-                box.prop(self, stem, text="Constant")
-        layout.prop(self, "use_smoothness")
-        if self.use_smoothness:
-            layout.prop(self, "smoothness")
-        if self.kind == "DIELECTRIC":
-            layout.prop(self, "base_color")
-            layout.prop(self, "transmission")
-        layout.separator()
-        layout.prop(self, "directory")
-        layout.prop(self, "prefix")
-        layout.prop(self, "file_format")
-        layout.prop(self, "resample")
-        layout.prop(self, "wire")
-        if self.wire:
-            layout.prop(self, "interpolation")
-
-    def execute(self, context):
-        wm = context.window_manager
-        obj = getattr(context, "object", None)
-        mat = obj.active_material if obj is not None else None
-        if self.wire and mat is None:
-            if obj is not None and hasattr(obj.data, "materials"):
-                from . import compat
-                mat = compat.new_material("Hazy Maps")
-                if obj.material_slots:
-                    obj.active_material = mat
-                else:
-                    obj.data.materials.append(mat)
-                self.report({"INFO"}, f"created material {mat.name!r} on {obj.name!r}")
-            else:
-                self.report({"WARNING"}, "no active object with materials: maps are written "
-                                         "but not wired")
-        directory = self.directory or "//hazy_maps/"
-        if directory.startswith("//") and not bpy.data.filepath:
-            directory = _fallback_dir(mat.name if mat else "maps")
-            self.report({"WARNING"}, f"the .blend is not saved: maps go to {directory} "
-                                     "(save the file or choose an output folder to keep them "
-                                     "next to it)")
-        begun = False
-        try:
-            wm.progress_begin(0, 100)
-            begun = True
-        except (RuntimeError, AttributeError):
-            pass
-
-        def progress(done, total, _message):
-            if begun:
-                wm.progress_update(int(100 * done / max(total, 1)))
-
-        try:
-            inputs = self._inputs()
-            result = convert_maps(
-                inputs, directory, kind=self.kind, distribution=self.distribution,
-                smoothness=self.smoothness if self.use_smoothness else None,
-                file_format=self.file_format, resample=self.resample, prefix=self.prefix,
-                progress=progress)
-            if self.wire and mat is not None:
-                wire_material(mat, result, interpolation=self.interpolation,
-                              base_color=tuple(self.base_color), transmission=self.transmission)
-        except ConversionError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        finally:
-            if begun:
-                wm.progress_end()
-        for w in result.report.warnings:
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"Hazy maps: {result.report.summary(len(result))} -> "
-                              f"{os.path.dirname(next(iter(result.values())))}")
-        return {"FINISHED"}
-
-
-def _menu_draw(self, context):
-    self.layout.operator(HAZY_GLOSS_OT_convert_maps.bl_idname, icon="IMAGE_DATA")
-
-
-#: Menus the operator is added to (so F3 menu search finds it).
-_MENUS = ("NODE_MT_node",)
-
-classes = (HAZY_GLOSS_OT_convert_maps,)
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
-
-
-def register():
-    _register_classes()
-    for name in _MENUS:
-        menu = getattr(bpy.types, name, None)
-        if menu is not None:
-            menu.append(_menu_draw)
-
-
-def unregister():
-    for name in _MENUS:
-        menu = getattr(bpy.types, name, None)
-        if menu is not None:
-            try:
-                menu.remove(_menu_draw)
-            except (ValueError, RuntimeError):
-                pass
-    _unregister_classes()

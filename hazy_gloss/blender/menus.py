@@ -18,9 +18,14 @@ import uuid
 import bpy
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
+from .. import constants as K
+from ..core.lobes import check_kind
+from ..utils import presets
 from . import compat
-from ..node_groups.groups import all_configurations, ensure_group, group_label, group_name
-from ..node_groups.lobes import KINDS, check_distribution
+from .context import PRESET_SUBDIR
+from .nodes.groups import all_configurations, ensure_group, group_label, group_name
+
+KINDS = K.KINDS
 
 # --------------------------------------------------------------------------------------------
 # Descriptions and catalogs (also used by scripts/build.py to write the asset library)
@@ -41,7 +46,7 @@ _KIND_TEXT = {
     "LEGACY": "Legacy: two Glossy BSDFs without Fresnel, coloured so the mix keeps the "
               "reflectivity",
 }
-_DISTRIBUTIONS = ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY")
+_DISTRIBUTIONS = K.DISTRIBUTIONS
 _DIST_LABELS = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multiscatter GGX",
                 "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
 
@@ -229,7 +234,7 @@ class HAZY_GLOSS_OT_add_node(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            check_distribution(self.kind, self.distribution)
+            check_kind(self.kind, self.distribution)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -338,27 +343,97 @@ def draw_add_menu(self, context):
     layout.menu(HAZY_GLOSS_MT_add.bl_idname, icon="NODE_MATERIAL")
 
 
-classes = (HAZY_GLOSS_OT_add_node, *KIND_MENUS, HAZY_GLOSS_MT_add)
+class HAZY_GLOSS_MT_presets(bpy.types.Menu):
+    bl_label = "Hazy Gloss Presets"
+    bl_idname = "HAZY_GLOSS_MT_presets"
+    preset_subdir = PRESET_SUBDIR
+    preset_operator = "script.execute_preset"
 
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
-_appended = {"menu": None}
+    def draw(self, context):
+        layout = self.layout
+        layout.label(text="From the paper")
+        for pid, name, _desc in presets.enum_items():
+            layout.operator("hazy_gloss.apply_preset", text=name).preset = pid
+        layout.separator()
+        layout.label(text="Your presets")
+        bpy.types.Menu.draw_preset(self, context)
 
 
-def register():
-    _register_classes()
+class HAZY_GLOSS_MT_material(bpy.types.Menu):
+    """Shader Editor > Node > Hazy Gloss and the material specials menu: the material operators
+    live in menus so F3 menu search finds them."""
+    bl_idname = "HAZY_GLOSS_MT_material"
+    bl_label = "Hazy Gloss"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator("hazy_gloss.make_hazy")
+        layout.operator("hazy_gloss.new_material")
+        layout.operator("hazy_gloss.import_two_lobe_mix")
+        layout.menu("HAZY_GLOSS_MT_presets", text="Apply Hazy Preset")
+
+
+def draw_menu_entry(self, context):
+    self.layout.menu(HAZY_GLOSS_MT_material.bl_idname)
+
+
+def draw_convert_entry(self, context):
+    self.layout.operator("hazy_gloss.convert_maps", icon="IMAGE_DATA")
+
+
+def draw_recomposite_operators(layout):
+    """The recomposite operators (this menu and the View Layer panel)."""
+    col = layout.column(align=True)
+    col.operator("hazy_gloss.setup_recomposite", icon="RENDERLAYERS")
+    col.operator("hazy_gloss.load_recomposite", icon="NODE_COMPOSITING")
+    col.operator("hazy_gloss.clear_recomposite", icon="X")
+
+
+class HAZY_GLOSS_MT_recomposite(bpy.types.Menu):
+    """Render > Hazy Gloss Recomposite (also what F3 search finds)."""
+    bl_idname = "HAZY_GLOSS_MT_recomposite"
+    bl_label = "Hazy Gloss Recomposite"
+
+    def draw(self, context):
+        draw_recomposite_operators(self.layout)
+
+
+def draw_render_menu(self, context):
+    self.layout.separator()
+    self.layout.menu(HAZY_GLOSS_MT_recomposite.bl_idname)
+
+
+#: (Blender menu, draw function) entries appended by add_entries (each menu exists in 4.5-5.3);
+#: the Shader Editor's Add menu comes from compat.shader_add_menu().
+ENTRIES = (("NODE_MT_node", draw_menu_entry), ("MATERIAL_MT_context_menu", draw_menu_entry),
+           ("NODE_MT_node", draw_convert_entry), ("TOPBAR_MT_render", draw_render_menu))
+
+
+classes = (HAZY_GLOSS_OT_add_node, *KIND_MENUS, HAZY_GLOSS_MT_add, HAZY_GLOSS_MT_presets,
+           HAZY_GLOSS_MT_material, HAZY_GLOSS_MT_recomposite)
+
+_appended = []
+
+
+def add_entries():
+    """Append the add-on's entries to Blender's menus (removed again by remove_entries)."""
+    for menu_name, draw in ENTRIES:
+        menu = getattr(bpy.types, menu_name, None)
+        if menu is not None:
+            menu.append(draw)
+            _appended.append((menu, draw))
     menu = compat.shader_add_menu()
     menu.append(draw_add_menu)
-    _appended["menu"] = menu
-    try:
-        register_asset_library()
-    except Exception as exc:  # the library is a convenience: never block enabling the add-on
-        print(f"hazy_gloss: could not register the asset library: {exc!r}")
+    _appended.append((menu, draw_add_menu))
 
 
-def unregister():
-    unregister_asset_library()
-    menu = _appended["menu"]
-    _appended["menu"] = None
-    if menu is not None:
-        menu.remove(draw_add_menu)
-    _unregister_classes()
+def remove_entries():
+    while _appended:
+        menu, draw = _appended.pop()
+        try:
+            menu.remove(draw)
+        except (ValueError, RuntimeError):
+            pass
+
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -18,91 +18,13 @@ Plots are recomputed only when the parameters or the plot settings change.
 from collections import OrderedDict
 
 import bpy
-import bpy.utils.previews
 import numpy as np
 
-from .. import api
-from ..utils import plots as plotlib
-from . import operators, preferences, properties
-
-_previews = {"collection": None}
-_plot_cache = OrderedDict()  # (which, material) -> (key, preview name)
-_PLOT_CACHE_SIZE = 16
-PLOT_SIZE = 160
-
-IMAGE_NAMES = {"haze": ".Hazy Gloss · haze intensity", "brdf": ".Hazy Gloss · BRDF slice"}
-RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # hazy_gloss/composite.py
-
-
-# --------------------------------------------------------------------------------------------
-# Plots
-# --------------------------------------------------------------------------------------------
-
-
-def _plot_key(p, prefs, size):
-    return (repr(sorted(p.items())), bool(prefs.plot_log_scale), float(prefs.plot_incidence), size)
-
-
-def compute_plots(mat, prefs, size=PLOT_SIZE, which=("haze", "brdf")):
-    """{"haze": rgba, "brdf": rgba} for the material's stamped parameters (display values)."""
-    p = properties.parameters(mat)
-    m = api.map_parameters(p)
-    out = {}
-    if "haze" in which:
-        out["haze"] = plotlib.haze_plot(float(np.max(p["core_reflectivity"])), float(m.peak_ratio),
-                                        p["haziness"], p["smoothness"], size=(size, size))
-    if "brdf" in which:
-        out["brdf"] = plotlib.brdf_plot(m, p["kind"], theta_i=float(prefs.plot_incidence),
-                                        size=(size, size), log=bool(prefs.plot_log_scale))
-    return out
-
-
-def plot_icon(mat, which, prefs, size=PLOT_SIZE):
-    """icon_id of an up-to-date preview of plot ``which`` ("haze" / "brdf") for ``mat``."""
-    pcoll = _previews["collection"]
-    if pcoll is None:
-        return 0
-    p = properties.parameters(mat)
-    key = _plot_key(p, prefs, size)
-    slot = (which, mat.name_full)
-    cached = _plot_cache.get(slot)
-    if cached is not None and cached[0] == key and cached[1] in pcoll:
-        _plot_cache.move_to_end(slot)
-        return pcoll[cached[1]].icon_id
-    name = f"{which}:{mat.name_full}"
-    preview = pcoll[name] if name in pcoll else pcoll.new(name)
-    try:
-        rgba = compute_plots(mat, prefs, size, which=(which,))[which]
-    except ValueError:
-        return 0
-    preview.image_size = (size, size)
-    preview.image_pixels_float.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
-    _plot_cache[slot] = (key, name)
-    _plot_cache.move_to_end(slot)
-    while len(_plot_cache) > _PLOT_CACHE_SIZE:
-        _, (_, old) = _plot_cache.popitem(last=False)
-        if old in pcoll:
-            del pcoll[old]
-    return preview.icon_id
-
-
-def plot_image(which, rgba):
-    """Write ``rgba`` (display values) into the hidden float image for ``which``; zero users,
-    no fake user, so it is never saved."""
-    name = IMAGE_NAMES[which]
-    h, w = rgba.shape[:2]
-    img = bpy.data.images.get(name)
-    if img is not None and (tuple(img.size) != (w, h) or img.library is not None):
-        bpy.data.images.remove(img)
-        img = None
-    if img is None:
-        img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
-    img.use_fake_user = False
-    linear = plotlib.srgb_to_linear(rgba)
-    img.pixels.foreach_set(np.ascontiguousarray(linear, dtype=np.float32).ravel())
-    img.update()
-    return img
-
+from .. import constants as K
+from ..core.parameters import is_anisotropic
+from . import material, plots, preferences, properties
+from .context import edit_problem, maps_problem, plain_message, target_material
+from .menus import draw_recomposite_operators
 
 # --------------------------------------------------------------------------------------------
 # Warnings and mapped values
@@ -141,12 +63,12 @@ def warnings_for(mat, p, m, context=None, prefs=None):
         room = (1.0 - rc_max) / max(float(np.asarray(m.peak_complement)), 1e-9)
         out.append(f"A very bright core ({rc_max:.2f}) leaves little room for haze (energy "
                    f"conservation): at most {min(room, 1.0):.2f} of halo intensity")
-    if p["roughness"] < api.min_roughness(p["distribution"]):
-        out.append(f"Roughness below {api.min_roughness(p['distribution'])} is raised to it: a "
+    if p["roughness"] < K.min_roughness(p["distribution"]):
+        out.append(f"Roughness below {K.min_roughness(p['distribution'])} is raised to it: a "
                    f"perfect mirror cannot carry a halo")
     if p["kind"] == "LEGACY":
         out.append("Legacy lobes have no Fresnel: reflections do not brighten at grazing angles")
-    if api.is_anisotropic(p):
+    if is_anisotropic(p):
         obj = getattr(context, "object", None) if context is not None else None
         data = getattr(obj, "data", None)
         if p["tangent"] == "UV_MAP" and data is not None and hasattr(data, "uv_layers") \
@@ -197,14 +119,14 @@ def draw_material(layout, context, mat, idname):
         layout.label(text="No active material", icon="INFO")
         layout.operator("hazy_gloss.new_material", icon="ADD")
         return
-    problem = properties.edit_problem(mat)
-    if not api.is_hazy(mat):
+    problem = edit_problem(mat)
+    if not material.is_hazy(mat):
         col = layout.column()
         if mat.library is not None:
             col.label(text="Linked from a library: read-only", icon="LIBRARY_DATA_DIRECT")
             return
-        if operators.maps_problem(mat):
-            col.label(text=operators.maps_problem(mat), icon="TEXTURE")
+        if maps_problem(mat):
+            col.label(text=maps_problem(mat), icon="TEXTURE")
             col.operator("hazy_gloss.convert_maps", icon="IMAGE_DATA")
             return
         col.label(text=f"“{mat.name}” is not hazy", icon="INFO")
@@ -226,7 +148,7 @@ def draw_material(layout, context, mat, idname):
         box = col.box()
         box.alert = True
         box.label(text=err, icon="ERROR")
-    if RECOMPOSITE_STAMP in mat:
+    if K.RECOMPOSITE_STAMP in mat:
         col.label(text="In recomposite mode: a change here rebuilds the normal material",
                   icon="NODE_COMPOSITING")
     body = col.column()
@@ -253,7 +175,7 @@ def draw_material(layout, context, mat, idname):
         core.prop(hg, "edge_tint")
     core.prop(hg, "roughness", slider=True)
     core.prop(hg, "anisotropy", slider=True)
-    if api.is_anisotropic(p):
+    if is_anisotropic(p):
         core.prop(hg, "rotation", slider=True)
         core.prop(hg, "tangent")
 
@@ -282,11 +204,11 @@ def draw_material(layout, context, mat, idname):
         base.prop(hg, "transmission", slider=True)
 
     try:
-        m = api.map_parameters(p)
+        m = material.map_parameters(p)
     except ValueError as exc:
         box = col.box()
         box.alert = True
-        box.label(text=properties.plain_message(exc), icon="ERROR")
+        box.label(text=plain_message(exc), icon="ERROR")
         return
 
     warns = warnings_for(mat, p, m, context, prefs)
@@ -303,7 +225,7 @@ def draw_material(layout, context, mat, idname):
             grid.label(text=label)
             grid.label(text=value)
         if p["shader_mapping"] and properties.has_hazy_nodes(mat):
-            group = mat.node_tree.nodes.get(properties.GROUP_NODE)
+            group = material.ours(mat.node_tree).get(material.GROUP_ROLE)
             if group is not None and any(s.is_linked for s in group.inputs
                                          if s.name not in ("Normal", "Tangent")):
                 panel.label(text="Textured inputs vary these per pixel", icon="TEXTURE")
@@ -314,33 +236,17 @@ def draw_material(layout, context, mat, idname):
         if panel is not None:
             row = panel.row()
             c1 = row.column(align=True)
-            c1.template_icon(icon_value=plot_icon(mat, "haze", prefs), scale=7.0)
+            c1.template_icon(icon_value=plots.plot_icon(mat, "haze", prefs), scale=7.0)
             c1.label(text="Halo k_h vs core r_c")
             c2 = row.column(align=True)
-            c2.template_icon(icon_value=plot_icon(mat, "brdf", prefs), scale=7.0)
+            c2.template_icon(icon_value=plots.plot_icon(mat, "brdf", prefs), scale=7.0)
             c2.label(text="BRDF: core, halo, total")
             panel.label(text="Red: bounds P, E / total · magenta: core · cyan: halo")
             panel.operator("hazy_gloss.plot_to_image", icon="IMAGE_DATA")
 
 
-class HAZY_GLOSS_MT_presets(bpy.types.Menu):
-    bl_label = "Hazy Gloss Presets"
-    bl_idname = "HAZY_GLOSS_MT_presets"
-    preset_subdir = operators.PRESET_SUBDIR
-    preset_operator = "script.execute_preset"
-
-    def draw(self, context):
-        layout = self.layout
-        layout.label(text="From the paper")
-        for pid, name, _desc in operators.presets.enum_items():
-            layout.operator("hazy_gloss.apply_preset", text=name).preset = pid
-        layout.separator()
-        layout.label(text="Your presets")
-        bpy.types.Menu.draw_preset(self, context)
-
-
 def _context_material(context):
-    return operators.target_material(context)
+    return target_material(context)
 
 
 class HAZY_GLOSS_PT_material(bpy.types.Panel):
@@ -379,21 +285,25 @@ class HAZY_GLOSS_PT_shader_editor(bpy.types.Panel):
         draw_material(self.layout, context, _context_material(context), "hazy_gloss_node")
 
 
-classes = (HAZY_GLOSS_MT_presets, HAZY_GLOSS_PT_material, HAZY_GLOSS_PT_shader_editor)
 
 
-def register():
-    _previews["collection"] = bpy.utils.previews.new()
-    _plot_cache.clear()
-    for cls in classes:
-        bpy.utils.register_class(cls)
+class HAZY_GLOSS_PT_recomposite(bpy.types.Panel):
+    """Properties > View Layer: edit haziness after the render (paper §4.3)."""
+    bl_idname = "HAZY_GLOSS_PT_recomposite"
+    bl_label = "Hazy Gloss Recomposite"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and context.scene.render.engine == "CYCLES"
+
+    def draw(self, context):
+        draw_recomposite_operators(self.layout)
 
 
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
-    pcoll = _previews["collection"]
-    _previews["collection"] = None
-    _plot_cache.clear()
-    if pcoll is not None:
-        bpy.utils.previews.remove(pcoll)
+classes = (HAZY_GLOSS_PT_material, HAZY_GLOSS_PT_shader_editor, HAZY_GLOSS_PT_recomposite)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

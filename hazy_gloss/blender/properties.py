@@ -32,11 +32,14 @@ import time
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
-from .. import api
-from ..node_groups.lobes import NODE_DISTRIBUTIONS
+from .. import constants as K
+from ..core.parameters import normalise
+from . import material
+from .context import edit_problem, plain_message
 
 PROPERTY_NAME = "hazy_gloss_settings"
-GROUP_NODE = api.GROUP_NODE
+GROUP_NODE = material.GROUP_NODE
+NODE_DISTRIBUTIONS = K.NODE_DISTRIBUTIONS
 
 KIND_ITEMS = (
     ("CONDUCTOR", "Conductor", "Metal: Metallic BSDF lobes with the physical conductor Fresnel "
@@ -87,66 +90,32 @@ def error_for(mat):
 
 def has_hazy_nodes(mat):
     tree = getattr(mat, "node_tree", None)
-    return tree is not None and any(n.name.startswith(api.NODE_PREFIX + " ") for n in tree.nodes)
+    return tree is not None and bool(material.ours(tree))
 
 
 def is_live(mat):
     """A hazy material whose tree still holds the add-on's nodes."""
-    return api.is_hazy(mat) and has_hazy_nodes(mat)
+    return material.is_hazy(mat) and has_hazy_nodes(mat)
 
 
 def parameters(mat):
     """The stamped parameters, or the defaults (a non-hazy material, an unreadable stamp)."""
     try:
-        p = api.read_parameters(mat) if mat is not None else None
-    except (ValueError, TypeError, KeyError):
+        p = material.read_parameters(mat) if mat is not None else None
+    except (ValueError, TypeError, KeyError, IndexError):
         p = None
-    return p if p is not None else api.normalise_parameters({})
+    return p if p is not None else normalise({})
 
 
 def stamp_problem(mat):
     """Why the stamp cannot be read, in plain words, or None."""
-    if mat is None or not api.is_hazy(mat):
+    if mat is None or not material.is_hazy(mat):
         return None
     try:
-        api.read_parameters(mat)
-    except (ValueError, TypeError, KeyError) as exc:
+        material.read_parameters(mat)
+    except (ValueError, TypeError, KeyError, IndexError) as exc:
         return f"The stored Hazy Gloss parameters are unreadable ({exc}); apply a preset to reset them"
     return None
-
-
-def edit_problem(mat):
-    """Why ``mat`` cannot be edited, in plain words, or None."""
-    if mat is None:
-        return "No material"
-    lib = mat.library
-    if lib is not None:
-        return (f"“{mat.name}” is linked from the library file “{bpy.path.basename(lib.filepath)}” "
-                f"and is read-only here. Edit it in that file, or make it local "
-                f"(Object > Relations > Make Local) to change it in this one")
-    if getattr(mat, "override_library", None) is not None:
-        return (f"“{mat.name}” is a library override; its node tree cannot be rebuilt. "
-                f"Make it local to edit it")
-    if not api.is_hazy(mat):
-        return f"“{mat.name}” is not a hazy material: use Make Hazy first"
-    return None
-
-
-_PLAIN = (
-    ("haziness", "Haziness must stay below 1 (1 would break energy conservation)"),
-    ("offer", None),  # distribution / kind mismatch: the api's message is already plain
-)
-
-
-def plain_message(exc):
-    text = str(exc)
-    for key, plain in _PLAIN:
-        if key in text and plain:
-            return plain
-    return text[:1].upper() + text[1:]
-
-
-_is_ours = api.is_ours
 
 
 def edit_material(mat, **changes):
@@ -165,7 +134,7 @@ def edit_material(mat, **changes):
     _busy.add(key)
     t0 = time.perf_counter()
     try:
-        m, dropped = api.update_material_links(mat, **changes)
+        m, dropped = material.update_material(mat, **changes)
     except (ValueError, TypeError) as exc:
         msg = plain_message(exc)
         last_error[mat.session_uid] = msg
@@ -277,7 +246,7 @@ def _set_linked(self, value):
     self["haze_extent_linked_"] = bool(value)
     if value:  # linking makes the halo isotropic: y follows x
         x, y = parameters(self.id_data)["haze_extent"]
-        if x != y and api.is_hazy(self.id_data):
+        if x != y and material.is_hazy(self.id_data):
             _set(self, haze_extent=(x, x))
 
 
@@ -366,7 +335,7 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
                           set=_set_tangent, options=_NO_ANIM,
                           description="Tangent used by anisotropic lobes")
     haziness: FloatProperty(
-        name="Haziness", min=0.0, max=0.9999, soft_min=0.0, soft_max=0.99, subtype="FACTOR",
+        name="Haziness", min=0.0, max=K.MAX_HAZINESS, soft_min=0.0, soft_max=0.99, subtype="FACTOR",
         precision=3, get=_get_float("haziness"), set=_set_float("haziness"), options=_NO_ANIM,
         description="β_h: proportion of the halo the energy and positivity bounds allow. "
                     "About 0-0.1 for dielectrics, up to 0.99 for metals")
@@ -387,7 +356,7 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
         description="Use the rational Bézier mapping (Eqs. 12-15) instead of the piecewise "
                     "linear Eq. 7: no kink where r_c = p (useful with textured reflectivity)")
     smoothness: FloatProperty(
-        name="Smoothness", min=1e-4, max=1e6, soft_min=0.5, soft_max=16.0,
+        name="Smoothness", min=K.MIN_SMOOTHNESS, max=1e6, soft_min=0.5, soft_max=16.0,
         get=_get_smoothness, set=_set_smoothness, options=_NO_ANIM,
         description="w: weight of the Bézier; larger is closer to Eq. 7, smaller is smoother "
                     "but reaches less haze")
@@ -406,7 +375,7 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
         description="Transmission weight of a dielectric (the BTDF shares β, η and α)")
     # plain stored UI state
     edge_tint_memory: FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0), options={"HIDDEN"})
-    smoothness_memory: FloatProperty(default=2.0, min=1e-4, options={"HIDDEN"})
+    smoothness_memory: FloatProperty(default=2.0, min=K.MIN_SMOOTHNESS, options={"HIDDEN"})
 
 
 #: Names of the parameter properties, in the order a preset sets them.
@@ -417,17 +386,16 @@ PRESET_PROPERTIES = ("kind", "distribution", "shader_mapping", "core_reflectivit
 
 classes = (HazyGlossMaterialSettings,)
 
+register, unregister = bpy.utils.register_classes_factory(classes)
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
+
+def attach():
+    """Material.hazy_gloss_settings (after the PropertyGroup is registered)."""
     setattr(bpy.types.Material, PROPERTY_NAME, PointerProperty(type=HazyGlossMaterialSettings))
 
 
-def unregister():
+def detach():
     if hasattr(bpy.types.Material, PROPERTY_NAME):
         delattr(bpy.types.Material, PROPERTY_NAME)
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
     last_error.clear()
     _busy.clear()

@@ -1,23 +1,32 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The one registration point: each module lists its own ``classes`` and register/unregister."""
-import importlib
+"""The one registration point.  Every module registers its classes with
+``register, unregister = bpy.utils.register_classes_factory(classes)``; what is not a class
+(the Material property, the plot previews, menu entries, the asset library) is added here, after
+the classes, and removed first."""
+from . import (composite_ops, convert_ops, menus, operators, panels, plots, preferences,
+               properties)
 
 # Order matters: properties before the operators and panels that use them.
-_MODULE_NAMES = ("preferences", "properties", "operators", "convert", "composite_ops", "panels",
-                 "menus")
-
-_modules = []
+_MODULES = (preferences, properties, operators, convert_ops, composite_ops, panels, menus)
 
 
 def register():
-    _modules.clear()
-    for name in _MODULE_NAMES:
-        mod = importlib.import_module(f"{__package__}.{name}")
+    for mod in _MODULES:
         mod.register()
-        _modules.append(mod)
+    properties.attach()
+    plots.open_previews()
+    menus.add_entries()
+    try:
+        menus.register_asset_library()
+    except Exception as exc:  # the library is a convenience: never block enabling the add-on
+        print(f"hazy_gloss: could not register the asset library: {exc!r}")
 
 
 def unregister():
-    for mod in reversed(_modules):
+    menus.unregister_asset_library()
+    menus.remove_entries()
+    plots.close_previews()
+    properties.detach()
+    for mod in reversed(_MODULES):
         mod.unregister()
-    _modules.clear()
+    operators.last_reports.clear()

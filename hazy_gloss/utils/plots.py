@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import haze_intensity, haze_mapping
+from ..core import haze_intensity
 
 __all__ = ("Canvas", "haze_plot", "brdf_at", "brdf_slice", "brdf_plot", "srgb_to_linear",
            "mapping_for", "COLOURS")
@@ -365,15 +365,13 @@ def brdf_plot(mapping, kind, *, theta_i=0.0, size=(192, 192), log=True, decades=
     return c.rgba
 
 
-def mapping_for(params, alpha_max=1.0, max_aspect=10.0):
-    """A HazeMapping from api-style perceptual parameters (roughness R = √α, Metallic
-    anisotropy), without bpy — for plotting outside Blender."""
-    from .conventions import alpha_from_roughness
-    ax, ay = alpha_from_roughness(max(float(params["roughness"]), 0.004), params.get("anisotropy", 0.0))
-    ext = params.get("haze_extent", 5.0)
-    ext = tuple(ext) if isinstance(ext, (tuple, list)) else (ext, ext)
-    edge = params.get("edge_tint", 0.0) if params.get("kind", "CONDUCTOR") == "CONDUCTOR" else 0.0
-    return haze_mapping(params["core_reflectivity"], edge, (float(ax), float(ay)),
-                        params["haziness"], ext, distribution=params.get("distribution", "GGX"),
-                        smoothness=params.get("smoothness"), alpha_max=alpha_max,
-                        max_aspect=max_aspect, strict=False)
+def mapping_for(params):
+    """The HazeMapping api-style perceptual parameters render with (core.lobes.describe: the
+    add-on's roughness floor, haziness cap and Cycles' limits), without bpy."""
+    from ..core.lobes import describe
+    from ..core.parameters import PARAMETERS, is_anisotropic, normalise
+    p = normalise({k: v for k, v in params.items() if k in PARAMETERS})
+    return describe(p["kind"], p["distribution"], core_reflectivity=p["core_reflectivity"],
+                    edge_tint=p["edge_tint"], roughness=p["roughness"], anisotropy=p["anisotropy"],
+                    rotation=p["rotation"], haziness=p["haziness"], haze_extent=p["haze_extent"],
+                    smoothness=p["smoothness"], anisotropic=is_anisotropic(p), strict=False).mapping

@@ -6,8 +6,9 @@ Import time (before any test module imports bpy):
    written (and preferences are never auto-saved);
 2. ``import bpy``; if that fails the whole directory is skipped with a message — unless
    ``HAZY_GLOSS_REQUIRE_BPY=1`` (set by scripts/test.sh), which turns that into an error;
-3. a temp extension repository directory holding one symlink ``hazy_gloss`` -> the repo's
-   package, registered with ``preferences.extensions.repos.new(module="test_repo", ...)``;
+3. a temp extension repository directory holding ``hazy_gloss/``: links to the repo's package
+   files plus the top-level ``blender_manifest.toml`` (what scripts/build.py stages), registered
+   with ``preferences.extensions.repos.new(module="test_repo", ...)``;
 4. ``addon_utils.enable("bl_ext.test_repo.hazy_gloss", default_set=True)``.
 
 So the add-on's package is ``bl_ext.test_repo.hazy_gloss`` (its ``__package__``), NOT
@@ -99,8 +100,13 @@ if _BPY_WAS_IMPORTED and _BPY_ERROR is None:
 
 # -- 3. a temp extension repository holding only our package -------------------------------------
 _EXT_REPO_DIR = os.path.join(_TMP_ROOT, "extensions", REPO_MODULE)
-os.makedirs(_EXT_REPO_DIR)
-os.symlink(PACKAGE_DIR, os.path.join(_EXT_REPO_DIR, ADDON_ID), target_is_directory=True)
+_EXT_DIR = os.path.join(_EXT_REPO_DIR, ADDON_ID)
+os.makedirs(_EXT_DIR)
+for _entry in PACKAGE_DIR.iterdir():  # the repo's code stays live; the manifest is staged
+    if _entry.name != "__pycache__":
+        os.symlink(_entry, os.path.join(_EXT_DIR, _entry.name),
+                   target_is_directory=_entry.is_dir())
+shutil.copyfile(REPO_ROOT / "blender_manifest.toml", os.path.join(_EXT_DIR, "blender_manifest.toml"))
 
 
 def _add_repo():

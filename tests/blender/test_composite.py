@@ -35,8 +35,13 @@ EDITED = 0.7  # β_h for every hazy pixel after the edit
 @pytest.fixture
 def mods(hg, clean_file):
     api = importlib.import_module(hg.__name__ + ".api")
-    comp = importlib.import_module(hg.__name__ + ".composite")
+    comp = importlib.import_module(hg.__name__ + ".blender.composite")
+    global rc  # the bpy-free recomposite (numpy), used by the helpers below too
+    rc = importlib.import_module(hg.__name__ + ".recomposite")
     return api, comp
+
+
+rc = None
 
 
 
@@ -92,7 +97,7 @@ def direct_render(scene, comp):
     compositing = scene.render.use_compositing
     try:
         for vl in scene.view_layers:
-            vl.use = vl.name not in comp.LAYERS
+            vl.use = vl.name not in rc.LAYERS
         scene.render.use_compositing = False
         return scenes.render_exr()
     finally:
@@ -107,7 +112,7 @@ def passes_render(scene, comp, tmp_path, name="passes"):
     scene.render.filepath = path
     t0 = time.perf_counter()
     bpy.ops.render.render(write_still=True)
-    return comp.passes_from_exr(path), time.perf_counter() - t0, path
+    return rc.passes_from_exr(path), time.perf_counter() - t0, path
 
 
 def set_haziness(api, comp, mats, value):
@@ -135,12 +140,12 @@ def test_recomposite_exact(mods, tmp_path):
     assert hazy.sum() > 300 and (~hazy).sum() > 1000
 
     original = direct_render(scene, comp)
-    same = comp.recomposite(passes)  # nothing edited
+    same = rc.recomposite(passes)  # nothing edited
     err_same = np.abs(same - original).max()
 
     set_haziness(api, comp, mats, EDITED)
     edited_direct = direct_render(scene, comp)
-    edited = comp.recomposite(passes, haziness=EDITED)
+    edited = rc.recomposite(passes, haziness=EDITED)
     err_edit = np.abs(edited - edited_direct).max()
     scale = edited_direct[..., :3].max()
     change = np.abs(edited_direct - original)[hazy].max()
@@ -172,12 +177,12 @@ def test_recomposite_noise_level(mods, tmp_path, bounces):
     passes, t_passes, _ = passes_render(scene, comp, tmp_path)
     hazy = _hazy(passes)
 
-    same = comp.recomposite(passes)
+    same = rc.recomposite(passes)
     set_haziness(api, comp, mats, EDITED)
     edited_direct = direct_render(scene, comp)
     scene.cycles.seed = 4
     edited_direct_2 = direct_render(scene, comp)
-    edited = comp.recomposite(passes, haziness=EDITED)
+    edited = rc.recomposite(passes, haziness=EDITED)
 
     def rms(a, b, m):
         """rms difference after x/(1+x) tone mapping: the sun's sub-pixel highlight (pixel
@@ -229,7 +234,7 @@ def test_recomposite_noise_level(mods, tmp_path, bounces):
         comp.setup_recomposite(scene, holdout=False)
         free, _, _ = passes_render(scene, comp, tmp_path, "no_holdout")
         inside = passes["mask"] >= 1.0
-        for key in comp.BUFFER_KEYS:
+        for key in rc.BUFFER_KEYS:
             assert np.array_equal(free[key][inside], passes[key][inside]), key
         assert np.abs(free["narrow_delta"] - passes["narrow_delta"])[~hazy].max() > 0.01
 
@@ -249,15 +254,15 @@ def test_compositor_group_matches_numpy(mods, tmp_path):
     live.inputs["Haziness Factor"].default_value = 1.0
     passes, _, path = passes_render(scene, comp, tmp_path)
     hazy = _hazy(passes)
-    ch = comp.read_exr(path)
+    ch = rc.read_exr(path)
     live_img = np.stack([ch[f"Composite.Combined.{c}"] for c in "RGBA"], axis=-1)
-    err_live = np.abs(live_img - comp.recomposite(passes, haziness=0.85)).max()
+    err_live = np.abs(live_img - rc.recomposite(passes, haziness=0.85)).max()
     assert err_live <= 1e-5 * max(passes["original"][..., :3].max(), 1.0), err_live
     # a haziness map and a core-reflectivity edit limited by a mask: left half only
     h, w = hazy.shape
     left = np.zeros((h, w), np.float32)
     left[:, : w // 2] = 1.0
-    expected = comp.recomposite(passes, haziness=0.85, core_reflectivity=(0.4, 0.7, 0.9),
+    expected = rc.recomposite(passes, haziness=0.85, core_reflectivity=(0.4, 0.7, 0.9),
                                 core_reflectivity_factor=left)
 
     group = comp.build_compositor(scene, source=path, haziness=0.85,
@@ -278,7 +283,7 @@ def test_compositor_group_matches_numpy(mods, tmp_path):
     scale = expected[..., :3].max()
     record("recomposite", {"compositor vs numpy max abs": err, "compositor time s": t_comp,
                            "live compositor (render layers) vs numpy max abs": err_live})
-    assert np.abs(expected - comp.recomposite(passes))[hazy].max() > 0.05 * scale
+    assert np.abs(expected - rc.recomposite(passes))[hazy].max() > 0.05 * scale
     assert err <= 1e-5 * max(scale, 1.0), err
     del mats
 
@@ -335,9 +340,9 @@ def test_operators_setup_and_clear(mods):
     # it cancels exactly (Σ of the weight differences is 0)
     assert held == {"Plain", "Ground"}, held
     assert all(scene.view_layers[n].layer_collection.children[comp.HOLDOUT_COLLECTION].holdout
-               for n in comp.LAYERS)
+               for n in rc.LAYERS)
     assert not scene.view_layers[0].layer_collection.children[comp.HOLDOUT_COLLECTION].holdout
-    assert {a.name for a in scene.view_layers["HG Narrow Delta"].aovs} == {a for a, _, _ in comp.AOVS}
+    assert {a.name for a in scene.view_layers["HG Narrow Delta"].aovs} == {a for a, _, _ in rc.AOVS}
     assert scene.render.image_settings.file_format == "OPEN_EXR_MULTILAYER"
     for m in mats.values():
         assert comp.is_recomposite_material(m)
@@ -347,7 +352,7 @@ def test_operators_setup_and_clear(mods):
                  and n.name.startswith("HG RC")]
         assert len(lobes) == 2 and all(n.fresnel_type == "F82" for n in lobes)
     assert not comp.is_recomposite_material(legacy_as)  # skipped: rendered as non-hazy
-    assert bpy.data.node_groups.get(comp.GROUP_NAME) is not None
+    assert bpy.data.node_groups.get(rc.GROUP_NAME) is not None
 
     assert bpy.ops.hazy_gloss.clear_recomposite() == {"FINISHED"}
     assert len(scene.view_layers) == n_layers and scene.view_layers[0].use
@@ -378,7 +383,7 @@ def test_exr_reader_codecs(mods, tmp_path):
         s.exr_codec = codec
         path = str(tmp_path / f"ramp_{codec}.exr")
         img.save_render(path, scene=bpy.context.scene)
-        ch = comp.read_exr(path)
+        ch = rc.read_exr(path)
         got = np.stack([ch[k] for k in ("R", "G", "B", "A")], axis=-1)
         assert np.array_equal(got, buf), codec
     os.remove(path)
@@ -387,7 +392,7 @@ def test_exr_reader_codecs(mods, tmp_path):
 def test_recomposite_entry_points(hg):
     """The operators are reachable from Render > Hazy Gloss Recomposite (so F3 finds them) and a
     View Layer properties panel; both go away when the add-on is disabled."""
-    ops = importlib.import_module(hg.__name__ + ".blender.composite_ops")
+    ops = importlib.import_module(hg.__name__ + ".blender.menus")
     assert ops.draw_render_menu in bpy.types.TOPBAR_MT_render._dyn_ui_initialize()
     assert hasattr(bpy.types, "HAZY_GLOSS_PT_recomposite")
     drawn = []
@@ -400,6 +405,6 @@ def test_recomposite_entry_points(hg):
             assert idname.split(".")[1] in dir(bpy.ops.hazy_gloss), idname
             drawn.append(idname)
 
-    ops.draw_operators(Layout())
+    ops.draw_recomposite_operators(Layout())
     assert drawn == ["hazy_gloss.setup_recomposite", "hazy_gloss.load_recomposite",
                      "hazy_gloss.clear_recomposite"]

@@ -73,8 +73,8 @@ def zip_names(built_zip):
 
 
 def _source_files():
-    """Files the package ships, relative to it, following the node_groups/manifest symlinks."""
-    files = set()
+    """Files the package ships, relative to it, plus the top-level manifest."""
+    files = {"blender_manifest.toml"}
     for root, dirs, names in os.walk(PACKAGE_DIR, followlinks=True):
         dirs[:] = [d for d in dirs if d not in EXCLUDED_PARTS and d != "assets"]
         for n in names:
@@ -117,13 +117,13 @@ def test_zip_holds_real_files_and_nothing_excluded(zip_names, built_zip):
         assert not set(parts) & set(EXCLUDED_PARTS), f"excluded path shipped: {name}"
         assert not name.endswith((".pyc", ".pyo", ".blend1")), name
         assert not stat.S_ISLNK(info.external_attr >> 16), f"symlink in zip: {name}"
-    # Exactly the package's files (symlinked ones dereferenced) plus the generated assets.
+    # Exactly the package's files plus the manifest and the generated assets.
     assert names == _source_files() | {ASSET_BLEND, CATALOGS}
     with zipfile.ZipFile(built_zip) as zf:
-        # The symlinked manifest and node_groups/ are real files with the repo's content.
         assert zf.read("blender_manifest.toml") == (REPO_ROOT / "blender_manifest.toml").read_bytes()
-        for py in (REPO_ROOT / "node_groups").glob("*.py"):
-            assert zf.read(f"node_groups/{py.name}") == py.read_bytes(), py.name
+        for py in PACKAGE_DIR.rglob("*.py"):
+            if "__pycache__" not in py.parts:
+                assert zf.read(py.relative_to(PACKAGE_DIR).as_posix()) == py.read_bytes(), py
         assert zf.getinfo(ASSET_BLEND).file_size > 10_000
 
 
@@ -134,7 +134,7 @@ def _expected_groups(groups_mod):
 def test_group_names_fit_blender_45_id_limit(hg):
     """Blender 4.5 truncates ID names to 63 bytes, so ensure_group() cannot find (and rebuilds)
     a group with a longer name, and 4.5 drops such groups when reading a 5.0 asset file."""
-    groups = importlib.import_module(hg.__name__ + ".node_groups.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
     long = [n for n in _expected_groups(groups) if len(n.encode()) > BLENDER_45_ID_NAME_BYTES]
     assert not long, f"names over {BLENDER_45_ID_NAME_BYTES} bytes: {long}"
 
@@ -142,7 +142,7 @@ def test_group_names_fit_blender_45_id_limit(hg):
 def test_asset_library_blend(clean_file, hg, built_zip, tmp_path):
     """Every node group is in the .blend, marked as an asset with a description and a catalog
     defined in blender_assets.cats.txt."""
-    groups = importlib.import_module(hg.__name__ + ".node_groups.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
     menus = importlib.import_module(hg.__name__ + ".blender.menus")
     with zipfile.ZipFile(built_zip) as zf:
         zf.extract(ASSET_BLEND, tmp_path)
@@ -161,7 +161,7 @@ def test_asset_library_blend(clean_file, hg, built_zip, tmp_path):
         assert ng.asset_data is not None, ng.name
         assert ng.asset_data.description == menus.describe(kind, dist, aniso, smooth)
         assert catalog_ids[ng.asset_data.catalog_id] == f"Hazy Gloss/{menus.KIND_LABELS[kind]}"
-        stamp = ng[groups.STAMP]
+        stamp = ng[importlib.import_module(hg.__name__ + ".constants").GROUP_STAMP]
         assert (stamp["kind"], stamp["distribution"], bool(stamp["anisotropic"]),
                 bool(stamp["smooth"])) == (kind, dist, aniso, smooth)
         assert stamp["version"] == groups.GROUP_VERSION
@@ -304,7 +304,7 @@ def _group_nodes(mat):
     ("CONDUCTOR", "BECKMANN", True, True),
 ])
 def test_add_node_operator(clean_file, hg, config):
-    groups = importlib.import_module(hg.__name__ + ".node_groups.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
     kind, dist, aniso, smooth = config
     mat = _new_material(hg)
     kw = dict(kind=kind, distribution=dist, anisotropic=aniso, smooth=smooth, material=mat.name)
@@ -313,7 +313,7 @@ def test_add_node_operator(clean_file, hg, config):
     assert len(nodes) == 1
     node = nodes[0]
     assert node.node_tree.name == groups.group_name(*config)
-    stamp = node.node_tree[groups.STAMP]
+    stamp = node.node_tree[importlib.import_module(hg.__name__ + ".constants").GROUP_STAMP]
     assert (stamp["kind"], stamp["distribution"], bool(stamp["anisotropic"]),
             bool(stamp["smooth"])) == config
     assert mat.node_tree.nodes.active == node and node.select
@@ -434,7 +434,7 @@ def _draw(menu_cls, context):
 def test_add_menu_lists_every_group(hg):
     menus = importlib.import_module(hg.__name__ + ".blender.menus")
     compat = importlib.import_module(hg.__name__ + ".blender.compat")
-    groups = importlib.import_module(hg.__name__ + ".node_groups.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
     host = compat.shader_add_menu()
     assert host.bl_idname in ("NODE_MT_shader_node_add_all", "NODE_MT_add")
     assert menus.draw_add_menu in host.draw._draw_funcs

@@ -49,11 +49,12 @@ def test_loaded_as_extension(addon_module, hg):
     assert hg.__name__ == MODULE_NAME
     assert addon_utils.check(MODULE_NAME) == (True, True)
     assert MODULE_NAME in bpy.context.preferences.addons
-    # Our temp repository holds exactly one extension, the repo's package (through a symlink).
+    # Our temp repository holds exactly one extension: the repo's package files (links) and
+    # the top-level manifest, as scripts/build.py stages them.
     repo = next(r for r in bpy.context.preferences.extensions.repos if r.module == "test_repo")
     assert repo.enabled and repo.use_custom_directory
     assert os.listdir(repo.directory) == [ADDON_ID]
-    assert os.path.realpath(os.path.dirname(hg.__file__)) == os.path.realpath(PACKAGE_DIR)
+    assert os.path.realpath(hg.__file__) == os.path.realpath(PACKAGE_DIR / "__init__.py")
     # Blender read our manifest (it builds bl_info from blender_manifest.toml for extensions).
     manifest = _manifest()
     info = addon_utils.module_bl_info(hg)

@@ -76,7 +76,7 @@ def test_peak_invariance(api, case, anisotropy, shader_mapping):
 @pytest.mark.parametrize("case", ["conductor", "conductor_aniso", "dielectric", "dielectric_aniso",
                                   "legacy", "legacy_aniso", "beckmann", "clamped_wide"])
 def test_analytic_agreement(api, hg, case):
-    conv = importlib.import_module(hg.__name__ + ".utils.conventions")
+    conv = importlib.import_module(hg.__name__ + ".core.conventions")
     params = dict(roughness=0.3, haziness=0.6, haze_extent=4.0)
     dist = "GGX"
     if case == "conductor_aniso":
@@ -225,10 +225,13 @@ IN_SHADER_CASES = [
 
 
 def _emit(hg, params, output):
-    """A material whose surface emits one value of the in-shader mapping graph."""
-    builder = importlib.import_module(hg.__name__ + ".node_groups.builder")
-    graph = importlib.import_module(hg.__name__ + ".node_groups.mapping_graph")
-    groups = importlib.import_module(hg.__name__ + ".node_groups.groups")
+    """A material whose surface emits one value of the mapping's node math (core.node_math,
+    emitted by blender.nodes.emit).  Every input enters as a socket (as a texture would), so
+    nothing is folded in Python: the render checks Blender's node semantics."""
+    builder = importlib.import_module(hg.__name__ + ".blender.nodes.builder")
+    emit = importlib.import_module(hg.__name__ + ".blender.nodes.emit")
+    node_math = importlib.import_module(hg.__name__ + ".core.node_math")
+    graph = importlib.import_module(hg.__name__ + ".core.graph")
     compat = importlib.import_module(hg.__name__ + ".blender.compat")
     mat = compat.new_material("emit")
     tree = mat.node_tree
@@ -239,20 +242,27 @@ def _emit(hg, params, output):
     tb = builder.TreeBuilder(tree)
     aniso = params.get("anisotropy", 0.0) > 0 or isinstance(params["haze_extent"], tuple)
     lx, ly = params["haze_extent"] if isinstance(params["haze_extent"], tuple) else (params["haze_extent"],) * 2
-    val = tb.node("ShaderNodeCombineXYZ")  # constants enter as sockets, like textures would
-    val.inputs[0].default_value = params["roughness"]
-    rgb = lambda c: (c,) * 3 if not isinstance(c, tuple) else c
-    cr = tb.node("ShaderNodeCombineXYZ")
-    cr.inputs[0].default_value, cr.inputs[1].default_value, cr.inputs[2].default_value = rgb(params["core_reflectivity"])
-    ce = tb.node("ShaderNodeCombineXYZ")
-    ce.inputs[0].default_value, ce.inputs[1].default_value, ce.inputs[2].default_value = rgb(params["edge_tint"])
-    src = dict(core_reflectivity=cr.outputs[0], edge_tint=ce.outputs[0], roughness=params["roughness"],
-               anisotropy=params.get("anisotropy", 0.0), rotation=0.0, haziness=params["haziness"],
-               haze_extent_x=lx, haze_extent_y=ly, smoothness=params.get("smoothness"))
-    m = graph.build_mapping(tb, src, kind="CONDUCTOR", anisotropic=aniso,
-                            smooth=params.get("smoothness") is not None,
-                            min_roughness=groups.MIN_ROUGHNESS)
-    value = m[output] if output not in ("alpha_wide_x", "alpha_wide_y") else m["alpha_wide"][output[-1] == "y"]
+    rgb = lambda c: (c,) * 3 if not isinstance(c, tuple) else c  # noqa: E731
+    values = dict(core_reflectivity=rgb(params["core_reflectivity"]), edge_tint=rgb(params["edge_tint"]),
+                  roughness=params["roughness"], anisotropy=params.get("anisotropy", 0.0), rotation=0.0,
+                  haziness=params["haziness"], haze_extent_x=lx, haze_extent_y=ly,
+                  smoothness=params.get("smoothness") or 1.0)
+    sources = {}
+    for name, v in values.items():
+        if isinstance(v, tuple):
+            n = tb.node("ShaderNodeCombineXYZ")
+            for i in range(3):
+                n.inputs[i].default_value = v[i]
+        else:
+            n = tb.node("ShaderNodeValue")
+            n.outputs[0].default_value = v
+        sources[name] = n.outputs[0]
+    g = graph.Graph()
+    src = {k: g.input(k, vector=node_math.INPUTS[k]) for k in sources}
+    m = node_math.mapping(g, src, kind="CONDUCTOR", anisotropic=aniso,
+                          smooth=params.get("smoothness") is not None)
+    expr = m[output] if output not in ("alpha_wide_x", "alpha_wide_y") else m["alpha_wide"][output[-1] == "y"]
+    value = emit.emit(tb, g, expr, sources)
     em = tb.node("ShaderNodeEmission")
     tb.feed(em.inputs["Strength"], 1.0)
     if value.type == "VALUE":

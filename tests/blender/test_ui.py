@@ -46,6 +46,8 @@ def env(hg, clean_file):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), props=mod("blender.properties"),
                            ops=mod("blender.operators"), panels=mod("blender.panels"),
+                           material=mod("blender.material"), make=mod("blender.make_hazy"),
+                           bplots=mod("blender.plots"),
                            prefs=mod("blender.preferences"), presets=mod("utils.presets"),
                            plots=mod("utils.plots"), core=mod("core"), hg=hg)
 
@@ -446,14 +448,14 @@ def test_reentrant_setter_is_ignored(env, monkeypatch):
     api, props = env.api, env.props
     mat = api.create_material("R", haziness=0.2)
     calls = []
-    real_apply = api.apply
+    real_apply = env.material.apply
 
-    def apply_and_poke(m, p):
+    def apply_and_poke(m, p, **kw):
         calls.append(p["haziness"])
         settings(m).haziness = 0.9  # re-entry: ignored
-        return real_apply(m, p)
+        return real_apply(m, p, **kw)
 
-    monkeypatch.setattr(api, "apply", apply_and_poke)
+    monkeypatch.setattr(env.material, "apply", apply_and_poke)
     settings(mat).haziness = 0.5
     assert calls == [pytest.approx(0.5)]
     assert api.read_parameters(mat)["haziness"] == pytest.approx(0.5)
@@ -572,7 +574,7 @@ def test_make_hazy_renders_like_the_original(env, start):
     api = env.api
     mat, textured = build()
     keep = {n.name for n in mat.node_tree.nodes
-            if n.bl_idname not in env.ops.CORE_NODES}
+            if n.bl_idname not in env.make.CORE_NODES}
     before = render(mat)
     assert before.max() > 0.05  # a real highlight
     assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
@@ -580,7 +582,7 @@ def test_make_hazy_renders_like_the_original(env, start):
     assert p["kind"] == kind and p["haziness"] == 0.0
     nodes = mat.node_tree.nodes
     assert keep <= set(nodes.keys())  # everything but the BSDF is still there
-    assert not any(n.bl_idname in env.ops.CORE_NODES and not n.name.startswith("HG ")
+    assert not any(n.bl_idname in env.make.CORE_NODES and not n.name.startswith("HG ")
                    for n in nodes)
     if textured:
         assert p["shader_mapping"]
@@ -961,7 +963,7 @@ def test_stand_in_rejects_mistakes(env):
 def test_plot_previews_and_images(env, tmp_path):
     """The panel's previews hold the numpy plots; plot_to_image writes hidden float images that
     are never saved."""
-    panels, plots = env.panels, env.plots
+    panels, plots = env.bplots, env.plots
     mat = env.api.create_material("Plot", kind="CONDUCTOR", haziness=0.7)
     prefs = env.prefs.get()
     icon = panels.plot_icon(mat, "haze", prefs)
@@ -1135,7 +1137,7 @@ def test_reenabling_reads_the_stamp(env, addon_module, tmp_path):
 def test_register_cycles_leave_nothing(env, addon_module):
     import bpy.utils.previews as previews
     mat = env.api.create_material("Survivor", haziness=0.25)
-    panels_name = env.panels.__name__
+    panels_name = env.bplots.__name__
     handlers = {n: len(getattr(bpy.app.handlers, n)) for n in dir(bpy.app.handlers)
                 if isinstance(getattr(bpy.app.handlers, n, None), list)}
     ours = ("HAZY_GLOSS_PT_material", "HAZY_GLOSS_PT_shader_editor", "HAZY_GLOSS_MT_presets",

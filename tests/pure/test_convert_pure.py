@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Texture conversion, bpy-free part (hazy_gloss/convert.py).
 
-The whole-image mapping must equal the per-texel scalar mapping (haze_mapping called on one
-texel, float32) bit for bit; tiling must not change any bit; bad texels are clamped and counted
+The whole-image mapping must equal the one-texel description (core.lobes.describe on one
+texel, float32: the single piece every path uses; tests/pure/test_lobes.py checks it against an
+independent derivation) bit for bit; tiling must not change any bit; bad texels are clamped and counted
 once per texel and per parameter; constants and argument errors raise ConversionError (a
 ValueError) with a one-line message.
 """
@@ -11,11 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from hazy_gloss import constants as K
 from hazy_gloss import convert as C
-from hazy_gloss.core import haze_mapping
-from hazy_gloss.utils.conventions import (ALPHA_MAX, MAX_ASPECT, alpha_from_roughness,
-                                          glossy_anisotropy, lobe_from_alpha, metallic_anisotropy,
-                                          metallic_to_glossy_anisotropy)
+from hazy_gloss.core.lobes import describe
 
 H, W = 12, 10
 
@@ -42,44 +41,31 @@ def _texel(a, i, j, name):
 
 
 def reference_texel(a, i, j, kind, distribution="GGX", smoothness=None):
-    """What api.map_parameters does for one material, in float32, for texel (i, j).
+    """core.lobes.describe for texel (i, j) alone, in float32.
 
-    haze_mapping is called on ONE texel held in shape-(1,) arrays: with numpy 1.x a 0-d float32
-    scalar combined with a Python float is promoted to float64 (value-based casting), so a 0-d
-    call would not be a float32 computation; one-element arrays are (numpy 1 and 2 alike)."""
+    One texel held in shape-(1,) arrays: with numpy 1.x a 0-d float32 scalar combined with a
+    Python float is promoted to float64 (value-based casting), so a 0-d call would not be a
+    float32 computation; one-element arrays are (numpy 1 and 2 alike)."""
     def one(name, colour=False):
         v = np.asarray(_texel(a, i, j, name), np.float32)
         return v.reshape(1, 3) if colour else v.reshape(1)
 
-    r_min = np.float32(C.min_roughness(distribution))
-    rough = np.maximum(one("roughness"), r_min)
-    aniso = one("anisotropy")
-    ax, ay = alpha_from_roughness(rough, aniso)
-    m = haze_mapping(one("core_reflectivity", True), one("edge_tint", True),
-                     (ax.astype(np.float32), ay.astype(np.float32)), one("haziness"),
-                     (one("haze_extent_x"), one("haze_extent_y")),
-                     distribution=distribution, smoothness=smoothness, alpha_max=ALPHA_MAX,
-                     max_aspect=MAX_ASPECT, strict=False)
-    r_w, ratio, swap = lobe_from_alpha(*m.alpha_wide)
-    rot = one("rotation")
+    d = describe(kind, distribution, core_reflectivity=one("core_reflectivity", True),
+                 edge_tint=one("edge_tint", True), roughness=one("roughness"),
+                 anisotropy=one("anisotropy"), rotation=one("rotation"), haziness=one("haziness"),
+                 haze_extent=(one("haze_extent_x"), one("haze_extent_y")), smoothness=smoothness,
+                 anisotropic=True, strict=False)
     f32 = lambda x: np.asarray(x).astype(np.float32)[0]  # noqa: E731
-    out = {"beta": f32(m.beta), "roughness": f32(rough), "roughness_wide": f32(r_w),
-           "anisotropy": f32(metallic_to_glossy_anisotropy(aniso) if kind == "LEGACY" else aniso),
-           "rotation": f32(rot),
-           "anisotropy_wide": f32(glossy_anisotropy(ratio) if kind == "LEGACY" else metallic_anisotropy(ratio)),
-           "rotation_wide": f32(rot + np.where(swap, np.float32(0.25), np.float32(0)))}
-    if kind == "CONDUCTOR":
-        out.update(ior=f32(m.ior), extinction=f32(m.extinction))
-    elif kind == "DIELECTRIC":
-        rc = m.core_reflectivity[0]
-        out.update(ior=f32(m.dielectric_ior),
-                   specular_tint=rc / rc.max() if rc.max() > 0 else np.ones(3, np.float32))
-    else:
-        out.update(weight_narrow=f32(m.weight_narrow), weight_wide=f32(m.weight_wide))
+    out = {"beta": f32(d.beta), "roughness": f32(d.narrow.roughness),
+           "roughness_wide": f32(d.wide.roughness), "anisotropy": f32(d.narrow.anisotropy),
+           "rotation": f32(d.narrow.rotation), "anisotropy_wide": f32(d.wide.anisotropy),
+           "rotation_wide": f32(d.wide.rotation)}
+    names = {"colour_narrow": "weight_narrow", "colour_wide": "weight_wide"}
+    out.update({names.get(k, k): f32(v) for k, v in d.fresnel.items()})
     return out
 
 
-@pytest.mark.parametrize("kind", C.KINDS)
+@pytest.mark.parametrize("kind", K.KINDS)
 @pytest.mark.parametrize("aniso", [False, True])
 @pytest.mark.parametrize("smoothness", [None, 2.0])
 def test_whole_image_equals_per_texel_mapping(kind, aniso, smoothness):
@@ -130,7 +116,7 @@ def test_bad_texels_clamped_and_counted_once():
     out = C.map_textures(a)
     c = out.clamped
     assert c["haziness is NaN (set to 0)"] == 1
-    assert c["haziness >= 1"] == 2
+    assert c["haziness > 0.9999"] == 2  # the one haziness cap (constants.MAX_HAZINESS)
     assert c["haziness < 0"] == 1
     assert c["core_reflectivity is NaN (set to 0)"] == 1
     assert c["core_reflectivity > 1"] == 2
@@ -147,7 +133,7 @@ def test_bad_texels_clamped_and_counted_once():
     b["haziness"][0, 1] = np.nextafter(np.float32(1), np.float32(0))
     ref = reference_texel(b, 0, 1, "CONDUCTOR")
     assert np.array_equal(out.maps["beta"][0, 1], ref["beta"])
-    assert out.maps["roughness"][2, 0] == np.float32(C.min_roughness("GGX"))
+    assert out.maps["roughness"][2, 0] == np.float32(K.min_roughness("GGX"))
     assert out.maps["roughness"][2, 1] == 1.0
     assert out.maps["rotation"][3, 0] == 0.0
 
@@ -205,7 +191,7 @@ def test_resolve_defaults_and_aliases():
     ({"haziness": "h.png", "roughness": 1.5}, {}, r"roughness.*outside"),
     ({"haziness": "h.png", "core_reflectivity": (0.1, 0.2)}, {}, "RGB triple"),
     ({"haziness": "h.png", "core_reflectivity": math.nan}, {}, "finite"),
-    ({"roughness": "r.png", "haziness": 1.0}, {}, r"haziness.*\[0, 1\)"),
+    ({"roughness": "r.png", "haziness": 1.0}, {}, r"haziness.*\[0, 0.9999\]"),
     ({"haziness": "h.png", "haze_extent": -1}, {}, r"haze_extent.*outside"),
 ])
 def test_resolve_errors(inputs, kw, pattern):

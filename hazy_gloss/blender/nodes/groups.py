@@ -7,22 +7,15 @@ built-in nodes only, so files render the same without the add-on.
 """
 import bpy
 
+from ... import constants as K
+from ...core import node_math
+from ...core.graph import Graph
+from ...core.lobes import check_kind
 from .builder import TreeBuilder
-from .lobes import build_lobes, check_distribution
-from .mapping_graph import build_mapping
+from .emit import emit
+from .lobes import build_lobes
 
-GROUP_VERSION = 2
-STAMP = "hazy_gloss_group"
-
-#: Roughness below Cycles' mirror cut-off (α_x α_y <= 2e-10) would turn the core into a delta.
-MIN_ROUGHNESS = 0.004
-
-#: Cycles clamps Ashikhmin-Shirley α to >= 1e-4 and drops a lobe whose α are all <= 1e-4.
-MIN_ROUGHNESS_AS = 0.0101
-
-
-def min_roughness(distribution):
-    return MIN_ROUGHNESS_AS if distribution == "ASHIKHMIN_SHIRLEY" else MIN_ROUGHNESS
+GROUP_VERSION = 3
 
 
 _KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
@@ -70,6 +63,8 @@ def _interface(ng, kind, anisotropic, smooth):
     _socket(it, "Beta", "NodeSocketFloat", in_out="OUTPUT", desc="β, mixture ratio of the wide lobe (Eq. 4)")
     _socket(it, "Reflectivity", "NodeSocketColor", in_out="OUTPUT", desc="r, global reflectivity F_r(0) (Eq. 5)")
     _socket(it, "Peak Ratio", "NodeSocketFloat", in_out="OUTPUT", desc="p = f_w(n,n)/f_n(n,n) (Table 2)")
+    _socket(it, "Peak Complement", "NodeSocketFloat", in_out="OUTPUT",
+            desc="1 - p, computed without cancellation")
 
     core = it.new_panel("Core")
     _socket(it, "Core Reflectivity", "NodeSocketColor", parent=core, default=(0.5, 0.5, 0.5, 1.0),
@@ -79,7 +74,7 @@ def _interface(ng, kind, anisotropic, smooth):
                 desc="g: edge tint (Gulbrandsen 2014); black = dielectric-like Fresnel (κ = 0)")
     _socket(it, "Roughness", "NodeSocketFloat", parent=core, default=0.1, lo=0.0, hi=1.0,
             subtype="FACTOR", desc="Core roughness in Blender's convention R = √α_n "
-            f"(values below {MIN_ROUGHNESS} are raised to it: Cycles' mirror cut-off)")
+            f"(values below {K.MIN_ROUGHNESS} are raised to it: Cycles' mirror cut-off)")
     if anisotropic:
         _socket(it, "Anisotropy", "NodeSocketFloat", parent=core, default=0.0, lo=0.0, hi=1.0,
                 subtype="FACTOR", desc="Core anisotropy (Metallic BSDF convention): "
@@ -90,7 +85,7 @@ def _interface(ng, kind, anisotropic, smooth):
                 desc="Tangent (x axis of α^x and λ_h^x); link an explicit tangent")
 
     haze = it.new_panel("Haze")
-    _socket(it, "Haziness", "NodeSocketFloat", parent=haze, default=0.1, lo=0.0, hi=0.9999,
+    _socket(it, "Haziness", "NodeSocketFloat", parent=haze, default=0.1, lo=0.0, hi=K.MAX_HAZINESS,
             subtype="FACTOR", desc="β_h ∈ [0, 1): proportion of the available haze (Eq. 7). "
             "0-0.1 typical for dielectrics, up to 0.99 for metals")
     if anisotropic:
@@ -102,7 +97,7 @@ def _interface(ng, kind, anisotropic, smooth):
         _socket(it, "Haze Extent", "NodeSocketFloat", parent=haze, default=5.0, lo=0.0, hi=1000.0,
                 desc="λ_h: halo width in units of α_n, α_w = α_n (1 + λ_h) (Eq. 8)")
     if smooth:
-        _socket(it, "Smoothness", "NodeSocketFloat", parent=haze, default=2.0, lo=1e-4, hi=1e6,
+        _socket(it, "Smoothness", "NodeSocketFloat", parent=haze, default=2.0, lo=K.MIN_SMOOTHNESS, hi=1e6,
                 desc="w: weight of the rational Bézier (Eqs. 12-15); large w tends to Eq. 7")
 
     if kind == "DIELECTRIC":
@@ -120,27 +115,23 @@ def build_group(ng, kind, distribution, anisotropic, smooth):
     gin = ng.nodes.new("NodeGroupInput")
     gin.location = (-300, 0)
     gout = ng.nodes.new("NodeGroupOutput")
-    tb = TreeBuilder(ng, prefix="HG")
-    src = {
-        "core_reflectivity": gin.outputs["Core Reflectivity"],
-        "edge_tint": gin.outputs["Edge Tint"] if kind == "CONDUCTOR" else None,
-        "roughness": gin.outputs["Roughness"],
-        "haziness": gin.outputs["Haziness"],
-        "haze_extent_x": gin.outputs["Haze Extent X" if anisotropic else "Haze Extent"],
-        "haze_extent_y": gin.outputs["Haze Extent Y"] if anisotropic else None,
-    }
-    if anisotropic:
-        src.update(anisotropy=gin.outputs["Anisotropy"], rotation=gin.outputs["Rotation"])
-    if smooth:
-        src["smoothness"] = gin.outputs["Smoothness"]
-    m = build_mapping(tb, src, kind=kind, anisotropic=anisotropic, smooth=smooth,
-                      min_roughness=min_roughness(distribution), distribution=distribution)
+    tb = TreeBuilder(ng)
+    names = {"core_reflectivity": "Core Reflectivity", "edge_tint": "Edge Tint",
+             "roughness": "Roughness", "haziness": "Haziness",
+             "haze_extent_x": "Haze Extent X" if anisotropic else "Haze Extent",
+             "haze_extent_y": "Haze Extent Y", "anisotropy": "Anisotropy", "rotation": "Rotation",
+             "smoothness": "Smoothness"}
+    sources = {k: gin.outputs[v] for k, v in names.items() if v in gin.outputs}
+    g = Graph()
+    src = {k: g.input(k, vector=node_math.INPUTS[k]) for k in sources}
+    if not anisotropic:
+        src["haze_extent_y"] = src["haze_extent_x"]
+    m = emit(tb, g, node_math.mapping(g, src, kind=kind, anisotropic=anisotropic, smooth=smooth,
+                                      distribution=distribution), sources)
     narrow = dict(roughness=m["roughness"], anisotropy=None, rotation=None)
     wide = dict(roughness=m["roughness_wide"], anisotropy=None, rotation=None)
     if anisotropic:
-        a_n = gin.outputs["Anisotropy"]
-        if kind == "LEGACY":  # Glossy's convention: a = -(1 - s) gives α_x = R²/s, α_y = R² s
-            a_n = tb.sub(tb.sqrt(tb.madd(tb.clamp(a_n, 0.0, 1.0), -0.9, 1.0)), 1.0)
+        a_n = m["anisotropy_narrow"] if kind == "LEGACY" else gin.outputs["Anisotropy"]
         narrow.update(anisotropy=a_n, rotation=gin.outputs["Rotation"])
         wide.update(anisotropy=m["anisotropy_wide"], rotation=m["rotation_wide"])
     if kind == "CONDUCTOR":
@@ -152,37 +143,35 @@ def build_group(ng, kind, distribution, anisotropic, smooth):
         fresnel = dict(colour_narrow=m["colour_narrow"], colour_wide=m["colour_wide"])
     shared = dict(normal=gin.outputs["Normal"],
                   tangent=gin.outputs["Tangent"] if anisotropic else None)
-    depth = 1 + max(tb._depth.values(), default=0)
+    depth = 1 + tb.max_depth
     bsdf = build_lobes(tb, kind, distribution, beta=m["beta"], narrow=narrow, wide=wide,
                        fresnel=fresnel, shared=shared, depth=depth)
     gout.location = (180.0 * (depth + 3), 0)
-    ng.links.new(bsdf, gout.inputs["BSDF"])
-    ng.links.new(m["beta"], gout.inputs["Beta"])
-    ng.links.new(m["reflectivity"], gout.inputs["Reflectivity"])
-    ng.links.new(m["peak_ratio"], gout.inputs["Peak Ratio"])
+    for name, key in (("BSDF", None), ("Beta", "beta"), ("Reflectivity", "reflectivity"),
+                      ("Peak Ratio", "peak_ratio"), ("Peak Complement", "peak_complement")):
+        tb.feed(gout.inputs[name], bsdf if key is None else m[key])
     return m
 
 
 def ensure_group(kind, distribution="GGX", anisotropic=False, smooth=False):
     """The group for this configuration, built on first use and rebuilt when outdated."""
-    check_distribution(kind, distribution)
+    check_kind(kind, distribution)
     name = group_name(kind, distribution, anisotropic, smooth)
     ng = bpy.data.node_groups.get(name)
-    if ng is not None and ng.get(STAMP, {}).get("version") == GROUP_VERSION and not ng.library:
+    if ng is not None and ng.get(K.GROUP_STAMP, {}).get("version") == GROUP_VERSION and not ng.library:
         return ng
     if ng is None:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
     elif ng.library:
         return ng
     build_group(ng, kind, distribution, anisotropic, smooth)
-    ng[STAMP] = {"version": GROUP_VERSION, "kind": kind, "distribution": distribution,
+    ng[K.GROUP_STAMP] = {"version": GROUP_VERSION, "kind": kind, "distribution": distribution,
                  "anisotropic": int(anisotropic), "smooth": int(smooth)}
     return ng
 
 
 def all_configurations():
-    from .lobes import NODE_DISTRIBUTIONS
-    for kind, dists in NODE_DISTRIBUTIONS.items():
+    for kind, dists in K.NODE_DISTRIBUTIONS.items():
         for dist in dists:
             for aniso in (False, True):
                 for smooth in (False, True):

@@ -8,14 +8,7 @@ Glossy:               a = clamp(A, -0.99, 0.99); a >= 0: α_x = R²(1-a), α_y =
 """
 import numpy as np
 
-#: Cycles turns a lobe into a perfect mirror when α_x α_y <= 2e-10 (R < 0.00376).
-MIRROR_ALPHA_PRODUCT = 2e-10
-#: Smallest roughness the add-on gives a hazy lobe, just above the mirror cut-off.
-MIN_ROUGHNESS = 0.004
-#: Longest α_x/α_y the Metallic and Principled nodes can express (anisotropy 1).
-MAX_ASPECT = 10.0
-#: Cycles clamps every α to <= 1 after anisotropy.
-ALPHA_MAX = 1.0
+from ..constants import ALPHA_MAX
 
 
 def alpha_from_roughness(roughness, anisotropy=0.0):

@@ -10,27 +10,28 @@ from Python) and the in-shader group (sockets from the mapping graph) share this
 - LEGACY:     two Glossy BSDFs (no Fresnel) with colours k_n = (1-β) r and k_w = β r, added.
 """
 
-KINDS = ("CONDUCTOR", "DIELECTRIC", "LEGACY")
-
-# Which distributions each node offers (Blender 4.5 / 5.0 enums).
-NODE_DISTRIBUTIONS = {
-    "CONDUCTOR": ("GGX", "BECKMANN", "MULTI_GGX"),
-    "DIELECTRIC": ("GGX", "MULTI_GGX"),
-    "LEGACY": ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY"),
-}
+from ...core.lobes import check_kind
 
 _NODE = {"CONDUCTOR": "ShaderNodeBsdfMetallic", "DIELECTRIC": "ShaderNodeBsdfPrincipled",
          "LEGACY": "ShaderNodeBsdfGlossy"}
-_ANISO = {"CONDUCTOR": ("Anisotropy", "Rotation"), "DIELECTRIC": ("Anisotropic", "Anisotropic Rotation"),
-          "LEGACY": ("Anisotropy", "Rotation")}
+#: bl_idnames a lobe of each kind reports (the Glossy BSDF reports the old Anisotropic id).
+LOBE_NODES = {"CONDUCTOR": ("ShaderNodeBsdfMetallic",), "DIELECTRIC": ("ShaderNodeBsdfPrincipled",),
+              "LEGACY": ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")}
+#: (anisotropy, rotation) input names per kind.
+ANISO_INPUTS = {"CONDUCTOR": ("Anisotropy", "Rotation"),
+                "DIELECTRIC": ("Anisotropic", "Anisotropic Rotation"),
+                "LEGACY": ("Anisotropy", "Rotation")}
 
 
-def check_distribution(kind, distribution):
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
-    if distribution not in NODE_DISTRIBUTIONS[kind]:
-        raise ValueError(f"{kind.lower()} lobes offer {', '.join(NODE_DISTRIBUTIONS[kind])}; "
-                         f"got {distribution!r}")
+def tangent(tb, kind, depth=0):
+    """A Tangent node: ``kind`` "UV_MAP", or "RADIAL_X/Y/Z" (around that object axis)."""
+    t = tb.node("ShaderNodeTangent", name="Tangent", depth=depth)
+    if kind == "UV_MAP":
+        t.direction_type = "UV_MAP"
+    else:
+        t.direction_type = "RADIAL"
+        t.axis = kind[-1]
+    return t.outputs[0]
 
 
 def _lobe(tb, kind, distribution, which, *, roughness, anisotropy, rotation, fresnel, shared,
@@ -38,7 +39,11 @@ def _lobe(tb, kind, distribution, which, *, roughness, anisotropy, rotation, fre
     n = tb.node(_NODE[kind], name=f"{which} lobe", label=f"Hazy Gloss {which.lower()} lobe",
                 depth=depth)
     n.distribution = distribution  # node default is MULTI_GGX: always set explicitly
-    if kind == "CONDUCTOR":
+    if kind == "CONDUCTOR" and "schlick_f0" in fresnel:
+        n.fresnel_type = "F82"  # F = F0 + (1 - F0)(1 - cos θd)^5 - b ..., b = 0 at Edge Tint 1
+        tb.feed(n.inputs["Base Color"], fresnel["schlick_f0"])
+        tb.feed(n.inputs["Edge Tint"], (1.0, 1.0, 1.0))
+    elif kind == "CONDUCTOR":
         n.fresnel_type = "PHYSICAL_CONDUCTOR"  # node default is F82
         tb.feed(n.inputs["IOR"], fresnel["ior"])
         tb.feed(n.inputs["Extinction"], fresnel["extinction"])
@@ -53,7 +58,7 @@ def _lobe(tb, kind, distribution, which, *, roughness, anisotropy, rotation, fre
         tb.feed(n.inputs["Color"], colour)
     tb.feed(n.inputs["Roughness"], roughness)
     if anisotropy is not None:
-        a_name, rot_name = _ANISO[kind]
+        a_name, rot_name = ANISO_INPUTS[kind]
         tb.feed(n.inputs[a_name], anisotropy)
         tb.feed(n.inputs[rot_name], rotation)
         if shared.get("tangent") is not None:
@@ -63,16 +68,19 @@ def _lobe(tb, kind, distribution, which, *, roughness, anisotropy, rotation, fre
     return n
 
 
-def build_lobes(tb, kind, distribution, *, beta, narrow, wide, fresnel, shared, depth):
+def build_lobes(tb, kind, distribution, *, beta, narrow, wide, fresnel, shared, depth,
+                always_wide=False):
     """Wire Eq. 1 and return the BSDF output socket.
 
     narrow / wide: dict(roughness=, anisotropy=None|value, rotation=) in the node's convention.
-    wide=None (or a constant beta of 0) builds the core lobe alone: no halo where haze is 0.
-    fresnel: CONDUCTOR {ior, extinction}; DIELECTRIC {ior, specular_tint, base_color,
-    transmission}; LEGACY {colour_narrow, colour_wide}.
+    wide=None (or a constant beta of 0, unless ``always_wide``) builds the core lobe alone: no
+    halo where haze is 0.
+    fresnel: CONDUCTOR {ior, extinction} or {schlick_f0} (F82 at Edge Tint 1: Schlick, the
+    recomposite's lobes); DIELECTRIC {ior, specular_tint, base_color, transmission}; LEGACY
+    {colour_narrow, colour_wide}.
     """
-    check_distribution(kind, distribution)
-    no_halo = wide is None or (not hasattr(beta, "node") and float(beta) <= 0.0)
+    check_kind(kind, distribution)
+    no_halo = wide is None or (not always_wide and not hasattr(beta, "node") and float(beta) <= 0.0)
     n_lobe = _lobe(tb, kind, distribution, "Narrow", fresnel=fresnel, shared=shared,
                    colour=fresnel.get("colour_narrow"), depth=depth, **narrow)
     if no_halo:

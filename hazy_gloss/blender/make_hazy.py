@@ -1,0 +1,559 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Make Hazy and Import Two-Lobe Mix as plain functions (the operators only call these).
+
+- :func:`make_hazy`: turn a material's Principled / Metallic / Glossy BSDF into a hazy material
+  in place: its values become the core's parameters, textures linked to them stay linked (into
+  the in-shader node group), everything else in the tree is kept.
+- :func:`import_two_lobe_mix`: a Mix Shader of two Glossy or two Metallic lobes -> perceptual
+  parameters (core.inverse_haze_mapping), with a report of what is not exactly representable.
+
+Both return (status, message, notes): status "FINISHED", "NOOP" or "ERROR".
+"""
+import math
+
+import numpy as np
+
+from .. import constants as K
+from ..core import gulbrandsen_inverse, inverse_haze_mapping
+from ..core.conventions import alpha_from_roughness, metallic_anisotropy
+from ..core.parameters import normalise
+from . import material, preferences
+from .context import edit_problem, maps_problem, plain_message
+
+MIN_ROUGHNESS = K.MIN_ROUGHNESS
+NODE_DISTRIBUTIONS = K.NODE_DISTRIBUTIONS
+
+
+def _is_live(mat):
+    return material.is_hazy(mat) and bool(material.ours(mat.node_tree))
+
+
+# --------------------------------------------------------------------------------------------
+# Reading existing BSDF nodes
+# --------------------------------------------------------------------------------------------
+
+# The Glossy BSDF node is created as "ShaderNodeBsdfGlossy" but reports bl_idname
+# "ShaderNodeBsdfAnisotropic" (Glossy and Anisotropic were merged in 4.0): accept both.
+GLOSSY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
+CORE_NODES = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfMetallic") + GLOSSY
+_SHADER_PASS = ("ShaderNodeMixShader", "ShaderNodeAddShader")
+
+
+def _source(sock):
+    """The output socket linked into ``sock`` (ignoring muted links), or None."""
+    if sock is None or not sock.is_linked:
+        return None
+    link = sock.links[0]
+    if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
+        return None
+    return link.from_socket
+
+
+def _value(node, name, default=None):
+    sock = node.inputs.get(name)
+    if sock is None or not hasattr(sock, "default_value"):
+        return default
+    v = sock.default_value
+    if hasattr(v, "__len__"):
+        return tuple(float(x) for x in v)
+    return float(v)
+
+
+def _rgb(v):
+    return tuple(float(np.clip(x, 0.0, 1.0)) for x in tuple(v)[:3])
+
+
+def active_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    return outs[0] if outs else None
+
+
+def find_core_bsdf(tree):
+    """The Principled / Metallic / Glossy BSDF feeding the active output's Surface, directly or
+    through Mix / Add Shader nodes (breadth first: the one closest to the output)."""
+    out = active_output(tree)
+    if out is None:
+        return None
+    queue = [_source(out.inputs["Surface"])]
+    seen = set()
+    while queue:
+        sock = queue.pop(0)
+        if sock is None or sock.node.name in seen:
+            continue
+        node = sock.node
+        seen.add(node.name)
+        if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
+            return node
+        if node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
+            queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
+                         node.bl_idname == "NodeReroute")
+    return None
+
+
+class Reading:
+    """What was read from a BSDF node: api parameters, sockets to relink into the hazy group
+    (by input name), and notes on what could not be carried over."""
+
+    def __init__(self, node):
+        self.node = node
+        self.params = {}
+        self.links = {}
+        self.notes = []
+        self.label = node.bl_label
+
+    def link(self, node_input, group_input):
+        src = _source(self.node.inputs.get(node_input))
+        if src is not None:
+            self.links[group_input] = src
+        return src is not None
+
+    def not_carried(self, node_input, what=None):
+        if _source(self.node.inputs.get(node_input)) is not None:
+            self.notes.append(f"the texture on {node_input} was not carried over"
+                              + (f" ({what})" if what else ""))
+            return True
+        return False
+
+
+def _shared_inputs(r, node, *, aniso_name, rot_name):
+    """Roughness, anisotropy, rotation, normal and tangent (same convention for Principled and
+    Metallic; the caller converts Glossy's)."""
+    n = node
+    r.params["roughness"] = float(np.clip(_value(n, "Roughness", 0.5), 0.0, 1.0))
+    r.link("Roughness", "Roughness")
+    if r.params["roughness"] < MIN_ROUGHNESS and "Roughness" not in r.links:
+        r.notes.append(f"roughness {r.params['roughness']:.4g} raised to {MIN_ROUGHNESS}: a perfect "
+                       f"mirror cannot carry a halo")
+    r.link("Normal", "Normal")
+    if aniso_name is not None:
+        r.params["anisotropy"] = float(np.clip(_value(n, aniso_name, 0.0), 0.0, 1.0))
+        r.params["rotation"] = float(_value(n, rot_name, 0.0))
+        if r.link(aniso_name, "Anisotropy") and r.params["anisotropy"] <= 0.0:
+            r.params["anisotropy"] = 1e-6  # builds the anisotropic group; the texture drives it
+        r.link(rot_name, "Rotation")
+        if r.params["anisotropy"] > 0.0:
+            if not r.link("Tangent", "Tangent"):
+                r.params["tangent"] = "RADIAL_Z"  # what an unconnected Tangent input uses
+
+
+def read_principled(node):
+    r = Reading(node)
+    p = r.params
+    metallic = _value(node, "Metallic", 0.0)
+    if r.not_carried("Metallic", "a hazy material is a metal or a dielectric, not a blend"):
+        pass
+    p["distribution"] = node.distribution
+    _shared_inputs(r, node, aniso_name="Anisotropic", rot_name="Anisotropic Rotation")
+    if metallic >= 0.5:
+        p["kind"] = "CONDUCTOR"
+        if metallic < 1.0:
+            r.notes.append(f"metallic {metallic:.3g} treated as fully metallic")
+        p["core_reflectivity"] = _rgb(_value(node, "Base Color"))
+        p["edge_tint"] = _rgb(_value(node, "Specular Tint", (1, 1, 1)))
+        r.link("Base Color", "Core Reflectivity")
+        r.link("Specular Tint", "Edge Tint")
+        r.notes.append("edge tint: Principled's F82 tint became Gulbrandsen's edge tint "
+                       "(identical at normal incidence, close towards grazing angles)")
+    else:
+        p["kind"] = "DIELECTRIC"
+        if metallic > 0.0:
+            r.notes.append(f"metallic {metallic:.3g} treated as 0")
+        ior = _value(node, "IOR", 1.5)
+        level = max(_value(node, "Specular IOR Level", 0.5), 0.0)
+        tint = np.maximum(np.asarray(_value(node, "Specular Tint", (1, 1, 1))[:3]), 0.0)
+        f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
+        p["core_reflectivity"] = tuple(float(x) for x in np.clip(f0 * tint, 0.0, 0.999))
+        p["base_color"] = _rgb(_value(node, "Base Color"))
+        p["transmission"] = float(np.clip(_value(node, "Transmission Weight", 0.0), 0, 1))
+        r.link("Base Color", "Base Color")
+        r.link("Transmission Weight", "Transmission")
+        for name in ("IOR", "Specular IOR Level", "Specular Tint"):
+            r.not_carried(name, "its value at conversion sets the core reflectivity")
+    for name, default in (("Coat Weight", 0.0), ("Sheen Weight", 0.0), ("Subsurface Weight", 0.0),
+                          ("Emission Strength", 0.0), ("Alpha", 1.0), ("Thin Film Thickness", 0.0),
+                          ("Diffuse Roughness", 0.0)):
+        v = _value(node, name, default)
+        linked = _source(node.inputs.get(name)) is not None
+        if linked or (v is not None and abs(v - default) > 1e-9):
+            r.notes.append(f"{name} ({'textured' if linked else f'{v:.3g}'}) is not part of a "
+                           f"hazy material and was dropped")
+    return r
+
+
+def read_metallic(node):
+    r = Reading(node)
+    p = r.params
+    p["kind"] = "CONDUCTOR"
+    p["distribution"] = node.distribution
+    _shared_inputs(r, node, aniso_name="Anisotropy", rot_name="Rotation")
+    if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+        eta = np.asarray(_value(node, "IOR", (0.2, 0.9, 1.1))[:3])
+        kap = np.asarray(_value(node, "Extinction", (3.9, 2.4, 2.2))[:3])
+        refl, tint = gulbrandsen_inverse(np.maximum(eta, 0.0), np.maximum(kap, 0.0))
+        if np.any(tint < -1e-6) or np.any(tint > 1 + 1e-6):
+            r.notes.append("IOR and extinction are not on Gulbrandsen's curve: edge tint clamped "
+                           "(the peak colour is exact, grazing colours approximate)")
+        p["core_reflectivity"] = tuple(float(x) for x in np.clip(refl, 0.0, 0.999))
+        p["edge_tint"] = tuple(float(x) for x in np.clip(np.nan_to_num(tint), 0.0, 1.0))
+        r.not_carried("IOR")
+        r.not_carried("Extinction")
+    else:
+        p["core_reflectivity"] = _rgb(_value(node, "Base Color"))
+        p["edge_tint"] = _rgb(_value(node, "Edge Tint"))
+        r.link("Base Color", "Core Reflectivity")
+        r.link("Edge Tint", "Edge Tint")
+        r.notes.append("F82 edge tint became Gulbrandsen's edge tint (identical at normal "
+                       "incidence, close towards grazing angles)")
+    thin = _value(node, "Thin Film Thickness", 0.0)
+    if thin:
+        r.notes.append("thin film was dropped")
+    return r
+
+
+def glossy_to_metallic_anisotropy(a):
+    """Glossy Anisotropy -> (Metallic anisotropy, extra rotation in turns, exact?).
+
+    Glossy: a >= 0: α_x = R²(1-a), α_y = R²/(1-a) (y long); a < 0 mirrored (x long).  Metallic:
+    α_x = R²/s, α_y = R² s, s² = 1 - 0.9 A (x long, aspect <= 10)."""
+    a = float(np.clip(a, -0.99, 0.99))
+    ratio = (1.0 - abs(a)) ** 2
+    aniso = float(metallic_anisotropy(ratio))
+    exact = ratio >= 0.1 - 1e-12
+    return aniso, (0.25 if a > 0 else 0.0), exact
+
+
+def read_glossy(node):
+    r = Reading(node)
+    p = r.params
+    p["kind"] = "LEGACY"
+    p["distribution"] = node.distribution
+    _shared_inputs(r, node, aniso_name=None, rot_name=None)
+    p["core_reflectivity"] = _rgb(_value(node, "Color"))
+    r.link("Color", "Core Reflectivity")
+    a = _value(node, "Anisotropy", 0.0)
+    r.not_carried("Anisotropy", "Glossy's anisotropy convention differs")
+    if a:
+        aniso, extra_rot, exact = glossy_to_metallic_anisotropy(a)
+        p["anisotropy"] = aniso
+        p["rotation"] = (float(_value(node, "Rotation", 0.0)) + extra_rot) % 1.0
+        if not exact:
+            r.notes.append("anisotropy beyond 10:1 was limited to 10:1")
+        if not r.link("Tangent", "Tangent"):
+            p["tangent"] = "RADIAL_Z"
+        r.not_carried("Rotation")
+    return r
+
+
+READERS = {"ShaderNodeBsdfPrincipled": read_principled, "ShaderNodeBsdfMetallic": read_metallic,
+           **{g: read_glossy for g in GLOSSY}}
+
+
+# --------------------------------------------------------------------------------------------
+# Replacing nodes by the hazy nodes, in place
+# --------------------------------------------------------------------------------------------
+
+
+def _socket_ref(sock):
+    return (sock.node.name, sock.identifier, sock.is_output)
+
+
+def _resolve(tree, ref):
+    node = tree.nodes.get(ref[0])
+    if node is None:
+        return None
+    for s in (node.outputs if ref[2] else node.inputs):
+        if s.identifier == ref[1]:
+            return s
+    return None
+
+
+def replace_with_hazy(mat, replaced, p, links):
+    """Remove the nodes ``replaced`` (the first one's output is what the hazy BSDF replaces),
+    build the hazy nodes for ``p`` and wire them where that output went.  ``links`` maps group
+    input names to the output sockets to connect (textures, normal map).  Returns
+    (HazeMapping, names of inputs that could not be linked)."""
+    tree = mat.node_tree
+    head = replaced[0]
+    out = active_output(tree)
+    if out is None:
+        out = tree.nodes.new("ShaderNodeOutputMaterial")
+        out.location = (head.location.x + 300, head.location.y)
+    surf = out.inputs["Surface"]
+    src = _source(surf)
+    surf_src = _socket_ref(src) if src is not None and src.node.name != head.name else None
+    targets = [_socket_ref(l.to_socket) for l in head.outputs[0].links if l.to_socket != surf]
+    link_refs = {name: _socket_ref(s) for name, s in links.items()}
+    location = tuple(head.location)
+    material.map_parameters(p)  # raises before anything is touched
+    for node in replaced:
+        tree.nodes.remove(node)
+    m, _ = material.apply(mat, p, force_rebuild=True)
+    ours = material.hazy_output(tree)
+    if surf_src is not None:
+        s = _resolve(tree, surf_src)
+        if s is not None:
+            tree.links.new(s, surf)
+    for ref in targets:
+        s = _resolve(tree, ref)
+        if s is not None:
+            tree.links.new(ours, s)
+    dropped = []
+    group = material.ours(tree).get(material.GROUP_ROLE)
+    for name, ref in link_refs.items():
+        s = _resolve(tree, ref)
+        target = group.inputs.get(name) if group is not None else None
+        if s is None or target is None:
+            dropped.append(name)
+            continue
+        tree.links.new(s, target)
+    if "Tangent" in link_refs and group is not None:  # the api's own tangent node is unused now
+        for n in [n for n in tree.nodes if material.is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
+            if not any(o.is_linked for o in n.outputs):
+                tree.nodes.remove(n)
+    dx, dy = location[0] - ours.node.location.x, location[1] - ours.node.location.y
+    for n in tree.nodes:
+        if material.is_ours(n):
+            n.location = (n.location.x + dx, n.location.y + dy)
+    return m, dropped
+
+
+def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, shader_mapping=None):
+    """Convert ``mat`` in place.  Returns (status, message, notes): status "FINISHED" (converted),
+    "NOOP" (already hazy) or "ERROR"."""
+    problem = edit_problem(mat)
+    if problem is not None and (mat is None or mat.library is not None
+                                or getattr(mat, "override_library", None) is not None):
+        return "ERROR", problem, []
+    if _is_live(mat):
+        return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
+    if not hasattr(mat, "node_tree") or mat.node_tree is None:
+        return "ERROR", f"“{mat.name}” has no node tree", []
+    tree = mat.node_tree
+    node = find_core_bsdf(tree)
+    if node is None:
+        return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF connected to its "
+                "Material Output: nothing to convert (use New Hazy Material instead)", [])
+    reading = READERS[node.bl_idname](node)
+    p = dict(reading.params)
+    if p["distribution"] not in NODE_DISTRIBUTIONS[p["kind"]]:
+        reading.notes.append(f"{p['distribution']} is not offered for {p['kind'].lower()} lobes: "
+                             "GGX used")
+        p["distribution"] = "GGX"
+    p.update(haziness=float(haziness), haze_extent=haze_extent)
+    wants_shader = bool(reading.links)
+    if shader_mapping is None:
+        shader_mapping = wants_shader or bool(preferences.get().prefer_shader_mapping)
+    elif wants_shader and not shader_mapping:
+        reading.notes.append("constant mapping requested: the textures were disconnected")
+        reading.links.clear()
+    p["shader_mapping"] = bool(shader_mapping)
+    try:
+        p = normalise(p)
+        m, dropped = replace_with_hazy(mat, [node], p, reading.links)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), reading.notes
+    notes = list(reading.notes)
+    if dropped:
+        notes.append("could not connect: " + ", ".join(dropped))
+    kept = [k for k in reading.links if k not in dropped]
+    msg = (f"Converted “{mat.name}” ({reading.label}) to a hazy {p['kind'].lower()}"
+           + (f"; kept the links into {', '.join(kept)} (in-shader mapping)" if kept else ""))
+    return "FINISHED", msg, notes
+
+
+# --------------------------------------------------------------------------------------------
+# Two-lobe mix -> perceptual parameters
+# --------------------------------------------------------------------------------------------
+
+_LOBE_NODES = GLOSSY + ("ShaderNodeBsdfMetallic",)
+
+
+def find_two_lobe_mix(tree):
+    """(mix node, lobe A, lobe B) for a Mix / Add Shader of two Glossy or two Metallic BSDFs
+    that feeds the active output's Surface (directly or through other Mix / Add Shaders)."""
+    out = active_output(tree)
+    if out is None:
+        return None
+    queue = [_source(out.inputs["Surface"])]
+    while queue:
+        sock = queue.pop(0)
+        if sock is None:
+            continue
+        node = sock.node
+        if node.bl_idname in _SHADER_PASS:
+            shaders = [s for s in node.inputs if s.type == "SHADER"]
+            srcs = [_source(s) for s in shaders]
+            nodes = [s.node if s is not None else None for s in srcs]
+            if len(nodes) == 2 and all(n is not None and n.bl_idname in _LOBE_NODES and not n.mute
+                                       and not material.is_ours(n) for n in nodes) and nodes[0].bl_idname == nodes[1].bl_idname \
+                    and nodes[0] != nodes[1]:
+                return node, nodes[0], nodes[1]
+            queue.extend(srcs)
+    return None
+
+
+def _lobe_alpha(node):
+    """(α_x, α_y, rotation in turns) of a Glossy / Metallic lobe in its node's convention,
+    rotated so that α_x >= α_y."""
+    rough = float(np.clip(_value(node, "Roughness", 0.5), 0.0, 1.0))
+    rot = float(_value(node, "Rotation", 0.0))
+    a = float(_value(node, "Anisotropy", 0.0))
+    if node.bl_idname in GLOSSY:
+        a = float(np.clip(a, -0.99, 0.99))
+        k = 1.0 - abs(a)
+        ax, ay = (rough ** 2 * k, rough ** 2 / k) if a >= 0 else (rough ** 2 / k, rough ** 2 * k)
+        ax, ay = min(ax, 1.0), min(ay, 1.0)
+    else:
+        ax, ay = (float(v) for v in alpha_from_roughness(rough, a))
+    if ax < ay:
+        ax, ay, rot = ay, ax, rot + 0.25
+    return ax, ay, rot % 1.0
+
+
+def _rot_diff(a, b):
+    """Difference of two lobe orientations in turns, modulo a half turn, in [0, 0.25]."""
+    d = (a - b) % 0.5
+    return min(d, 0.5 - d)
+
+
+def import_two_lobe_mix(mat):
+    """Convert a two-lobe mix to a hazy material in place.  Returns (status, message, notes)."""
+    problem = edit_problem(mat)
+    if mat is None or mat.library is not None or getattr(mat, "override_library", None) is not None:
+        return "ERROR", problem, []
+    if _is_live(mat):
+        return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
+    found = find_two_lobe_mix(mat.node_tree)
+    if found is None:
+        return ("ERROR", f"“{mat.name}” has no Mix Shader of two Glossy or two Metallic BSDFs "
+                "connected to its Material Output", [])
+    mix, a, b = found
+    notes = []
+    if mix.bl_idname == "ShaderNodeMixShader":
+        if _source(mix.inputs[0]) is not None:
+            notes.append("the mix factor is textured: its value at conversion was used")
+        fac = float(np.clip(mix.inputs[0].default_value, 0.0, 1.0))
+        w_a, w_b = 1.0 - fac, fac
+    else:
+        w_a = w_b = 1.0
+    la, lb = _lobe_alpha(a), _lobe_alpha(b)
+    if la[0] * la[1] <= lb[0] * lb[1]:
+        (n_node, n_w, (nx, ny, n_rot)), (w_node, w_w, (wx, wy, w_rot)) = (a, w_a, la), (b, w_b, lb)
+    else:
+        (n_node, n_w, (nx, ny, n_rot)), (w_node, w_w, (wx, wy, w_rot)) = (b, w_b, lb), (a, w_a, la)
+    if n_node.distribution != w_node.distribution:
+        notes.append(f"the lobes use {n_node.distribution} and {w_node.distribution}: "
+                     f"{n_node.distribution} used for both")
+    dist = n_node.distribution
+    # express the wide lobe in the narrow lobe's frame (x along its long axis)
+    n_iso = abs(nx - ny) <= 1e-9 * nx
+    w_iso = abs(wx - wy) <= 1e-9 * wx
+    if n_iso and not w_iso:
+        n_rot = w_rot
+    elif not w_iso:
+        d = _rot_diff(w_rot, n_rot)
+        if abs(d - 0.25) < 1e-4:
+            wx, wy = wy, wx
+        elif d > 1e-4:
+            notes.append("the lobes are rotated against each other: the halo's orientation "
+                         "follows the core's")
+    kind = "LEGACY" if n_node.bl_idname in GLOSSY else "CONDUCTOR"
+    total_w = n_w + w_w if kind == "CONDUCTOR" else None
+    edge_tint = None
+    if kind == "CONDUCTOR":
+        if mix.bl_idname == "ShaderNodeAddShader":
+            notes.append("two added metallic lobes reflect more than 1: scaled to a mix")
+        beta = w_w / total_w if total_w > 0 else 0.0
+        fresnel = []
+        for node in (n_node, w_node):
+            if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+                fresnel.append(("P", np.asarray(_value(node, "IOR")[:3]),
+                                np.asarray(_value(node, "Extinction")[:3])))
+            else:
+                fresnel.append(("F", np.asarray(_value(node, "Base Color")[:3]),
+                                np.asarray(_value(node, "Edge Tint")[:3])))
+        (ft, x0, y0), (ft1, x1, y1) = fresnel
+        if ft != ft1 or not (np.allclose(x0, x1, rtol=1e-5, atol=1e-7)
+                             and np.allclose(y0, y1, rtol=1e-5, atol=1e-7)):
+            notes.append("the two lobes have different Fresnel settings: the core lobe's are used "
+                         "(Eq. 1 shares one Fresnel term)")
+        if ft == "P":
+            kw = dict(ior=np.maximum(x0, 0.0), extinction=np.maximum(y0, 0.0))
+        else:
+            kw = dict(reflectivity=np.clip(x0, 0.0, 1.0))
+            edge_tint = _rgb(y0)
+            notes.append("F82 lobes became Gulbrandsen's conductor Fresnel (identical at normal "
+                         "incidence)")
+    else:
+        c_n = n_w * np.asarray(_value(n_node, "Color")[:3])
+        c_w = w_w * np.asarray(_value(w_node, "Color")[:3])
+        refl = c_n + c_w
+        ch = int(np.argmax(refl))
+        beta = float(c_w[ch] / refl[ch]) if refl[ch] > 0 else 0.0
+        if not np.allclose(c_w, beta * refl, rtol=1e-4, atol=1e-6):
+            notes.append("the two lobes have different colours: Eq. 1 needs one colour (the "
+                         "brightest channel's ratio is used)")
+        kw = dict(reflectivity=np.clip(refl, 0.0, 1.0))
+        if np.any(refl > 1.0):
+            notes.append("the lobes reflect more than 1 in total: clamped")
+    inv = inverse_haze_mapping(beta, (nx, ny), (wx, wy), distribution=dist, alpha_max=1.0, **kw)
+    notes.extend(inv.warnings)
+    rough = math.sqrt(math.sqrt(nx * ny))
+    ratio = ny / nx if nx > 0 else 1.0
+    aniso = float(metallic_anisotropy(ratio))
+    if ratio < 0.1 - 1e-9:
+        notes.append("core anisotropy beyond 10:1 limited")
+    params = dict(kind=kind, distribution=dist if dist in NODE_DISTRIBUTIONS[kind] else "GGX",
+                  core_reflectivity=tuple(float(x) for x in inv.core_reflectivity),
+                  edge_tint=edge_tint if edge_tint is not None else
+                  tuple(float(x) for x in inv.edge_tint),
+                  roughness=rough, anisotropy=aniso, rotation=n_rot,
+                  haziness=float(inv.haziness),
+                  haze_extent=(float(inv.haze_extent[0]), float(inv.haze_extent[1])),
+                  shader_mapping=False)
+    links = {}
+    normals = {_socket_ref(s) if s is not None else None
+               for s in (_source(n_node.inputs.get("Normal")), _source(w_node.inputs.get("Normal")))}
+    if len(normals) == 1 and None not in normals:
+        links["Normal"] = _source(n_node.inputs["Normal"])
+    elif len(normals) > 1:
+        notes.append("the lobes use different normals: the core lobe's is used")
+        if _source(n_node.inputs.get("Normal")) is not None:
+            links["Normal"] = _source(n_node.inputs["Normal"])
+    if aniso > 0 or not w_iso:
+        t = _source(n_node.inputs.get("Tangent"))
+        if t is not None:
+            links["Tangent"] = t
+        else:
+            params["tangent"] = "RADIAL_Z"
+    for node in (n_node, w_node):
+        for name in ("Roughness", "Color", "Base Color", "Edge Tint", "IOR", "Extinction",
+                     "Anisotropy", "Rotation"):
+            if _source(node.inputs.get(name)) is not None:
+                notes.append(f"the texture on {node.name}'s {name} was not carried over")
+    if links:
+        params["shader_mapping"] = True
+    lobe_label = n_node.bl_label  # the nodes are removed below
+    try:
+        p = normalise(params)
+        m = material.map_parameters(p)
+        m, dropped = replace_with_hazy(mat, [mix, n_node, w_node], p, links)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), notes
+    # how close is the result to the original two lobes?
+    dev = abs(float(m.beta) - beta)
+    for got, want in zip((float(v) for v in m.alpha_wide), (wx, wy)):
+        dev = max(dev, abs(got - want) / max(want, 1e-12))
+    if not bool(np.all(inv.exact)) or dev > 1e-3:
+        notes.append(f"not exactly representable (largest relative difference {dev:.2g})")
+    msg = (f"Imported the two {lobe_label} lobes of “{mat.name}”: haziness "
+           f"{params['haziness']:.3g}, haze extent {params['haze_extent'][0]:.3g}"
+           + (f" x {params['haze_extent'][1]:.3g}" if params['haze_extent'][0] != params['haze_extent'][1] else ""))
+    return "FINISHED", msg, notes

@@ -1,0 +1,447 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Hazy materials in Blender: building, updating and reading their node trees.
+
+A hazy material carries its perceptual parameters as an ID property (constants.STAMP), so a
+saved file keeps them and renders identically where the add-on is not installed (only built-in
+nodes are used).  The add-on's nodes carry a role (constants.ROLE, a node custom property) and
+a name starting with "HG "; everything else in the tree is the user's and is never touched.
+
+- lean (default): the lobes and their mix with physical values from Python
+  (core.lobes.describe); one lobe when there is no halo; anisotropy inputs and a Tangent node
+  only when anisotropic;
+- in-shader: one group node (blender.nodes.groups) whose perceptual inputs take textures.
+
+A change of parameters sets socket values when the tree already has the right structure, and
+rebuilds only when the structure must change (kind, distribution of a group, isotropic <->
+anisotropic, halo <-> none, lean <-> in-shader), keeping the user's links into and out of the
+hazy nodes, where the user moved them, and their labels.
+"""
+import numpy as np
+
+from .. import constants as K
+from ..core.lobes import describe
+from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise
+from . import compat
+from .nodes.builder import TreeBuilder, socket_value
+from .nodes.groups import ensure_group
+from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
+
+GROUP_ROLE = "Hazy Gloss"
+GROUP_NODE = f"{K.NODE_PREFIX} {GROUP_ROLE}"  # its default name
+STAMP_VERSION = 2
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+# --------------------------------------------------------------------------------------------
+
+
+def lobes_for(p, **kw):
+    """core.lobes.describe for one material's normalised parameters ``p``."""
+    return describe(p["kind"], p["distribution"], core_reflectivity=p["core_reflectivity"],
+                    edge_tint=p["edge_tint"], roughness=p["roughness"],
+                    anisotropy=p["anisotropy"], rotation=p["rotation"], haziness=p["haziness"],
+                    haze_extent=p["haze_extent"], smoothness=p["smoothness"],
+                    anisotropic=is_anisotropic(p), **kw)
+
+
+def map_parameters(p):
+    """The HazeMapping one material renders with (α <= 1, aspect <= 10, roughness above the
+    mirror cut-off).  Raises ValueError on invalid values."""
+    return lobes_for(p).mapping
+
+
+def _stamp(mat, p):
+    d = {k: v for k, v in p.items() if k != "smoothness"}
+    d["use_smoothness"] = p["smoothness"] is not None
+    d["smoothness"] = p["smoothness"] if p["smoothness"] is not None else 2.0
+    d["version"] = STAMP_VERSION
+    mat[K.STAMP] = d
+
+
+def _stamp_dict(mat):
+    d = mat.get(K.STAMP)
+    if d is None:
+        return None
+    if hasattr(d, "to_dict"):
+        d = d.to_dict()
+    if not isinstance(d, dict):
+        raise ValueError(f"the stored Hazy Gloss parameters of {mat.name!r} are not a "
+                         f"dictionary ({type(d).__name__})")
+    return d
+
+
+def read_parameters(mat):
+    """The perceptual parameters stamped on a hazy material, or None.  Raises ValueError (one
+    line naming the parameter) when the stored values are unreadable."""
+    d = _stamp_dict(mat)
+    if d is None:
+        return None
+    p = {k: d[k] for k in PARAMETERS if k in d and k != "smoothness"}
+    for k in ("core_reflectivity", "edge_tint", "base_color", "haze_extent"):
+        if k in p and hasattr(p[k], "__len__") and not isinstance(p[k], str):
+            p[k] = tuple(p[k])
+    p["smoothness"] = d.get("smoothness") if d.get("use_smoothness") else None
+    return normalise(p, explicit=())
+
+
+def is_hazy(mat):
+    return mat is not None and K.STAMP in mat
+
+
+# --------------------------------------------------------------------------------------------
+# The add-on's nodes
+# --------------------------------------------------------------------------------------------
+
+
+def role(node):
+    """The role of one of the add-on's nodes, or None for the user's nodes."""
+    r = node.get(K.ROLE)
+    if isinstance(r, str):
+        return r
+    if node.name.startswith(K.NODE_PREFIX + " "):  # files written before roles existed
+        return node.name[len(K.NODE_PREFIX) + 1:]
+    return None
+
+
+def is_ours(node):
+    """A node the add-on built (and updates); everything else in the tree is the user's."""
+    return role(node) is not None
+
+
+def ours(tree):
+    """{role: node} of the add-on's nodes.  A copy the user made of one of them (Shift+D keeps
+    the custom property) becomes the user's: only the first of a role is ours."""
+    found = {}
+    for n in tree.nodes:
+        r = role(n)
+        if r is None:
+            continue
+        if r in found:
+            if n.name == f"{K.NODE_PREFIX} {r}":  # the original kept its name: it is ours
+                found[r], n = n, found[r]
+            if K.ROLE in n:
+                del n[K.ROLE]
+            continue
+        found[r] = n
+    return found
+
+
+def output_node(tree, create=True):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    if outs or not create:
+        return outs[0] if outs else None
+    n = tree.nodes.new("ShaderNodeOutputMaterial")
+    n.location = (1400, 0)
+    return n
+
+
+def _by_identifier(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    return None
+
+
+#: Roles of the node whose output is a hazy material's BSDF, first match wins.
+_FINAL_ROLES = ("Lobe mix", "Lobe sum", GROUP_ROLE, "Narrow lobe")
+
+
+def hazy_output(tree):
+    """The output socket of the add-on's BSDF in ``tree`` (the mix, the group, or the core lobe
+    alone), or None."""
+    mine = ours(tree)
+    for r in _FINAL_ROLES:
+        if r in mine:
+            return mine[r].outputs[0]
+    return None
+
+
+def remove_ours(tree):
+    for n in list(ours(tree).values()):
+        tree.nodes.remove(n)
+
+
+class UserLinks:
+    """The links between the user's nodes and the hazy nodes, recorded before a rebuild and
+    restored after it, with where the user put our nodes and the labels they gave them.
+    ``dropped`` lists group inputs that no longer exist (e.g. Edge Tint of a dielectric)."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.incoming = []  # (from node name, from socket identifier, our role, to input name)
+        self.outgoing = []  # (our role, to node name, to socket identifier)
+        self.surface_from = None
+        self.anchor = None  # (role, location) of the node feeding the surface
+        self.labels = {}
+        self.dropped = []
+        mine = ours(tree)
+        by_node = {n.as_pointer(): r for r, n in mine.items()}
+        surf = output_node(tree).inputs["Surface"]
+        for link in tree.links:
+            ra = by_node.get(link.from_node.as_pointer())
+            rb = by_node.get(link.to_node.as_pointer())
+            if rb is not None and ra is None:
+                self.incoming.append((link.from_node.name, link.from_socket.identifier, rb,
+                                      link.to_socket.name))
+            elif ra is not None and rb is None:
+                if link.to_socket == surf:
+                    self.anchor = (ra, tuple(link.from_node.location))
+                else:
+                    self.outgoing.append((ra, link.to_node.name, link.to_socket.identifier))
+        if surf.is_linked and by_node.get(surf.links[0].from_node.as_pointer()) is None:
+            self.surface_from = (surf.links[0].from_node.name, surf.links[0].from_socket.identifier)
+        for r, n in mine.items():
+            if n.label:
+                self.labels[r] = n.label
+        self.locations = {r: tuple(n.location) for r, n in mine.items()}
+
+    @property
+    def textured_inputs(self):
+        return sorted({i[3] for i in self.incoming if i[2] == GROUP_ROLE})
+
+    def restore(self, final):
+        """Relink after a rebuild whose BSDF output is ``final``."""
+        tree = self.tree
+        nodes = tree.nodes
+        mine = ours(tree)
+        final_role = role(final.node) if final is not None else None
+        if self.anchor is not None and final is not None:  # keep where the user put our nodes
+            dx = self.anchor[1][0] - final.node.location.x
+            dy = self.anchor[1][1] - final.node.location.y
+            for n in mine.values():
+                n.location = (n.location.x + dx, n.location.y + dy)
+        for r, label in self.labels.items():
+            if r in mine and mine[r].label != label:
+                mine[r].label = label
+        surf = output_node(tree).inputs["Surface"]
+        if self.surface_from is not None:
+            src = nodes.get(self.surface_from[0])
+            sock = _by_identifier(src.outputs, self.surface_from[1]) if src else None
+            if sock is not None:
+                tree.links.new(sock, surf)
+        for r, to_name, ident in self.outgoing:
+            node = nodes.get(to_name)
+            sock = _by_identifier(node.inputs, ident) if node else None
+            src = final if r == final_role or r not in mine else mine[r].outputs[0]
+            if sock is not None and src is not None:
+                tree.links.new(src, sock)
+        for from_name, ident, r, to_input in self.incoming:
+            src = nodes.get(from_name)
+            sock = _by_identifier(src.outputs, ident) if src else None
+            if sock is None:
+                continue
+            target = mine[r].inputs.get(to_input) if r in mine else None
+            if target is None:
+                self.dropped.append(to_input)
+                continue
+            tree.links.new(sock, target)
+        # an add-on tangent replaced by the user's tangent is left dangling: remove it
+        t = ours(tree).get("Tangent")
+        if t is not None and not any(s.is_linked for s in t.outputs):
+            nodes.remove(t)
+
+
+# --------------------------------------------------------------------------------------------
+# Building
+# --------------------------------------------------------------------------------------------
+
+
+def _lobe_values(d, which):
+    lobe = d.narrow if which == "narrow" else d.wide
+    return dict(roughness=lobe.roughness, anisotropy=lobe.anisotropy, rotation=lobe.rotation)
+
+
+def _fresnel_values(p, d):
+    f = dict(d.fresnel)
+    to_tuple = lambda v: tuple(float(x) for x in np.asarray(v).ravel())  # noqa: E731
+    for k in ("ior", "extinction", "specular_tint", "colour_narrow", "colour_wide"):
+        if k in f:
+            f[k] = to_tuple(f[k]) if np.ndim(f[k]) else float(f[k])
+    if p["kind"] == "DIELECTRIC":
+        f.update(base_color=p["base_color"], transmission=p["transmission"])
+    return f
+
+
+def _build_lean(tb, p, d):
+    shared = {"tangent": tangent(tb, p["tangent"], 0) if d.anisotropic else None}
+    wide = _lobe_values(d, "wide") if d.wide is not None else None
+    return build_lobes(tb, p["kind"], p["distribution"], beta=d.beta,
+                       narrow=_lobe_values(d, "narrow"), wide=wide,
+                       fresnel=_fresnel_values(p, d), shared=shared, depth=1)
+
+
+def _group_values(p):
+    """{group input name: value} of the perceptual parameters."""
+    v = {"Core Reflectivity": p["core_reflectivity"], "Roughness": p["roughness"],
+         "Haziness": p["haziness"]}
+    if p["kind"] == "CONDUCTOR":
+        v["Edge Tint"] = p["edge_tint"]
+    if is_anisotropic(p):
+        v.update({"Anisotropy": p["anisotropy"], "Rotation": p["rotation"],
+                  "Haze Extent X": p["haze_extent"][0], "Haze Extent Y": p["haze_extent"][1]})
+    else:
+        v["Haze Extent"] = p["haze_extent"][0]
+    if p["smoothness"] is not None:
+        v["Smoothness"] = p["smoothness"]
+    if p["kind"] == "DIELECTRIC":
+        v.update({"Base Color": p["base_color"], "Transmission": p["transmission"]})
+    return v
+
+
+def _build_in_shader(tb, p):
+    aniso = is_anisotropic(p)
+    g = tb.node("ShaderNodeGroup", name=GROUP_ROLE, depth=1)
+    g.node_tree = ensure_group(p["kind"], p["distribution"], aniso, p["smoothness"] is not None)
+    g.width = 240
+    for name, value in _group_values(p).items():
+        tb.feed(g.inputs[name], value)
+    if aniso:
+        tb.link(tangent(tb, p["tangent"], 0), g.inputs["Tangent"])
+    return g.outputs["BSDF"]
+
+
+def _structure(p, d):
+    """What decides which nodes a material has (values of the same structure are set in place)."""
+    aniso = bool(d.anisotropic)
+    if p["shader_mapping"]:
+        return ("in-shader", p["kind"], p["distribution"], aniso, p["smoothness"] is not None)
+    return ("lean", p["kind"], aniso, d.wide is not None)
+
+
+def _build(mat, p, d):
+    tree = mat.node_tree
+    remove_ours(tree)
+    tb = TreeBuilder(tree, x0=600.0, roles=True)
+    bsdf = _build_in_shader(tb, p) if p["shader_mapping"] else _build_lean(tb, p, d)
+    tree.links.new(bsdf, output_node(tree).inputs["Surface"])
+    return bsdf
+
+
+def _set(node, name, value):
+    sock = node.inputs.get(name)
+    if sock is None or sock.is_linked or value is None:
+        return
+    v = socket_value(sock, value)
+    current = sock.default_value
+    if (tuple(current) if hasattr(current, "__len__") else current) != v:
+        sock.default_value = v
+
+
+def _update_values(mat, p, d):
+    """Write the values of ``p`` into a tree of the right structure.  Returns False when the
+    tree does not have it (the caller rebuilds)."""
+    mine = ours(mat.node_tree)
+    if p["shader_mapping"]:
+        g = mine.get(GROUP_ROLE)
+        want = ensure_group(p["kind"], p["distribution"], bool(d.anisotropic), p["smoothness"] is not None)
+        if g is None or g.bl_idname != "ShaderNodeGroup" or g.node_tree != want:
+            return False
+        for name, value in _group_values(p).items():
+            _set(g, name, value)
+    else:
+        node_type = LOBE_NODES[p["kind"]]
+        narrow, wide = mine.get("Narrow lobe"), mine.get("Wide lobe")
+        if narrow is None or narrow.bl_idname not in node_type or \
+                (d.wide is not None) != (wide is not None) or \
+                (wide is not None and wide.bl_idname not in node_type):
+            return False
+        mix = mine.get("Lobe sum" if p["kind"] == "LEGACY" else "Lobe mix")
+        if (d.wide is not None) != (mix is not None):
+            return False
+        f = _fresnel_values(p, d)
+        for which, node in (("narrow", narrow), ("wide", wide)):
+            if node is None:
+                continue
+            node.distribution = p["distribution"]
+            lobe = _lobe_values(d, which)
+            _set(node, "Roughness", lobe["roughness"])
+            if d.anisotropic:
+                a_name, r_name = ANISO_INPUTS[p["kind"]]
+                _set(node, a_name, lobe["anisotropy"])
+                _set(node, r_name, lobe["rotation"])
+            if p["kind"] == "CONDUCTOR":
+                _set(node, "IOR", f["ior"])
+                _set(node, "Extinction", f["extinction"])
+            elif p["kind"] == "DIELECTRIC":
+                for name, key in (("IOR", "ior"), ("Specular Tint", "specular_tint"),
+                                  ("Base Color", "base_color"),
+                                  ("Transmission Weight", "transmission")):
+                    _set(node, name, f[key])
+            else:
+                _set(node, "Color", f["colour_" + which])
+        if mix is not None and p["kind"] != "LEGACY":
+            _set(mix, "Fac", d.beta)
+    t = mine.get("Tangent")
+    if d.anisotropic and t is not None and t.bl_idname == "ShaderNodeTangent":
+        if p["tangent"] == "UV_MAP":
+            t.direction_type = "UV_MAP"
+        else:
+            t.direction_type = "RADIAL"
+            t.axis = p["tangent"][-1]
+    return True
+
+
+def apply(mat, p, *, force_rebuild=False):
+    """Make ``mat``'s hazy nodes render parameters ``p`` (normalised): set values when the tree
+    has the right structure, else rebuild it keeping the user's links, locations and labels.
+    Returns (HazeMapping, dropped group inputs)."""
+    if mat.library is not None:
+        raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
+    d = lobes_for(p)  # raises before touching the tree
+    structure = _structure(p, d)
+    if K.RECOMPOSITE_STAMP in mat:  # an edit leaves recomposite mode: rebuild the normal material
+        force_rebuild = True
+        del mat[K.RECOMPOSITE_STAMP]
+    old = _stamp_dict(mat) if K.STAMP in mat else None
+    same = old is not None and old.get("structure") == repr(structure) and not force_rebuild
+    dropped = []
+    if not (same and _update_values(mat, p, d)):
+        keep = UserLinks(mat.node_tree)
+        final = _build(mat, p, d)
+        keep.restore(final)
+        dropped = keep.dropped
+    _stamp(mat, p)
+    mat[K.STAMP]["structure"] = repr(structure)
+    return d.mapping, dropped
+
+
+def create_material(name, **params):
+    """A new hazy material (see hazy_gloss.api.create_material)."""
+    p = normalise(params)
+    lobes_for(p)  # validate before creating anything
+    mat = compat.new_material(name)
+    tree = mat.node_tree
+    for n in [n for n in tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial"]:
+        tree.nodes.remove(n)
+    apply(mat, p)
+    return mat
+
+
+def update_material(mat, **changes):
+    """Change some perceptual parameters of a hazy material.  Returns (HazeMapping, group
+    inputs whose links had to be dropped because the new configuration has no such input)."""
+    if not hasattr(mat, "node_tree") or not hasattr(mat, "library"):
+        raise TypeError(f"update_material expects a bpy.types.Material, got {type(mat).__name__}"
+                        + (" (look it up with bpy.data.materials[name])" if isinstance(mat, str) else ""))
+    p = read_parameters(mat)
+    if p is None:
+        raise ValueError(f"material {mat.name!r} is not a hazy material (use Make Hazy or "
+                         f"api.create_material)")
+    merged = dict(p)
+    merged.update(changes)
+    p = normalise(merged, explicit=changes)
+    if not p["shader_mapping"]:
+        textured = UserLinks(mat.node_tree).textured_inputs if mat.node_tree else []
+        if textured:
+            raise ValueError(f"Textures are connected to {', '.join(textured)}: constant mapping "
+                             f"cannot use them. Keep in-shader mapping, or disconnect them first")
+    return apply(mat, p)
+
+
+__all__ = ("create_material", "update_material", "read_parameters", "is_hazy", "map_parameters",
+           "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",
+           "DEFAULTS")

@@ -1,0 +1,87 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Creating, laying out and feeding nodes (every tree the add-on builds goes through here).
+
+Operands are node sockets (linked) or Python constants (typed into the unlinked input), so
+the same lobe code builds a lean tree (constants) and a texture-driven one (sockets).  Nodes
+are placed in columns by depth so generated trees stay readable.
+"""
+import bpy
+
+from ... import constants as K
+
+NodeSocket = bpy.types.NodeSocket
+
+
+class TreeBuilder:
+    def __init__(self, tree, *, x0=0.0, y0=0.0, prefix=K.NODE_PREFIX, roles=False):
+        self.tree = tree
+        self.nodes = tree.nodes
+        self.links = tree.links
+        self.prefix = prefix
+        self.roles = roles  # tag named nodes with constants.ROLE (material trees)
+        self._depth = {}
+        self._rows = {}
+        self.x0 = x0
+        self.y0 = y0
+        self.created = []
+
+    def node(self, bl_idname, *, label=None, name=None, depth=None, **props):
+        """A new node; ``name`` becomes "<prefix> <name>" and, in a material tree, its role."""
+        n = self.nodes.new(bl_idname)
+        for k, val in props.items():
+            setattr(n, k, val)
+        if label:
+            n.label = label
+        if name:
+            n.name = f"{self.prefix} {name}"
+            if self.roles:
+                n[K.ROLE] = name
+        elif self.prefix and self.roles:
+            n.name = f"{self.prefix} {n.name}"
+        self.created.append(n)
+        if depth is not None:
+            self.place(n, depth)
+        return n
+
+    def place(self, node, depth):
+        row = self._rows.get(depth, 0)
+        self._rows[depth] = row + 1
+        node.location = (self.x0 + 180.0 * depth, self.y0 - 160.0 * row)
+        self._depth[node.name] = depth
+
+    def depth_of(self, value):
+        if isinstance(value, NodeSocket):
+            return self._depth.get(value.node.name, 0)
+        return 0
+
+    @property
+    def max_depth(self):
+        return max(self._depth.values(), default=0)
+
+    def feed(self, socket, value):
+        """Link a socket or type a constant into ``socket``."""
+        if isinstance(value, NodeSocket):
+            self.links.new(value, socket)
+        elif value is not None:
+            socket.default_value = socket_value(socket, value)
+
+    def link(self, out_socket, in_socket):
+        self.links.new(out_socket, in_socket)
+
+
+def socket_value(socket, value):
+    """``value`` in the form ``socket.default_value`` takes (RGBA colours, 3-vectors)."""
+    if socket.type == "RGBA":
+        if not hasattr(value, "__len__"):
+            return (float(value),) * 3 + (1.0,)
+        value = tuple(float(v) for v in value)
+        return value + (1.0,) if len(value) == 3 else value
+    if socket.type == "VECTOR":
+        if not hasattr(value, "__len__"):
+            return (float(value),) * 3
+        return tuple(float(v) for v in value)
+    if socket.type == "BOOLEAN":
+        return bool(value)
+    if socket.type == "INT":
+        return int(value)
+    return float(value)

@@ -1,0 +1,192 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Emit a :class:`hazy_gloss.core.graph.Graph` as nodes: shader trees (Math, Vector Math,
+Mix, Separate/Combine XYZ) or compositor trees (scalar Math only: vectors become three lanes,
+selects become arithmetic, colours are split with the compositor's Separate Color)."""
+from ...core.graph import Expr
+from .. import compat
+
+_MIX_IDS = {False: ("Factor_Float", "A_Float", "B_Float", "Result_Float"),
+            True: ("Factor_Float", "A_Vector", "B_Vector", "Result_Vector")}
+
+
+def _by_id(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    raise KeyError(identifier)
+
+
+def emit(tb, graph, outputs, sources, *, backend="SHADER"):
+    """Build the nodes ``outputs`` (an Expr or a dict/list of them) need with TreeBuilder ``tb``.
+
+    ``sources``: input name -> socket or constant.  Returns ``outputs`` with every Expr replaced
+    by a socket or a Python constant (the shader backend), or, for the compositor, vectors by a
+    tuple of three lanes."""
+    emitter = (_ShaderEmitter if backend == "SHADER" else _CompositorEmitter)(tb, sources)
+    for e in graph.used(outputs):
+        emitter.visit(e)
+    return _replace(outputs, emitter.value)
+
+
+def _replace(o, value):
+    if isinstance(o, dict):
+        return {k: _replace(v, value) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return type(o)(_replace(v, value) for v in o)
+    return value(o) if isinstance(o, Expr) else o
+
+
+def _const(e):
+    v = e.value
+    return tuple(float(x) for x in v) if e.vector else float(v)
+
+
+class _ShaderEmitter:
+    MATH = "ShaderNodeMath"
+
+    def __init__(self, tb, sources):
+        self.tb = tb
+        self.sources = sources
+        self.sockets = {}
+        self.depth = {}
+        self.separated = {}
+
+    def value(self, e):
+        return _const(e) if e.is_const else self.sockets[e.index]
+
+    def _depth(self, e):
+        return 0 if e.is_const else self.depth.get(e.index, 0)
+
+    def _node(self, bl_idname, e, **props):
+        d = 1 + max((self._depth(a) for a in e.args), default=0)
+        n = self.tb.node(bl_idname, label=e.label, **props)
+        self.tb.place(n, d)
+        self.depth[e.index] = d
+        return n
+
+    def visit(self, e):
+        tb = self.tb
+        if e.op == "input":
+            self.sockets[e.index] = self.sources[e.name]
+            return
+        if e.op == "SEPARATE":  # one Separate XYZ node per vector, shared by its lanes
+            src = e.args[0]
+            if src.index not in self.separated:
+                node = self._node("ShaderNodeSeparateXYZ", e)
+                tb.feed(node.inputs[0], self.value(src))
+                self.separated[src.index] = (node, self.depth[e.index])
+            node, d = self.separated[src.index]
+            self.depth[e.index] = d
+            self.sockets[e.index] = node.outputs[e.lane]
+            return
+        if e.op == "COMBINE":
+            n = self._node("ShaderNodeCombineXYZ", e)
+            for sock, a in zip(n.inputs, e.args):
+                tb.feed(sock, self.value(a))
+            self.sockets[e.index] = n.outputs[0]
+            return
+        if e.op == "MIX":
+            n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT")
+            n.clamp_factor = False
+            fac, a, b, res = _MIX_IDS[e.vector]
+            tb.feed(_by_id(n.inputs, fac), self.value(e.args[0]))
+            tb.feed(_by_id(n.inputs, a), self.value(e.args[1]))
+            tb.feed(_by_id(n.inputs, b), self.value(e.args[2]))
+            self.sockets[e.index] = _by_id(n.outputs, res)
+            return
+        if e.op.startswith("V"):
+            op = e.op[1:]
+            n = self._node("ShaderNodeVectorMath", e, operation=op)
+            if op == "SCALE":
+                tb.feed(n.inputs[0], self.value(e.args[0]))
+                tb.feed(n.inputs["Scale"], self.value(e.args[1]))
+            else:
+                for sock, a in zip(n.inputs, e.args):
+                    tb.feed(sock, self.value(a))
+            self.sockets[e.index] = n.outputs["Vector"]
+            return
+        n = self._node(self.MATH, e, operation=e.op, use_clamp=e.clamp)
+        for sock, a in zip(n.inputs, e.args):
+            tb.feed(sock, self.value(a))
+        self.sockets[e.index] = n.outputs[0]
+
+
+class _CompositorEmitter:
+    """Scalar Math nodes only (4.5's compositor has no vector math or float mix)."""
+
+    def __init__(self, tb, sources):
+        self.tb = tb
+        self.sources = sources
+        self.math_id = compat.compositor_math_node()
+        self.vals = {}  # index -> socket/float, or a tuple of three lanes for vectors
+
+    def value(self, e):
+        if e.is_const:
+            c = _const(e)
+            return c if not e.vector else tuple(c)
+        return self.vals[e.index]
+
+    def _lanes(self, e):
+        v = self.value(e)
+        if e.vector:
+            return v
+        return (v, v, v)
+
+    def _math(self, op, *args, clamp=False, label=None):
+        tb = self.tb
+        d = 1 + max((tb.depth_of(a) for a in args), default=0)
+        n = tb.node(self.math_id, operation=op, use_clamp=clamp, label=label)
+        tb.place(n, d)
+        for sock, a in zip(n.inputs, args):
+            tb.feed(sock, a)
+        return n.outputs[0]
+
+    def visit(self, e):
+        tb = self.tb
+        if e.op == "input":
+            src = self.sources[e.name]
+            if e.vector and not isinstance(src, tuple) and hasattr(src, "node"):
+                n = tb.node("CompositorNodeSeparateColor", depth=1 + tb.depth_of(src))
+                tb.link(src, n.inputs[0])
+                src = tuple(n.outputs[:3])
+            self.vals[e.index] = src
+            return
+        if e.op == "SEPARATE":
+            self.vals[e.index] = self._lanes(e.args[0])[e.lane]
+            return
+        if e.op == "COMBINE":
+            self.vals[e.index] = tuple(self.value(a) for a in e.args)
+            return
+        if e.op == "MIX":  # (1 - t) a + t b
+            t = self.value(e.args[0])
+            lanes = list(zip(self._lanes(e.args[1]), self._lanes(e.args[2]))) if e.vector \
+                else [(self.value(e.args[1]), self.value(e.args[2]))]
+            omt = self._math("SUBTRACT", 1.0, t)
+            out = tuple(self._math("MULTIPLY_ADD", t, b, self._math("MULTIPLY", omt, a),
+                                   label=e.label) for a, b in lanes)
+            self.vals[e.index] = out if e.vector else out[0]
+            return
+        if e.op.startswith("V"):
+            op = e.op[1:]
+            if op == "SCALE":
+                s = self.value(e.args[1])
+                out = tuple(self._math("MULTIPLY", x, s, label=e.label) for x in self._lanes(e.args[0]))
+            else:
+                lanes = [self._lanes(a) for a in e.args]
+                out = tuple(self._math(op, *(la[i] for la in lanes), label=e.label) for i in range(3))
+            self.vals[e.index] = out
+            return
+        self.vals[e.index] = self._math(e.op, *(self.value(a) for a in e.args), clamp=e.clamp,
+                                        label=e.label)
+
+
+def combine_compositor(tb, lanes, alpha=1.0):
+    """Three lanes (+ alpha) as one compositor colour socket."""
+    d = 1 + max(tb.depth_of(x) for x in (*lanes, alpha))
+    n = tb.node("CompositorNodeCombineColor", depth=d)
+    for sock, x in zip(n.inputs[:4], (*lanes, alpha)):
+        tb.feed(sock, x)
+    return n.outputs[0]
+
+
+__all__ = ("emit", "combine_compositor")

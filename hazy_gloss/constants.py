@@ -1,0 +1,56 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Every constant the add-on shares between modules, bpy-free, in one place.
+
+The numbers are Cycles' limits (BLENDER-FACTS.md, kernel/closure/bsdf_microfacet.h) and the
+add-on's own choices; every path (lean material, in-shader nodes, baked maps, recomposite)
+clamps with these same values.
+"""
+
+#: Lobe kinds: Metallic BSDF lobes (conductor Fresnel), Principled BSDF lobes (dielectric
+#: Fresnel over a base), Glossy BSDF lobes (no Fresnel, weights in the colours).
+KINDS = ("CONDUCTOR", "DIELECTRIC", "LEGACY")
+
+#: Microfacet distributions, spelled as Blender's node enums.
+DISTRIBUTIONS = ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY")
+
+#: Which distributions each kind's node offers (Metallic, Principled, Glossy BSDF).
+NODE_DISTRIBUTIONS = {
+    "CONDUCTOR": ("GGX", "BECKMANN", "MULTI_GGX"),
+    "DIELECTRIC": ("GGX", "MULTI_GGX"),
+    "LEGACY": ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY"),
+}
+
+#: Haziness β_h is kept in [0, MAX_HAZINESS]: β_h = 1 is the degenerate single-wide-lobe case
+#: (the paper's β_h ∈ [0, 1)); every path clamps to this one value.
+MAX_HAZINESS = 0.9999
+
+#: Cycles turns a lobe into a perfect mirror when α_x α_y <= 2e-10 (R < 0.00376).
+MIRROR_ALPHA_PRODUCT = 2e-10
+#: Smallest roughness R the add-on gives a hazy lobe, just above the mirror cut-off.
+MIN_ROUGHNESS = 0.004
+#: Cycles clamps Ashikhmin-Shirley α to >= 1e-4 and drops a lobe whose α are all <= 1e-4.
+MIN_ROUGHNESS_AS = 0.0101
+#: Cycles clamps every α to <= 1 after anisotropy.
+ALPHA_MAX = 1.0
+#: Longest α_x/α_y the Metallic and Principled nodes can express (anisotropy 1).
+MAX_ASPECT = 10.0
+#: Smallest Bézier weight w (Eqs. 12-15) the add-on accepts.
+MIN_SMOOTHNESS = 1e-4
+#: Largest float32 below 1: r <= 1 - ε keeps η, κ finite in float32 shader math.
+ONE_MINUS_ULP32 = 1.0 - 2.0 ** -23
+
+
+def min_roughness(distribution):
+    """Smallest roughness R a lobe of ``distribution`` gets."""
+    return MIN_ROUGHNESS_AS if distribution == "ASHIKHMIN_SHIRLEY" else MIN_ROUGHNESS
+
+
+#: Name prefix of every node the add-on builds in a material tree (the rest is the user's).
+NODE_PREFIX = "HG"
+#: ID-property stamps.
+STAMP = "hazy_gloss"  # on a hazy material: its perceptual parameters
+MAPS_STAMP = "hazy_gloss_maps"  # on a material wired to converted maps
+RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in recomposite mode
+GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups
+#: Node custom property naming a node's role in a hazy material (survives renaming).
+ROLE = "hazy_gloss_role"

@@ -1,0 +1,354 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Node math as data: a small expression graph with Blender's Math / Vector Math semantics.
+
+The haze mapping's node form (:mod:`hazy_gloss.core.node_math`) is written once against
+:class:`Graph`; the bpy emitters (``hazy_gloss.blender.nodes.emit``) turn a graph into shader
+or compositor nodes, and :func:`evaluate` runs it in numpy with the semantics of Cycles' SVM
+(``kernel/svm/math_util.h``, ``kernel/svm/mix.h``), so pure tests check the node math against
+the numpy mapping without rendering.
+
+- Values are float32; a vector is three lanes (Blender's Vector Math / colour sockets).
+- DIVIDE is safe (x / 0 = 0), SQRT of a negative is 0, POWER of a negative base with a
+  non-integer exponent is 0, ``clamp=True`` saturates the result (the Math node's Clamp).
+- MIX(t, a, b) = (1-t) a + t b (the float Mix node): an exact select for t ∈ {0, 1} when both
+  branches are finite.
+- Building folds constants (in float32 with the same semantics, as Cycles' own constant folding
+  does) and merges identical sub-expressions, so a graph fed constants emits only the nodes
+  that depend on linked inputs, and never two nodes computing the same thing.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ("Expr", "Graph", "evaluate", "SCALAR_OPS", "VECTOR_OPS")
+
+#: Math node operations used here, with their arity.
+SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
+              "POWER": 2, "SQRT": 1, "MINIMUM": 2, "MAXIMUM": 2, "LESS_THAN": 2,
+              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1}
+#: Vector Math node operations used here (SCALE: vector × scalar).
+VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
+              "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1}
+
+_F32 = np.float32
+
+
+class Expr:
+    """One value of the graph.  ``op``: "input", "const", a Math operation (scalar), "V" + a
+    Vector Math operation, "MIX", "SEPARATE" (one lane of a vector) or "COMBINE"."""
+
+    __slots__ = ("op", "args", "vector", "clamp", "lane", "name", "value", "label", "index")
+
+    def __init__(self, op, args=(), *, vector=False, clamp=False, lane=None, name=None,
+                 value=None, label=None, index=-1):
+        self.op = op
+        self.args = tuple(args)
+        self.vector = vector
+        self.clamp = clamp
+        self.lane = lane
+        self.name = name
+        self.value = value
+        self.label = label
+        self.index = index
+
+    @property
+    def is_const(self):
+        return self.op == "const"
+
+    def __repr__(self):
+        if self.op == "const":
+            return f"const({self.value})"
+        if self.op == "input":
+            return f"input({self.name})"
+        return f"{self.op}#{self.index}"
+
+
+def _const_key(value):
+    return tuple(float(v) for v in np.ravel(value))
+
+
+class Graph:
+    """Builds expressions, folding constants and merging duplicates (hash-consing)."""
+
+    def __init__(self):
+        self.nodes = []  # every non-constant Expr, in creation order (a topological order)
+        self._memo = {}
+        self.inputs = {}
+
+    # -- leaves --------------------------------------------------------------------------------
+    def input(self, name, *, vector=False):
+        if name in self.inputs:
+            return self.inputs[name]
+        e = self._add(Expr("input", vector=vector, name=name))
+        self.inputs[name] = e
+        return e
+
+    def const(self, value):
+        """A constant: a number, or three numbers (a vector)."""
+        if isinstance(value, Expr):
+            return value
+        arr = np.asarray(value, dtype=_F32)
+        vector = arr.size == 3
+        if arr.size not in (1, 3):
+            raise ValueError(f"a constant is a number or three numbers, got {value!r}")
+        key = ("const", _const_key(arr), vector)
+        e = self._memo.get(key)
+        if e is None:
+            e = Expr("const", vector=vector, value=arr.reshape(3) if vector else _F32(arr.reshape(())))
+            self._memo[key] = e
+        return e
+
+    def value(self, x):
+        """``x`` as an Expr (numbers become constants)."""
+        return x if isinstance(x, Expr) else self.const(x)
+
+    def _add(self, e):
+        e.index = len(self.nodes)
+        self.nodes.append(e)
+        return e
+
+    def _make(self, op, args, *, vector, clamp=False, lane=None, label=None):
+        args = tuple(self.value(a) for a in args)
+        if all(a.is_const for a in args):
+            return self.const(_apply(op, [a.value for a in args], [a.vector for a in args],
+                                     clamp=clamp, lane=lane))
+        key = (op, tuple(id(a) for a in args), clamp, lane)
+        e = self._memo.get(key)
+        if e is None:
+            e = self._add(Expr(op, args, vector=vector, clamp=clamp, lane=lane, label=label))
+            self._memo[key] = e
+        elif label and not e.label:
+            e.label = label
+        return e
+
+    # -- scalar Math ---------------------------------------------------------------------------
+    def math(self, op, *args, clamp=False, label=None):
+        if op not in SCALAR_OPS or len(args) != SCALAR_OPS[op]:
+            raise ValueError(f"Math {op} takes {SCALAR_OPS.get(op)} operands")
+        args = [self.value(a) for a in args]
+        if any(a.vector for a in args):
+            raise TypeError(f"Math {op} on a vector operand")
+        return self._make(op, args, vector=False, clamp=clamp, label=label)
+
+    def add(self, a, b, **kw):
+        return self.math("ADD", a, b, **kw)
+
+    def sub(self, a, b, **kw):
+        return self.math("SUBTRACT", a, b, **kw)
+
+    def mul(self, a, b, **kw):
+        return self.math("MULTIPLY", a, b, **kw)
+
+    def div(self, a, b, **kw):
+        return self.math("DIVIDE", a, b, **kw)
+
+    def madd(self, a, b, c, **kw):
+        """a * b + c."""
+        return self.math("MULTIPLY_ADD", a, b, c, **kw)
+
+    def sqrt(self, a, **kw):
+        return self.math("SQRT", a, **kw)
+
+    def minimum(self, a, b, **kw):
+        return self.math("MINIMUM", a, b, **kw)
+
+    def maximum(self, a, b, **kw):
+        return self.math("MAXIMUM", a, b, **kw)
+
+    def less(self, a, b, **kw):
+        """1 if a < b else 0."""
+        return self.math("LESS_THAN", a, b, **kw)
+
+    def clamp(self, a, lo, hi, **kw):
+        """min(max(a, lo), hi), NaN -> lo; one node (the Clamp option) when hi is 1."""
+        if 0.0 <= lo and hi == 1.0:
+            return self.maximum(a, lo, clamp=True, **kw)
+        return self.minimum(self.maximum(a, lo), hi, **kw)
+
+    def select(self, cond, if_true, if_false, **kw):
+        """cond ∈ {0, 1}: the Mix node, (1 - cond) if_false + cond if_true."""
+        c, a, b = self.value(cond), self.value(if_true), self.value(if_false)
+        if a is b:
+            return a
+        if c.is_const:
+            return a if float(c.value) >= 0.5 else b
+        vector = a.vector or b.vector
+        if vector and not (a.vector and b.vector):
+            raise TypeError("select of a vector and a scalar")
+        return self._make("MIX", (c, b, a), vector=vector, **kw)
+
+    # -- vectors -------------------------------------------------------------------------------
+    def vmath(self, op, *args, label=None):
+        """A Vector Math node.  Scalar operands are allowed: Blender turns a float linked into a
+        vector input into (f, f, f).  SCALE's second operand is the scalar factor."""
+        if op not in VECTOR_OPS or len(args) != VECTOR_OPS[op]:
+            raise ValueError(f"Vector Math {op} takes {VECTOR_OPS.get(op)} operands")
+        args = [self.value(a) for a in args]
+        if op == "SCALE" and args[1].vector:
+            raise TypeError("Vector Math SCALE takes a scalar factor")
+        return self._make("V" + op, args, vector=True, label=label)
+
+    def separate(self, v):
+        """The three lanes of a vector (one Separate node)."""
+        v = self.value(v)
+        if not v.vector:
+            raise TypeError("separate() of a scalar")
+        return tuple(self._make("SEPARATE", (v,), vector=False, lane=i) for i in range(3))
+
+    def combine(self, x, y, z, **kw):
+        return self._make("COMBINE", (x, y, z), vector=True, **kw)
+
+    def channel_max(self, v, **kw):
+        r, g, b = self.separate(v)
+        return self.maximum(self.maximum(r, g), b, **kw)
+
+    # -- bookkeeping ---------------------------------------------------------------------------
+    def used(self, outputs):
+        """The non-constant expressions ``outputs`` depend on, in topological order."""
+        seen = set()
+        order = []
+        stack = [e for e in _flatten(outputs) if not e.is_const]
+        while stack:
+            e = stack.pop()
+            if e.index in seen:
+                continue
+            seen.add(e.index)
+            stack.extend(a for a in e.args if not a.is_const)
+        for e in self.nodes:
+            if e.index in seen:
+                order.append(e)
+        return order
+
+    def signature(self, outputs):
+        """The structure of the nodes ``outputs`` need (operations and wiring, not constant
+        values): two graphs with the same signature emit the same nodes."""
+        order = self.used(outputs)
+        pos = {e.index: i for i, e in enumerate(order)}
+        rows = []
+        for e in order:
+            args = tuple(("c", a.vector) if a.is_const else pos[a.index] for a in e.args)
+            rows.append((e.op, e.name, e.vector, e.clamp, e.lane, args))
+        outs = tuple(("c",) if e.is_const else pos[e.index] for e in _flatten(outputs))
+        return hash((tuple(rows), outs))
+
+
+def _flatten(outputs):
+    if isinstance(outputs, Expr):
+        return [outputs]
+    if isinstance(outputs, dict):
+        outputs = list(outputs.values())
+    out = []
+    for o in outputs:
+        out.extend(_flatten(o) if isinstance(o, (dict, list, tuple)) else [o])
+    return [o for o in out if isinstance(o, Expr)]
+
+
+# ------------------------------------------------------------------------------------------------
+# Semantics (Cycles SVM, float32)
+# ------------------------------------------------------------------------------------------------
+
+
+def _safe_divide(a, b):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return np.where(b != 0, a / np.where(b != 0, b, _F32(1)), _F32(0)).astype(_F32)
+
+
+def _safe_pow(a, b):
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        bad = (a < 0) & (b != np.trunc(b))
+        return np.where(bad, _F32(0), np.power(np.where(bad, _F32(1), a), b)).astype(_F32)
+
+
+def _fmin(a, b):  # fminf: NaN loses
+    return np.fmin(a, b).astype(_F32)
+
+
+def _fmax(a, b):
+    return np.fmax(a, b).astype(_F32)
+
+
+_SCALAR = {
+    "ADD": lambda a, b: a + b,
+    "SUBTRACT": lambda a, b: a - b,
+    "MULTIPLY": lambda a, b: a * b,
+    "DIVIDE": _safe_divide,
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "POWER": _safe_pow,
+    "SQRT": lambda a: np.sqrt(np.maximum(a, _F32(0))),
+    "MINIMUM": _fmin,
+    "MAXIMUM": _fmax,
+    "LESS_THAN": lambda a, b: (a < b).astype(_F32),
+    "GREATER_THAN": lambda a, b: (a > b).astype(_F32),
+    "COMPARE": lambda a, b, c: ((a == b) | (np.abs(a - b) <= np.maximum(c, np.finfo(_F32).eps))
+                                ).astype(_F32),
+    "ABSOLUTE": np.abs,
+}
+
+
+def _saturate(x):
+    return np.minimum(np.maximum(np.nan_to_num(x, nan=0.0), _F32(0)), _F32(1)).astype(_F32)
+
+
+def _apply(op, vals, vector_args, *, clamp=False, lane=None):
+    """One operation on float32 values; ``vector_args`` says which operands are vectors
+    (S + (3,)) — scalar operands of a vector operation are broadcast over the lanes."""
+    vals = [np.asarray(v, dtype=_F32) for v in vals]
+    with np.errstate(all="ignore"):
+        if op == "SEPARATE":
+            out = vals[0][..., lane]
+        elif op == "COMBINE":
+            out = np.stack(np.broadcast_arrays(*vals), axis=-1)
+        else:
+            if op.startswith("V") or (op == "MIX" and any(vector_args)):
+                vals = [v if is_vec else v[..., None] for v, is_vec in zip(vals, vector_args)]
+            if op == "MIX":
+                t, a, b = vals
+                out = (_F32(1) - t) * a + t * b
+            elif op == "VSCALE":
+                out = vals[0] * vals[1]
+            else:
+                out = _SCALAR[op[1:] if op.startswith("V") else op](*vals)
+    out = np.asarray(out, dtype=_F32)
+    return _saturate(out) if clamp else out
+
+
+def evaluate(outputs, inputs):
+    """Values of ``outputs`` (an Expr, a list or a dict of them) for ``inputs`` (name ->
+    float32 array, vectors shaped (..., 3)), with Blender's node semantics in float32."""
+    exprs = _flatten(outputs)
+    cache = {}
+
+    def val(e):
+        if e.is_const:
+            return np.asarray(e.value, dtype=_F32)
+        return cache[e.index]
+
+    graph_nodes = _topo(exprs)
+    for e in graph_nodes:
+        if e.op == "input":
+            if e.name not in inputs:
+                raise KeyError(f"no value for input {e.name!r}")
+            cache[e.index] = np.asarray(inputs[e.name], dtype=_F32)
+        else:
+            cache[e.index] = _apply(e.op, [val(a) for a in e.args], [a.vector for a in e.args],
+                                    clamp=e.clamp, lane=e.lane)
+
+    def out(o):
+        if isinstance(o, dict):
+            return {k: out(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return type(o)(out(v) for v in o)
+        return val(o) if isinstance(o, Expr) else o
+    return out(outputs)
+
+
+def _topo(exprs):
+    seen = {}
+    stack = [e for e in exprs if not e.is_const]
+    while stack:
+        e = stack.pop()
+        if e.index in seen:
+            continue
+        seen[e.index] = e
+        stack.extend(a for a in e.args if not a.is_const)
+    return [seen[i] for i in sorted(seen)]

@@ -1,0 +1,228 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The haze mapping as node math (one description for the shader group and the compositor).
+
+Written against :class:`hazy_gloss.core.graph.Graph`: it computes what
+:func:`hazy_gloss.core.lobes.describe` computes (the mapping with Cycles' limits α <= 1 and
+aspect <= 10, the add-on's clamps, the wide lobe in the node convention) in the same
+float32-stable forms (docs/mapping.md): no 1 - p by subtraction, the Bézier through the conic's
+implicit equation, κ of Gulbrandsen's mapping as a product of non-negative terms.  Blender's
+safe divide (x / 0 = 0) is relied upon where a quotient is unused (its select weight is 0).
+"""
+from __future__ import annotations
+
+from .. import constants as K
+
+__all__ = ("mapping", "haze_terms", "reflectivity", "INPUTS")
+
+#: Inputs of :func:`mapping` (vector ones are colours).
+INPUTS = {"core_reflectivity": True, "edge_tint": True, "roughness": False, "anisotropy": False,
+          "rotation": False, "haziness": False, "haze_extent_x": False, "haze_extent_y": False,
+          "smoothness": False}
+
+_TINY = 1.0 - K.ONE_MINUS_ULP32  # 2^-23: 1 - r is kept >= this (r <= 1 - ε)
+#: Divisors that can underflow (p, 1 - p, r̂_c, c_2 of garbage or extreme texels) are kept >= this
+#: where they divide: a quotient in the branch a Mix node does not select must stay finite
+#: (0 · inf = NaN); nothing visible depends on values below it.
+_DIV_MIN = 1e-30
+
+
+def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
+    """The physical parameters of Eq. 1 from perceptual inputs ``src`` (name -> Expr or number;
+    see INPUTS).  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
+    rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity, gain
+    (r̂ / r̂_c), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
+    (dielectric) or colour_narrow + colour_wide (legacy)."""
+    out = {}
+    # -- the valid domain (textures can hold anything) -----------------------------------------
+    rough = g.clamp(src["roughness"], K.min_roughness(distribution), 1.0, label="R")
+    bh = g.clamp(src["haziness"], 0.0, K.MAX_HAZINESS, label="β_h")
+    rc = g.vmath("MINIMUM", g.vmath("MAXIMUM", src["core_reflectivity"], 0.0), 1.0, label="r_c")
+    alpha = g.mul(rough, rough, label="α = R²")
+
+    # -- Eq. 8 with Cycles' α <= 1 and aspect <= 10; p and q = 1 - p (Table 2) -----------------
+    if anisotropic:
+        a = g.clamp(src["anisotropy"], 0.0, 1.0)
+        s = g.sqrt(g.madd(a, -0.9, 1.0), label="s = √(1-0.9a)")
+        ax_raw = g.div(alpha, s)
+        ax = g.minimum(ax_raw, 1.0, label="α_n^x")
+        ay = g.mul(alpha, s, label="α_n^y")
+        gm = g.sqrt(g.mul(ax, ay), label="√(α_x α_y)")
+        lx = g.maximum(src["haze_extent_x"], 0.0)
+        ly = g.maximum(src["haze_extent_y"], 0.0)
+        # spread = α_w - α_n, limited by α <= 1: no subtraction of nearly equal numbers
+        sx = g.minimum(g.mul(lx, gm), g.sub(1.0, ax))
+        sy = g.minimum(g.mul(ly, gm), g.sub(1.0, ay))
+        # aspect <= 10: shorten the halo's long axis (never below α_n), to 10 α_w^y - α_n^x =
+        # 10 s_y + (10 α_n^y - α_n^x) with 10 α_n^y - α_n^x = 9 α (1-a)/s (+ what α <= 1 cut off
+        # α_n^x): formed without cancellation (at a = 1 the raw difference is pure rounding)
+        d_x = g.add(g.div(g.mul(g.mul(alpha, 9.0), g.sub(1.0, a)), s),
+                    g.maximum(g.sub(ax_raw, 1.0), 0.0), label="10 α_n^y - α_n^x")
+        if distribution == "ASHIKHMIN_SHIRLEY":
+            floored = g.maximum(g.less(ax, _AS_ALPHA_MIN), g.less(ay, _AS_ALPHA_MIN))
+            ax, sx = _as_floor(g, ax, sx)
+            ay, sy = _as_floor(g, ay, sy)
+            # a floored α_n^y is the constant 1e-4: the difference is then formed directly
+            d_x = g.select(floored, g.madd(ay, K.MAX_ASPECT, g.mul(ax, -1.0)), d_x)
+        sx_lim = g.minimum(sx, g.madd(sy, K.MAX_ASPECT, d_x))
+        sy = g.minimum(sy, g.maximum(g.madd(g.add(ax, sx), K.MAX_ASPECT, g.mul(ay, -1.0)), 0.0))
+        sx = sx_lim
+        wx2 = g.add(ax, sx, label="α_w^x")
+        wy2 = g.add(ay, sy, label="α_w^y")
+        px, qx = _axis_ratio(g, ax, wx2, sx, distribution)
+        py, qy = _axis_ratio(g, ay, wy2, sy, distribution)
+        p = g.mul(px, py, label="p")
+        q = g.madd(px, qy, qx, label="q = 1 - p")
+        out["alpha_wide"] = (wx2, wy2)
+        if kind == "LEGACY":  # Glossy's convention: a = s - 1 gives α_x = R²/s, α_y = R² s
+            out["anisotropy_narrow"] = g.sub(s, 1.0, label="Glossy anisotropy")
+    else:
+        lam = g.maximum(src["haze_extent_x"], 0.0)
+        spread = g.minimum(g.mul(lam, alpha), g.sub(1.0, alpha))
+        if distribution == "ASHIKHMIN_SHIRLEY":
+            alpha, spread = _as_floor(g, alpha, spread)
+        aw = g.add(alpha, spread, label="α_w")
+        px, qx = _axis_ratio(g, alpha, aw, spread, distribution)
+        p = g.mul(px, px, label="p")
+        q = g.madd(px, qx, qx, label="q = 1 - p")
+        out["alpha_wide"] = (aw, aw)
+    out["peak_ratio"] = p
+    out["peak_complement"] = q
+
+    # -- haze intensity, β and 1 - r̂ on r̂_c (Eq. 7 or the Bézier) -----------------------------
+    rc_max = g.channel_max(rc)
+    kh, beta, omr_hat = haze_terms(g, rc_max, p, q, bh, src.get("smoothness") if smooth else None)
+    out["beta"] = beta
+    out["halo_intensity"] = kh
+
+    # -- Eq. 5 with the core's chroma, and 1 - r per channel without cancellation ---------------
+    r, omr_v, chroma, gain = reflectivity(g, rc, rc_max, q, kh, omr_hat)
+    out["reflectivity"] = r
+    out["gain"] = gain
+
+    if kind == "CONDUCTOR":
+        out["ior"], out["extinction"] = gulbrandsen(g, r, omr_v, src["edge_tint"])
+    elif kind == "DIELECTRIC":
+        r_max = g.minimum(g.madd(q, kh, rc_max), K.ONE_MINUS_ULP32, label="r̂")
+        sq = g.add(g.sqrt(r_max), 1.0)
+        out["ior"] = g.div(g.mul(sq, sq), omr_hat, label="η = (1+√r̂)/(1-√r̂)")
+        out["specular_tint"] = chroma  # black where r_c = 0 (r̂ = 0 there: it does not matter)
+    else:
+        out["colour_narrow"] = g.vmath("SCALE", r, g.sub(1.0, beta), label="k_n = (1-β) r")
+        out["colour_wide"] = g.vmath("SCALE", r, beta, label="k_w = β r")
+
+    # -- the wide lobe in the node's convention --------------------------------------------------
+    wx, wy = out["alpha_wide"]
+    if anisotropic:
+        out["roughness_wide"] = g.sqrt(g.sqrt(g.mul(wx, wy)), label="R_w = (α_x α_y)^¼")
+        ratio = g.div(g.minimum(wx, wy), g.maximum(wx, wy))
+        if kind == "LEGACY":
+            out["anisotropy_wide"] = g.sub(g.sqrt(ratio), 1.0, label="Glossy anisotropy")
+        else:
+            out["anisotropy_wide"] = g.clamp(g.div(g.sub(1.0, ratio), 0.9), 0.0, 1.0,
+                                             label="Metallic anisotropy")
+        rot = g.maximum(g.minimum(src["rotation"], 1e6), -1e6)  # finite turns (NaN, ±inf)
+        out["rotation_wide"] = g.madd(g.less(wx, wy), 0.25, rot, label="rotation (+¼ if α_x < α_y)")
+    else:
+        out["roughness_wide"] = g.sqrt(wx, label="R_w = √α_w")
+    out["roughness"] = rough
+    return out
+
+
+#: Cycles clamps Ashikhmin-Shirley α to >= 1e-4 (bsdf_ashikhmin_shirley_setup).
+_AS_ALPHA_MIN = 1e-4
+
+
+def _as_floor(g, an, spread):
+    """Cycles' Ashikhmin-Shirley floor α >= 1e-4 on both lobes of one axis: (α_n, α_w - α_n)
+    as rendered (core.mapping clips α_n and α_w alike); the spread is recomputed only where the
+    floor acts, so it keeps its digits elsewhere."""
+    low = g.less(an, _AS_ALPHA_MIN)
+    an_c = g.maximum(an, _AS_ALPHA_MIN)
+    lifted = g.maximum(g.sub(g.add(an, spread), _AS_ALPHA_MIN), 0.0)
+    return an_c, g.select(low, lifted, spread)
+
+
+def _axis_ratio(g, an, aw, spread, distribution):
+    """Per-axis peak ratio and its complement (hazy_gloss.core.mapping._axis_ratio)."""
+    if distribution == "ASHIKHMIN_SHIRLEY":
+        # Cycles' AS: peak ∝ sqrt((n_x+1)(n_y+1)), n+1 = (2-α²)/α²
+        den = g.mul(g.mul(aw, aw), g.madd(an, g.mul(an, -1.0), 2.0))
+        p2 = g.div(g.mul(g.mul(an, an), g.madd(aw, g.mul(aw, -1.0), 2.0)), den)
+        one_minus_p2 = g.div(g.mul(g.mul(spread, g.add(aw, an)), 2.0), den)
+        px = g.sqrt(p2)
+        return px, g.div(one_minus_p2, g.add(px, 1.0))
+    return g.div(an, aw), g.div(spread, aw)
+
+
+def haze_terms(g, rc_max, p, q, bh, smoothness=None):
+    """(k̂_h, β, 1 - r̂) from r̂_c, p, q = 1 - p and β_h: Eq. 7 (``smoothness`` None) or the
+    rational Bézier through its implicit equation (docs/mapping.md §5-6)."""
+    omr = g.sub(1.0, rc_max, label="1 - r̂_c")
+    omb = g.sub(1.0, bh, label="1 - β_h")
+    low_p = g.less(p, 0.5)
+    # p - r̂_c without cancellation: near 1 subtract the complements instead
+    p_minus_rc = g.select(low_p, g.sub(p, rc_max), g.sub(omr, q), label="p - r̂_c")
+    if smoothness is not None:
+        w = g.maximum(smoothness, K.MIN_SMOOTHNESS)
+        ms = g.div(g.sqrt(g.mul(rc_max, omr)), w)
+        hyp = g.sqrt(g.madd(p_minus_rc, p_minus_rc, g.mul(ms, ms)))
+        den = g.add(g.madd(rc_max, q, g.mul(p, omr)), hyp, label="conic denominator")
+        t = g.div(g.mul(g.mul(rc_max, omr), 2.0), den)
+        kh = g.mul(bh, t, label="k̂_h (Eq. 15)")
+        two_omr_bh = g.mul(g.mul(omr, bh), 2.0)
+        beta = g.div(two_omr_bh, g.madd(q, two_omr_bh, den), label="β (Eq. 4)")
+        # 1 - r̂ = c_0 + (1-p) t (1-β_h); c_0 from the conic t² = 4w²c_0c_2 when it is the smaller
+        c0 = g.madd(q, g.mul(t, -1.0), omr)
+        c2 = g.madd(p, g.mul(t, -1.0), rc_max)
+        tw = g.div(t, w)
+        c0_conic = g.div(g.mul(tw, tw), g.mul(g.maximum(c2, _DIV_MIN), 4.0))
+        c0 = g.maximum(g.select(g.less(c0, c2), c0_conic, c0), 0.0)
+        omr_hat = g.madd(g.mul(q, t), omb, c0, label="1 - r̂")
+    else:
+        # r̂_c > p: the energy branch of Eq. 7, decided on the accurate complements when p > 1/2
+        upper = g.select(low_p, g.less(p, rc_max), g.less(omr, q))
+        q_div, p_div = g.maximum(q, _DIV_MIN), g.maximum(p, _DIV_MIN)
+        kh = g.mul(bh, g.select(upper, g.div(omr, q_div), g.div(rc_max, p_div)), label="k̂_h (Eq. 7)")
+        # β = β_h / (σ + (1-p) β_h), σ = p or r̂_c (1-p)/(1-r̂_c); the energy branch multiplied
+        # through by 1 - r̂_c so r̂_c = 1 gives β = 0 (a safe divide by 0 would give 1/(1-p))
+        beta_up = g.div(g.mul(bh, omr), g.mul(q_div, g.madd(bh, omr, rc_max)))
+        beta_lo = g.div(bh, g.madd(q, bh, p))
+        beta = g.select(upper, beta_up, beta_lo, label="β (Eq. 4)")
+        # 1 - r̂ in non-negative terms: (1-r̂_c)(1-β_h), or ((p-r̂_c) + r̂_c (1-p)(1-β_h))/p
+        omr_lo = g.div(g.madd(g.mul(rc_max, q), omb, g.maximum(p_minus_rc, 0.0)), p_div)
+        omr_hat = g.select(upper, g.mul(omr, omb), omr_lo, label="1 - r̂")
+    beta = g.clamp(beta, 0.0, 1.0)
+    omr_hat = g.maximum(omr_hat, _TINY)
+    return kh, beta, omr_hat
+
+
+def reflectivity(g, rc, rc_max, q, kh, omr_hat):
+    """Eq. 5 with the core's chroma c = r_c / r̂_c: (r, 1 - r, c, gain = r̂ / r̂_c), with
+    1 - r = (1 - c) + c (1 - r̂) per channel (no cancellation as r -> 1)."""
+    gain = g.add(1.0, g.div(g.mul(q, kh), g.maximum(rc_max, _DIV_MIN)), label="r̂ / r̂_c")
+    r = g.vmath("MINIMUM", g.vmath("SCALE", rc, gain), K.ONE_MINUS_ULP32, label="r")
+    # a true division (not a scale by 1/r̂_c), so the max channel's chroma is exactly 1
+    chroma = g.vmath("DIVIDE", rc, rc_max, label="chroma c")
+    omr_v = g.vmath("MULTIPLY_ADD", chroma, omr_hat, g.vmath("SUBTRACT", 1.0, chroma),
+                    label="1 - r")
+    omr_v = g.vmath("MAXIMUM", omr_v, _TINY)
+    return r, omr_v, chroma, gain
+
+
+def gulbrandsen(g, r, omr_v, edge_tint):
+    """Gulbrandsen 2014 (η, κ) from r, 1 - r and g per channel, κ in non-negative terms
+    (docs/mapping.md §7)."""
+    gt = g.vmath("MINIMUM", g.vmath("MAXIMUM", edge_tint, 0.0), 1.0, label="g")
+    s = g.vmath("POWER", r, 0.5, label="√r")
+    ops = g.vmath("ADD", s, 1.0)
+    n_d = g.vmath("DIVIDE", g.vmath("MULTIPLY", ops, ops), omr_v, label="(1+√r)/(1-√r)")
+    opr = g.vmath("ADD", r, 1.0)
+    n_m = g.vmath("DIVIDE", omr_v, opr, label="(1-r)/(1+r)")
+    one_minus_g = g.vmath("SUBTRACT", 1.0, gt)
+    eta = g.vmath("MULTIPLY_ADD", gt, n_m, g.vmath("MULTIPLY", one_minus_g, n_d), label="η")
+    gr = g.vmath("DIVIDE", gt, opr)
+    # 2(1-g)/(1-√r)² = 2(1-g) n_d / (1-r)
+    edge = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SCALE", one_minus_g, 2.0), n_d), omr_v)
+    inner = g.vmath("MULTIPLY", gr, g.vmath("ADD", gr, edge))
+    kappa = g.vmath("MULTIPLY", g.vmath("SCALE", s, 2.0), g.vmath("POWER", inner, 0.5), label="κ")
+    return eta, kappa

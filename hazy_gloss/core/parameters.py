@@ -1,0 +1,189 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The perceptual parameters of a hazy material: names, defaults, valid ranges (bpy-free).
+
+One schema for every entry point: :func:`normalise` checks the parameters of one material
+(the scripting API, the panel, presets) and raises ValueError with one line naming the
+parameter and what would be valid; :func:`sanitise` clamps and counts bad texels of a map
+(texture conversion) with the same ranges.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+
+import numpy as np
+
+from .. import constants as K
+from .lobes import check_kind
+
+__all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "normalise", "sanitise", "is_anisotropic")
+
+#: Every perceptual parameter of a hazy material (the stamp's keys).
+PARAMETERS = ("kind", "distribution", "core_reflectivity", "edge_tint", "roughness", "anisotropy",
+              "rotation", "haziness", "haze_extent", "smoothness", "shader_mapping", "base_color",
+              "transmission", "tangent")
+
+DEFAULTS = dict(kind="CONDUCTOR", distribution="GGX", core_reflectivity=(0.5, 0.5, 0.5),
+                edge_tint=(0.0, 0.0, 0.0), roughness=0.1, anisotropy=0.0, rotation=0.0,
+                haziness=0.5, haze_extent=(5.0, 5.0), smoothness=None, shader_mapping=False,
+                base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP")
+
+TANGENTS = ("UV_MAP", "RADIAL_X", "RADIAL_Y", "RADIAL_Z")
+
+#: (lo, hi) of the numeric parameters, hi None = unbounded; colours per channel.
+RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "base_color": (0.0, 1.0),
+          "roughness": (0.0, 1.0), "anisotropy": (0.0, 1.0), "transmission": (0.0, 1.0),
+          "haziness": (0.0, K.MAX_HAZINESS), "haze_extent": (0.0, None),
+          "rotation": (-math.inf, math.inf), "smoothness": (K.MIN_SMOOTHNESS, math.inf)}
+_COLOURS = ("core_reflectivity", "edge_tint", "base_color")
+_WHY = {"haziness": " (1 would break energy conservation)",
+        "haze_extent": " (units of the core's roughness)",
+        "smoothness": " (the Bézier weight w; None selects Eq. 7)"}
+
+
+def _fail(msg):
+    raise ValueError(msg)
+
+
+def _number(name, value):
+    if isinstance(value, bool) or isinstance(value, str) or value is None:
+        _fail(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        _fail(f"{name} must be a number, got {value!r}")
+    if math.isnan(x):
+        _fail(f"{name} is NaN")
+    return x
+
+
+def _in_range(name, x):
+    lo, hi = RANGES[name]
+    if x < lo or (hi is not None and x > hi) or (hi is None and math.isinf(x)):
+        rng = f"[{lo:g}, {hi:g}]" if hi is not None and not math.isinf(hi) else f">= {lo:g} and finite"
+        if name == "rotation":
+            rng = "finite (turns)"
+        _fail(f"{name} must be {'in ' if rng.startswith('[') else ''}{rng}{_WHY.get(name, '')}, "
+              f"got {x:g}")
+    return x
+
+
+def _colour(name, value):
+    if isinstance(value, str):
+        _fail(f"{name} must be a number or an RGB triple of numbers, got the string {value!r}")
+    if np.ndim(value) == 0:
+        rgb = (_number(name, value),) * 3
+    else:
+        try:
+            items = list(value)
+        except TypeError:
+            _fail(f"{name} must be a number or an RGB triple, got {value!r}")
+        if len(items) == 4:  # RGBA from a colour socket or FloatVectorProperty: alpha ignored
+            items = items[:3]
+        if len(items) != 3:
+            _fail(f"{name} must be a number or an RGB triple, got {len(items)} values")
+        rgb = tuple(_number(name, v) for v in items)
+    lo, hi = RANGES[name]
+    if any(x < lo or x > hi for x in rgb):
+        hint = ""
+        if max(rgb) > 1.0 and all(0.0 <= x <= 255.0 for x in rgb):
+            hint = " (0-255 colours: divide by 255; linear, not sRGB)"
+        _fail(f"{name} must be linear RGB in [0, 1], got {tuple(rgb)}{hint}")
+    return tuple(float(x) for x in rgb)
+
+
+def _extent(value):
+    if isinstance(value, (tuple, list, np.ndarray)):
+        if len(value) != 2:
+            _fail(f"haze_extent must be a number or an (x, y) pair, got {len(value)} values")
+        x, y = (_in_range("haze_extent", _number("haze_extent", v)) for v in value)
+        return (x, y)
+    x = _in_range("haze_extent", _number("haze_extent", value))
+    return (x, x)
+
+
+def _choice(name, value, options):
+    v = str(value).upper().replace(" ", "_").replace("-", "_")
+    if v in ("MULTISCATTER_GGX", "MULTI_SCATTER_GGX"):
+        v = "MULTI_GGX"
+    if v not in options:
+        close = difflib.get_close_matches(v, options, n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        _fail(f"{name} must be one of {', '.join(options)}, got {value!r}{hint}")
+    return v
+
+
+def normalise(params, explicit=None):
+    """Fill the defaults and check one material's parameters; returns a new dict.
+
+    ``explicit``: the names the caller set (default: all of ``params``); only those are refused
+    for not applying to the kind (a base colour kept from a dielectric is not an error).
+    Raises ValueError with one line naming the parameter and what is valid."""
+    if not isinstance(params, dict):
+        _fail(f"parameters must be a dict, got {type(params).__name__}")
+    unknown = sorted(set(params) - set(PARAMETERS))
+    if unknown:
+        parts = []
+        for name in unknown:
+            close = difflib.get_close_matches(str(name), PARAMETERS, n=1)
+            parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+        _fail(f"unknown hazy parameter{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
+              f"valid: {', '.join(PARAMETERS)}")
+    p = dict(DEFAULTS)
+    p.update(params)
+    p["kind"] = _choice("kind", p["kind"], K.KINDS)
+    p["distribution"] = _choice("distribution", p["distribution"], K.DISTRIBUTIONS)
+    check_kind(p["kind"], p["distribution"])
+    for name in _COLOURS:
+        p[name] = _colour(name, p[name])
+    if p["kind"] != "CONDUCTOR":
+        p["edge_tint"] = (0.0, 0.0, 0.0)
+    explicit = set(params) if explicit is None else set(explicit)
+    if p["kind"] != "DIELECTRIC" and p["base_color"] != (0.0, 0.0, 0.0) and "base_color" in explicit:
+        _fail(f"base_color applies to dielectrics only; a {p['kind'].lower()} has no base layer")
+    p["haze_extent"] = _extent(p["haze_extent"])
+    for name in ("roughness", "anisotropy", "rotation", "haziness", "transmission"):
+        p[name] = _in_range(name, _number(name, p[name]))
+    if p["smoothness"] is not None:
+        p["smoothness"] = _in_range("smoothness", _number("smoothness", p["smoothness"]))
+    if not isinstance(p["shader_mapping"], (bool, int, np.bool_)):
+        _fail(f"shader_mapping must be True or False, got {p['shader_mapping']!r}")
+    p["shader_mapping"] = bool(p["shader_mapping"])
+    p["tangent"] = _choice("tangent", p["tangent"], TANGENTS)
+    return p
+
+
+def is_anisotropic(p):
+    """Whether one material needs anisotropic lobes (anisotropy > 0 or λ_h^x != λ_h^y)."""
+    return p["anisotropy"] > 0.0 or p["haze_extent"][0] != p["haze_extent"][1]
+
+
+def sanitise(values, name, clamped, *, range_name=None, above_reason=None):
+    """A float32 map of parameter ``name`` with NaN -> the lower bound and out-of-range texels
+    clamped; adds the counts per reason to ``clamped`` (a colour texel counts once)."""
+    a = np.asarray(values, dtype=np.float32)
+    lo, hi = RANGES[range_name or name]
+    if name == "rotation":  # any finite number of turns; NaN and ±inf -> 0
+        bad = ~np.isfinite(a)
+        n = int(np.count_nonzero(bad))
+        if n:
+            reason = "rotation is not finite (set to 0)"
+            clamped[reason] = clamped.get(reason, 0) + n
+            a = np.where(bad, np.float32(0), a).astype(np.float32)
+        return a
+    per_texel = (lambda m: m.any(axis=-1)) if a.ndim == 3 else (lambda m: m)
+    lo_v = np.float32(lo)
+    hi_v = np.float32(hi if hi is not None else np.finfo(np.float32).max)
+    nan = np.isnan(a)
+    below = a < lo_v
+    above = a > hi_v
+    if not (nan.any() or below.any() or above.any()):  # the common case: no per-texel pass
+        return a
+    if above_reason is None:
+        above_reason = f"{name} > {hi:g}" if hi is not None else f"{name} is +inf"
+    for reason, mask in ((f"{name} is NaN (set to {lo:g})", nan), (f"{name} < {lo:g}", below),
+                         (above_reason, above)):
+        n = int(np.count_nonzero(per_texel(mask))) if mask.any() else 0
+        if n:
+            clamped[reason] = clamped.get(reason, 0) + n
+    return np.clip(np.where(nan, lo_v, a), lo_v, hi_v).astype(np.float32)
