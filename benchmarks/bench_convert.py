@@ -165,25 +165,19 @@ def read_inputs(bconv, core, paths):
 
 
 def naive_loop(hg_api, arrays, crop):
-    """api.map_parameters per texel (float64 scalars), on a crop: seconds per texel."""
-    import numpy as np
-    from hazy_gloss.core import haze_mapping
-    from hazy_gloss.core.conventions import (ALPHA_MAX, MAX_ASPECT, alpha_from_roughness,
-                                              lobe_from_alpha, metallic_anisotropy)
+    """The one-material description (core.lobes.describe, float64 scalars) per texel, on a
+    crop: seconds per texel."""
+    from hazy_gloss.core.lobes import describe
     t = time.perf_counter()
     for i in range(crop):
         for j in range(crop):
-            rough = max(float(arrays["roughness"][i, j]), 0.004)
-            a = float(arrays["anisotropy"][i, j])
-            ax, ay = alpha_from_roughness(rough, a)
-            m = haze_mapping(tuple(arrays["core_reflectivity"][i, j]), tuple(arrays["edge_tint"][i, j]),
-                             (float(ax), float(ay)), float(arrays["haziness"][i, j]),
-                             (float(arrays["haze_extent_x"][i, j]), float(arrays["haze_extent_y"][i, j])),
-                             alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT, strict=False)
-            r_w, ratio, swap = lobe_from_alpha(*m.alpha_wide)
-            metallic_anisotropy(ratio)
-            float(arrays["rotation"][i, j]) + 0.25 * bool(swap)
-            np.asarray(m.ior), np.asarray(m.extinction), float(m.beta)
+            describe("CONDUCTOR", core_reflectivity=tuple(map(float, arrays["core_reflectivity"][i, j])),
+                     edge_tint=tuple(map(float, arrays["edge_tint"][i, j])),
+                     roughness=float(arrays["roughness"][i, j]),
+                     anisotropy=float(arrays["anisotropy"][i, j]), rotation=float(arrays["rotation"][i, j]),
+                     haziness=float(arrays["haziness"][i, j]),
+                     haze_extent=(float(arrays["haze_extent_x"][i, j]), float(arrays["haze_extent_y"][i, j])),
+                     anisotropic=True, strict=False)
     return (time.perf_counter() - t) / (crop * crop)
 
 

@@ -54,8 +54,7 @@ def main():
     C.start_blender()
     import bpy
     from hazy_gloss import api, convert as hconv
-    from hazy_gloss.core import haze_mapping
-    from hazy_gloss.core.conventions import ALPHA_MAX, MAX_ASPECT, MIN_ROUGHNESS
+    from hazy_gloss.core.lobes import describe
     import perf_scene as P
     import scenes
 
@@ -116,13 +115,12 @@ def main():
     mapped = _map(hconv, pm)
     t_convert = time.perf_counter() - t0
     # float64 truth of the same inputs
-    rough = np.maximum(pm["roughness"].astype(np.float64), MIN_ROUGHNESS)
-    truth = haze_mapping(pm["core_reflectivity"].astype(np.float64),
-                         pm["edge_tint"].astype(np.float64), rough * rough,
-                         pm["haziness"].astype(np.float64), pm["haze_extent"].astype(np.float64),
-                         alpha_max=ALPHA_MAX, max_aspect=MAX_ASPECT, strict=False)
-    true_maps = {"ior": truth.ior, "extinction": truth.extinction, "beta": truth.beta,
-                 "roughness_wide": np.sqrt(truth.alpha_wide[0])}
+    f64 = {k: v.astype(np.float64) for k, v in pm.items()}
+    truth = describe("CONDUCTOR", core_reflectivity=f64["core_reflectivity"],
+                     edge_tint=f64["edge_tint"], roughness=f64["roughness"],
+                     haziness=f64["haziness"], haze_extent=f64["haze_extent"], strict=False)
+    true_maps = {"ior": truth.fresnel["ior"], "extinction": truth.fresnel["extinction"],
+                 "beta": truth.beta, "roughness_wide": truth.wide.roughness}
 
     res = {"size": SIZE, "samples": SAMPLES, "rounds": ROUNDS, "formats": {},
            "convert_seconds": t_convert,

@@ -144,25 +144,25 @@ def _new_material(name):
 
 
 def physical(api, params):
-    """The physical values of Eq. 1 for ``params`` (api.map_parameters) in node conventions."""
-    from hazy_gloss.core.conventions import (alpha_from_roughness, lobe_from_alpha,
-                                              metallic_anisotropy)
+    """The physical values of Eq. 1 for ``params`` in node conventions (api.lobes_for: the one
+    description the add-on builds from), for the hand-built equivalents."""
     p = api.normalise_parameters(dict(params))
-    m = api.map_parameters(p)
-    nx, ny = (float(a) for a in alpha_from_roughness(p["roughness"], p["anisotropy"]))
-    wx, wy = (float(np.asarray(a)) for a in m.alpha_wide)
-    r_w, ratio, swap = lobe_from_alpha(wx, wy)
+    d = api.lobes_for(p)
+    m = d.mapping
+    wide = d.wide if d.wide is not None else d.narrow
     rc = np.asarray(p["core_reflectivity"])
     return dict(
-        p=p, m=m, kind=p["kind"], beta=float(m.beta), roughness=p["roughness"],
+        p=p, m=m, kind=p["kind"], beta=float(m.beta), roughness=d.narrow.roughness,
         anisotropy=p["anisotropy"], rotation=p["rotation"],
-        roughness_wide=float(r_w), anisotropy_wide=float(metallic_anisotropy(ratio)),
-        rotation_wide=p["rotation"] + 0.25 * bool(swap),
+        roughness_wide=float(wide.roughness),
+        anisotropy_wide=float(wide.anisotropy) if wide.anisotropy is not None else 0.0,
+        rotation_wide=float(wide.rotation) if wide.rotation is not None else p["rotation"],
         ior=tuple(float(x) for x in m.ior), extinction=tuple(float(x) for x in m.extinction),
         dielectric_ior=float(m.dielectric_ior),
         tint=tuple(float(x) for x in (rc / rc.max() if rc.max() > 0 else np.ones(3))),
-        base_color=p["base_color"], alpha=(nx, ny), alpha_wide=(wx, wy),
-        anisotropic=p["anisotropy"] > 0 or p["haze_extent"][0] != p["haze_extent"][1],
+        base_color=p["base_color"], alpha=tuple(float(a) for a in m.alpha),
+        alpha_wide=tuple(float(np.asarray(a)) for a in m.alpha_wide),
+        anisotropic=d.anisotropic,
         tangent_axis=p["tangent"][-1] if p["tangent"] != "UV_MAP" else None)
 
 

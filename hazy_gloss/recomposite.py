@@ -148,11 +148,11 @@ def compositor_graph(g, i):
     fh, fr = i["haziness_factor"], i["core_reflectivity_factor"]
     bh = g.clamp(g.madd(g.sub(i["new_haziness"], bh0), fh, bh0), 0.0, K.MAX_HAZINESS, label="β_h")
     rc = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", i["new_core_reflectivity"], rc0), fr, rc0)
-    rc = g.vmath("MINIMUM", g.vmath("MAXIMUM", rc, 0.0), 1.0, label="r_c")
+    rc = g.vclamp01(rc, label="r_c")
     rc_max = g.channel_max(rc)
     # -- Eq. 7 (k̂_h), Eq. 4 (β), Eq. 5 with the core's chroma (r): the material's own forms -----
-    kh, beta1, omr_hat = node_math.haze_terms(g, rc_max, p, q, bh)
-    r1 = node_math.reflectivity(g, rc, rc_max, q, kh, omr_hat)[0]
+    _, beta1, omr_hat, r_hat = node_math.haze_terms(g, rc_max, p, q, bh)
+    r1 = node_math.reflectivity(g, rc, rc_max, r_hat, omr_hat)[0]
     # -- keep the rendered β, r where nothing is edited; zero outside hazy surfaces ------------
     edited = g.mul(g.math("GREATER_THAN", g.add(fh, fr), 0.0), hazy, label="edited")
     keep = g.sub(hazy, edited)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from .. import constants as K
 
-__all__ = ("mapping", "haze_terms", "reflectivity", "INPUTS")
+__all__ = ("mapping", "haze_terms", "reflectivity", "gulbrandsen", "INPUTS")
 
 #: Inputs of :func:`mapping` (vector ones are colours).
 INPUTS = {"core_reflectivity": True, "edge_tint": True, "roughness": False, "anisotropy": False,
@@ -29,14 +29,14 @@ _DIV_MIN = 1e-30
 def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
     """The physical parameters of Eq. 1 from perceptual inputs ``src`` (name -> Expr or number;
     see INPUTS).  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
-    rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity, gain
-    (r̂ / r̂_c), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
+    rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity,
+    reflectivity_max (r̂), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
     (dielectric) or colour_narrow + colour_wide (legacy)."""
     out = {}
     # -- the valid domain (textures can hold anything) -----------------------------------------
     rough = g.clamp(src["roughness"], K.min_roughness(distribution), 1.0, label="R")
     bh = g.clamp(src["haziness"], 0.0, K.MAX_HAZINESS, label="β_h")
-    rc = g.vmath("MINIMUM", g.vmath("MAXIMUM", src["core_reflectivity"], 0.0), 1.0, label="r_c")
+    rc = g.vclamp01(src["core_reflectivity"], label="r_c")
     alpha = g.mul(rough, rough, label="α = R²")
 
     # -- Eq. 8 with Cycles' α <= 1 and aspect <= 10; p and q = 1 - p (Table 2) -----------------
@@ -90,21 +90,21 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
 
     # -- haze intensity, β and 1 - r̂ on r̂_c (Eq. 7 or the Bézier) -----------------------------
     rc_max = g.channel_max(rc)
-    kh, beta, omr_hat = haze_terms(g, rc_max, p, q, bh, src.get("smoothness") if smooth else None)
+    kh, beta, omr_hat, r_hat = haze_terms(g, rc_max, p, q, bh,
+                                          src.get("smoothness") if smooth else None)
     out["beta"] = beta
     out["halo_intensity"] = kh
+    out["reflectivity_max"] = r_hat
 
     # -- Eq. 5 with the core's chroma, and 1 - r per channel without cancellation ---------------
-    r, omr_v, chroma, gain = reflectivity(g, rc, rc_max, q, kh, omr_hat)
+    r, omr_v, chroma = reflectivity(g, rc, rc_max, r_hat, omr_hat)
     out["reflectivity"] = r
-    out["gain"] = gain
 
     if kind == "CONDUCTOR":
         out["ior"], out["extinction"] = gulbrandsen(g, r, omr_v, src["edge_tint"])
     elif kind == "DIELECTRIC":
-        r_max = g.minimum(g.madd(q, kh, rc_max), K.ONE_MINUS_ULP32, label="r̂")
-        sq = g.add(g.sqrt(r_max), 1.0)
-        out["ior"] = g.div(g.mul(sq, sq), omr_hat, label="η = (1+√r̂)/(1-√r̂)")
+        sq = g.add(g.sqrt(r_hat), 1.0)
+        out["ior"] = g.div(g.mul(sq, sq), g.maximum(omr_hat, _TINY), label="η = (1+√r̂)/(1-√r̂)")
         out["specular_tint"] = chroma  # black where r_c = 0 (r̂ = 0 there: it does not matter)
     else:
         out["colour_narrow"] = g.vmath("SCALE", r, g.sub(1.0, beta), label="k_n = (1-β) r")
@@ -155,13 +155,15 @@ def _axis_ratio(g, an, aw, spread, distribution):
 
 
 def haze_terms(g, rc_max, p, q, bh, smoothness=None):
-    """(k̂_h, β, 1 - r̂) from r̂_c, p, q = 1 - p and β_h: Eq. 7 (``smoothness`` None) or the
-    rational Bézier through its implicit equation (docs/mapping.md §5-6)."""
+    """(k̂_h, β, 1 - r̂, r̂) from r̂_c, p, q = 1 - p and β_h: Eq. 7 (``smoothness`` None) or
+    the rational Bézier through its implicit equation (docs/mapping.md §5-6).
+
+    β = k̂_h / r̂ (Eq. 4): 0 at r̂_c = 0, where the numpy mapping returns the limit
+    β_h / (p + (1-p) β_h) — nothing renders differently there, both lobes reflect 0."""
     omr = g.sub(1.0, rc_max, label="1 - r̂_c")
     omb = g.sub(1.0, bh, label="1 - β_h")
-    low_p = g.less(p, 0.5)
     # p - r̂_c without cancellation: near 1 subtract the complements instead
-    p_minus_rc = g.select(low_p, g.sub(p, rc_max), g.sub(omr, q), label="p - r̂_c")
+    p_minus_rc = g.select(g.less(p, 0.5), g.sub(p, rc_max), g.sub(omr, q), label="p - r̂_c")
     if smoothness is not None:
         w = g.maximum(smoothness, K.MIN_SMOOTHNESS)
         ms = g.div(g.sqrt(g.mul(rc_max, omr)), w)
@@ -169,8 +171,7 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         den = g.add(g.madd(rc_max, q, g.mul(p, omr)), hyp, label="conic denominator")
         t = g.div(g.mul(g.mul(rc_max, omr), 2.0), den)
         kh = g.mul(bh, t, label="k̂_h (Eq. 15)")
-        two_omr_bh = g.mul(g.mul(omr, bh), 2.0)
-        beta = g.div(two_omr_bh, g.madd(q, two_omr_bh, den), label="β (Eq. 4)")
+        r_hat = g.madd(q, kh, rc_max, label="r̂ (Eq. 5)")
         # 1 - r̂ = c_0 + (1-p) t (1-β_h); c_0 from the conic t² = 4w²c_0c_2 when it is the smaller
         c0 = g.madd(q, g.mul(t, -1.0), omr)
         c2 = g.madd(p, g.mul(t, -1.0), rc_max)
@@ -179,50 +180,52 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         c0 = g.maximum(g.select(g.less(c0, c2), c0_conic, c0), 0.0)
         omr_hat = g.madd(g.mul(q, t), omb, c0, label="1 - r̂")
     else:
-        # r̂_c > p: the energy branch of Eq. 7, decided on the accurate complements when p > 1/2
-        upper = g.select(low_p, g.less(p, rc_max), g.less(omr, q))
-        q_div, p_div = g.maximum(q, _DIV_MIN), g.maximum(p, _DIV_MIN)
-        kh = g.mul(bh, g.select(upper, g.div(omr, q_div), g.div(rc_max, p_div)), label="k̂_h (Eq. 7)")
-        # β = β_h / (σ + (1-p) β_h), σ = p or r̂_c (1-p)/(1-r̂_c); the energy branch multiplied
-        # through by 1 - r̂_c so r̂_c = 1 gives β = 0 (a safe divide by 0 would give 1/(1-p))
-        beta_up = g.div(g.mul(bh, omr), g.mul(q_div, g.madd(bh, omr, rc_max)))
-        beta_lo = g.div(bh, g.madd(q, bh, p))
-        beta = g.select(upper, beta_up, beta_lo, label="β (Eq. 4)")
-        # 1 - r̂ in non-negative terms: (1-r̂_c)(1-β_h), or ((p-r̂_c) + r̂_c (1-p)(1-β_h))/p
+        # r̂_c > p: the energy branch of Eq. 7, decided on p - r̂_c (accurate on both sides of
+        # 1/2); each branch in its own cancellation-free form, then one select per output
+        upper = g.less(p_minus_rc, 0.0)
+        # energy side: k̂_h = β_h (1-r̂_c)/(1-p), r̂ = r̂_c + β_h (1-r̂_c), 1 - r̂ = (1-r̂_c)(1-β_h)
+        bh_omr = g.mul(bh, omr)
+        r_up = g.add(rc_max, bh_omr)
+        kh_up = g.div(bh_omr, g.maximum(q, _DIV_MIN))
+        omr_up = g.mul(omr, omb)
+        # positivity side: k̂_h = β_h r̂_c / p, 1 - r̂ = ((p - r̂_c) + r̂_c (1-p)(1-β_h)) / p
+        p_div = g.maximum(p, _DIV_MIN)
+        kh_lo = g.mul(bh, g.div(rc_max, p_div))
+        r_lo = g.madd(q, kh_lo, rc_max)
         omr_lo = g.div(g.madd(g.mul(rc_max, q), omb, g.maximum(p_minus_rc, 0.0)), p_div)
-        omr_hat = g.select(upper, g.mul(omr, omb), omr_lo, label="1 - r̂")
-    beta = g.clamp(beta, 0.0, 1.0)
-    omr_hat = g.maximum(omr_hat, _TINY)
-    return kh, beta, omr_hat
+        kh = g.select(upper, kh_up, kh_lo, label="k̂_h (Eq. 7)")
+        r_hat = g.select(upper, r_up, r_lo, label="r̂ (Eq. 5)")
+        omr_hat = g.select(upper, omr_up, omr_lo, label="1 - r̂")
+    # no clamp: β is in [0, 1] up to rounding and the Mix Shader clamps its factor
+    beta = g.div(kh, r_hat, label="β = k̂_h / r̂ (Eq. 4)")
+    return kh, beta, omr_hat, r_hat
 
 
-def reflectivity(g, rc, rc_max, q, kh, omr_hat):
-    """Eq. 5 with the core's chroma c = r_c / r̂_c: (r, 1 - r, c, gain = r̂ / r̂_c), with
-    1 - r = (1 - c) + c (1 - r̂) per channel (no cancellation as r -> 1)."""
-    gain = g.add(1.0, g.div(g.mul(q, kh), g.maximum(rc_max, _DIV_MIN)), label="r̂ / r̂_c")
-    r = g.vmath("MINIMUM", g.vmath("SCALE", rc, gain), K.ONE_MINUS_ULP32, label="r")
+def reflectivity(g, rc, rc_max, r_hat, omr_hat):
+    """Eq. 5 with the core's chroma c = r_c / r̂_c: (r, 1 - r, c), with 1 - r = (1 - c) + c (1 - r̂)
+    per channel (no cancellation as r -> 1).  r may exceed 1 by rounding (1 - r is what the
+    Fresnel terms divide by)."""
     # a true division (not a scale by 1/r̂_c), so the max channel's chroma is exactly 1
     chroma = g.vmath("DIVIDE", rc, rc_max, label="chroma c")
+    r = g.vmath("SCALE", chroma, r_hat, label="r")
     omr_v = g.vmath("MULTIPLY_ADD", chroma, omr_hat, g.vmath("SUBTRACT", 1.0, chroma),
                     label="1 - r")
     omr_v = g.vmath("MAXIMUM", omr_v, _TINY)
-    return r, omr_v, chroma, gain
+    return r, omr_v, chroma
 
 
 def gulbrandsen(g, r, omr_v, edge_tint):
     """Gulbrandsen 2014 (η, κ) from r, 1 - r and g per channel, κ in non-negative terms
-    (docs/mapping.md §7)."""
-    gt = g.vmath("MINIMUM", g.vmath("MAXIMUM", edge_tint, 0.0), 1.0, label="g")
+    (docs/mapping.md §7): with A = g/(1+r) and B = (1-g)(1+√r)²/(1-r),
+    η = A (1-r) + B and κ = 2 √(r A (A + 2 B/(1-r)))."""
+    gt = g.vclamp01(edge_tint, label="g")
     s = g.vmath("POWER", r, 0.5, label="√r")
     ops = g.vmath("ADD", s, 1.0)
-    n_d = g.vmath("DIVIDE", g.vmath("MULTIPLY", ops, ops), omr_v, label="(1+√r)/(1-√r)")
     opr = g.vmath("ADD", r, 1.0)
-    n_m = g.vmath("DIVIDE", omr_v, opr, label="(1-r)/(1+r)")
-    one_minus_g = g.vmath("SUBTRACT", 1.0, gt)
-    eta = g.vmath("MULTIPLY_ADD", gt, n_m, g.vmath("MULTIPLY", one_minus_g, n_d), label="η")
-    gr = g.vmath("DIVIDE", gt, opr)
-    # 2(1-g)/(1-√r)² = 2(1-g) n_d / (1-r)
-    edge = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SCALE", one_minus_g, 2.0), n_d), omr_v)
-    inner = g.vmath("MULTIPLY", gr, g.vmath("ADD", gr, edge))
-    kappa = g.vmath("MULTIPLY", g.vmath("SCALE", s, 2.0), g.vmath("POWER", inner, 0.5), label="κ")
+    a = g.vmath("DIVIDE", gt, opr, label="A = g/(1+r)")
+    b = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SUBTRACT", 1.0, gt),
+                                  g.vmath("MULTIPLY", ops, ops)), omr_v, label="B")
+    eta = g.vmath("MULTIPLY_ADD", a, omr_v, b, label="η")
+    inner = g.vmath("MULTIPLY", a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
+    kappa = g.vmath("SCALE", g.vmath("POWER", g.vmath("MULTIPLY", inner, r), 0.5), 2.0, label="κ")
     return eta, kappa
