@@ -162,13 +162,16 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
     β_h / (p + (1-p) β_h) — nothing renders differently there, both lobes reflect 0."""
     omr = g.sub(1.0, rc_max, label="1 - r̂_c")
     omb = g.sub(1.0, bh, label="1 - β_h")
-    # p - r̂_c without cancellation: near 1 subtract the complements instead
-    p_minus_rc = g.select(g.less(p, 0.5), g.sub(p, rc_max), g.sub(omr, q), label="p - r̂_c")
+    # p - r̂_c = p (1-r̂_c) - r̂_c (1-p): both products are accurate whether p, r̂_c are near 0
+    # (where 1 - r̂_c has rounded off r̂_c's low digits, but p (1-r̂_c) keeps them relative) or
+    # near 1 (where the complements carry the digits)
+    rq = g.mul(rc_max, q)
+    p_minus_rc = g.sub(g.mul(p, omr), rq, label="p - r̂_c")
     if smoothness is not None:
         w = g.maximum(smoothness, K.MIN_SMOOTHNESS)
         ms = g.div(g.sqrt(g.mul(rc_max, omr)), w)
         hyp = g.sqrt(g.madd(p_minus_rc, p_minus_rc, g.mul(ms, ms)))
-        den = g.add(g.madd(rc_max, q, g.mul(p, omr)), hyp, label="conic denominator")
+        den = g.add(g.madd(p, omr, rq), hyp, label="conic denominator")
         t = g.div(g.mul(g.mul(rc_max, omr), 2.0), den)
         kh = g.mul(bh, t, label="k̂_h (Eq. 15)")
         r_hat = g.madd(q, kh, rc_max, label="r̂ (Eq. 5)")
@@ -181,21 +184,17 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         omr_hat = g.madd(g.mul(q, t), omb, c0, label="1 - r̂")
     else:
         # r̂_c > p: the energy branch of Eq. 7, decided on p - r̂_c (accurate on both sides of
-        # 1/2); each branch in its own cancellation-free form, then one select per output
+        # 1/2).  k̂_h = β_h N / D with (N, D) = (1 - r̂_c, 1 - p) on the energy side, (r̂_c, p) on
+        # the positivity side; r̂ = r̂_c + (1-p) k̂_h (a sum of non-negative terms)
         upper = g.less(p_minus_rc, 0.0)
-        # energy side: k̂_h = β_h (1-r̂_c)/(1-p), r̂ = r̂_c + β_h (1-r̂_c), 1 - r̂ = (1-r̂_c)(1-β_h)
-        bh_omr = g.mul(bh, omr)
-        r_up = g.add(rc_max, bh_omr)
-        kh_up = g.div(bh_omr, g.maximum(q, _DIV_MIN))
-        omr_up = g.mul(omr, omb)
-        # positivity side: k̂_h = β_h r̂_c / p, 1 - r̂ = ((p - r̂_c) + r̂_c (1-p)(1-β_h)) / p
-        p_div = g.maximum(p, _DIV_MIN)
-        kh_lo = g.mul(bh, g.div(rc_max, p_div))
-        r_lo = g.madd(q, kh_lo, rc_max)
-        omr_lo = g.div(g.madd(g.mul(rc_max, q), omb, g.maximum(p_minus_rc, 0.0)), p_div)
-        kh = g.select(upper, kh_up, kh_lo, label="k̂_h (Eq. 7)")
-        r_hat = g.select(upper, r_up, r_lo, label="r̂ (Eq. 5)")
-        omr_hat = g.select(upper, omr_up, omr_lo, label="1 - r̂")
+        num = g.select(upper, omr, rc_max)
+        den = g.maximum(g.select(upper, q, p), _DIV_MIN)
+        kh = g.mul(bh, g.div(num, den), label="k̂_h (Eq. 7)")
+        r_hat = g.madd(q, kh, rc_max, label="r̂ (Eq. 5)")
+        # 1 - r̂ in non-negative terms: (1-r̂_c)(1-β_h), or ((p-r̂_c) + r̂_c (1-p)(1-β_h)) / p
+        # (its divisor is den: p wherever that branch is selected)
+        omr_lo = g.div(g.madd(rq, omb, g.maximum(p_minus_rc, 0.0)), den)
+        omr_hat = g.select(upper, g.mul(omr, omb), omr_lo, label="1 - r̂")
     # no clamp: β is in [0, 1] up to rounding and the Mix Shader clamps its factor
     beta = g.div(kh, r_hat, label="β = k̂_h / r̂ (Eq. 4)")
     return kh, beta, omr_hat, r_hat

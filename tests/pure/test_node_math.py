@@ -236,7 +236,7 @@ def test_node_counts_are_lean():
         for aniso, smooth in itertools.product((False, True), repeat=2):
             g, out = _graph(kind, aniso, smooth, "GGX")
             counts[(kind, aniso, smooth)] = len([e for e in g.used(out) if e.op != "input"])
-    assert counts[("CONDUCTOR", False, False)] <= 65  # the former group: 94 incl. 4 lobe nodes
+    assert counts[("CONDUCTOR", False, False)] <= 61  # the former group: 94 incl. 4 lobe nodes
     assert max(counts.values()) < 137 - 5 - 10
 
 

@@ -85,14 +85,6 @@ class _ShaderEmitter:
                 tb.feed(sock, self.value(a))
             self.sockets[e.index] = n.outputs[0]
             return
-        if e.op == "VCLAMP01":  # a colour Mix at factor 0 with Clamp Result: saturate per lane
-            n = self._node("ShaderNodeMix", e, data_type="RGBA", blend_type="MIX")
-            n.clamp_factor = False
-            n.clamp_result = True
-            tb.feed(_by_id(n.inputs, "Factor_Float"), 0.0)
-            tb.feed(_by_id(n.inputs, "A_Color"), self.value(e.args[0]))
-            self.sockets[e.index] = _by_id(n.outputs, "Result_Color")
-            return
         if e.op == "MIX":
             n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT")
             n.clamp_factor = False
@@ -164,10 +156,6 @@ class _CompositorEmitter:
             return
         if e.op == "COMBINE":
             self.vals[e.index] = tuple(self.value(a) for a in e.args)
-            return
-        if e.op == "VCLAMP01":
-            self.vals[e.index] = tuple(self._math("MAXIMUM", x, 0.0, clamp=True, label=e.label)
-                                       for x in self._lanes(e.args[0]))
             return
         if e.op == "MIX":  # (1 - t) a + t b
             t = self.value(e.args[0])
