@@ -89,6 +89,9 @@ class HazeMapping:
     smoothness: object
     #: Counts of clamped texels per reason, e.g. ``{"haziness >= 1": 12}``.
     clamped: dict = field(default_factory=dict)
+    #: None, or how the peak was kept under Cycles' Multiscatter GGX
+    #: (:class:`hazy_gloss.core.multiscatter.MultiscatterPeak`, set by core.lobes.describe).
+    multiscatter: object = None
 
     @property
     def warnings(self) -> tuple:
