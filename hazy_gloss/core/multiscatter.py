@@ -44,7 +44,7 @@ __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness
 #: Newest Blender whose Cycles this module reproduces; later versions are assumed to match it.
 LATEST = (5, 3)
 #: Fresnel modes of :func:`single_scatter_albedo` (how each node computes F_ss).
-FRESNELS = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "CONSTANT")
+FRESNELS = ("CONDUCTOR", "F82_TINT", "F82", "DIELECTRIC", "CONSTANT")
 #: Lobe types of :func:`correct_mapping`: which node draws the two lobes and how its Fresnel
 #: follows from the mapping's reflectivity r.
 LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY")
@@ -209,6 +209,8 @@ def single_scatter_albedo(fresnel, *, version=None, **params):
     fresnel="CONDUCTOR"   ior, extinction (..., 3): Metallic BSDF, Physical Conductor
             "F82_TINT"    f0, tint (..., 3): Metallic BSDF F82 (Base Color, Edge Tint) or the
                           Principled metallic lobe (Base Color, Specular Tint)
+            "F82"         f0, f82 (..., 3): the F82 model through F(0°) = f0 and F(cos⁻¹ 1/7)
+                          = f82 (what Cycles fits to any Fresnel it averages this way)
             "DIELECTRIC"  ior (...), specular_tint (..., 3) [, f0 = F0(ior)]: Principled
                           dielectric specular at IOR Level 0.5
             "CONSTANT"    colour (..., 3): Glossy BSDF"""
@@ -217,6 +219,9 @@ def single_scatter_albedo(fresnel, *, version=None, **params):
         return fss_conductor(params["ior"], params["extinction"], version)
     if f == "F82_TINT":
         return fss_f82_tint(params["f0"], params["tint"])
+    if f == "F82":
+        f0 = np.asarray(params["f0"], np.float64)
+        return _f82_fss(f0, 7.0 / (_F5 * _F) * (_mix(f0, 1.0, _F5) - np.asarray(params["f82"], np.float64)))
     if f == "DIELECTRIC":
         return fss_dielectric(params["ior"], params.get("f0"), params.get("specular_tint", 1.0))
     if f == "CONSTANT":

@@ -165,6 +165,11 @@ def test_single_scatter_albedo_dispatch():
     c = (0.3, 0.5, 1.2)
     assert np.array_equal(ms.single_scatter_albedo("CONSTANT", colour=c), c)  # Glossy: no clamp above
     assert np.array_equal(ms.single_scatter_albedo("F82_TINT", f0=c, tint=0.5), ms.fss_f82_tint(c, 0.5))
+    # F82 given explicitly: F82-tint is the special case F82 = Schlick(F0, 1/7) · tint
+    f0, tint = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.5])
+    f82 = (f0 + (1 - f0) * (6 / 7) ** 5) * tint
+    assert np.allclose(ms.single_scatter_albedo("F82", f0=f0, f82=f82), ms.fss_f82_tint(f0, tint),
+                       rtol=0, atol=1e-15)
     with pytest.raises(ValueError, match="fresnel must be one of"):
         ms.single_scatter_albedo("SCHLICK", f0=c)
 
