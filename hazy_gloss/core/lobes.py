@@ -11,6 +11,8 @@ Conventions applied here, for scalars and whole textures alike:
 - (α_x, α_y) from (R, anisotropy) with the Metallic/Principled convention
   (core.conventions.alpha_from_roughness);
 - the haze mapping with Cycles' limits α <= 1 and aspect <= 10 (what the renderer draws);
+- under Multiscatter GGX, β and r corrected for Cycles' energy factor (core.multiscatter), so
+  the peak stays invariant there too;
 - the wide lobe's (R, anisotropy, rotation) in the node convention of the kind (Metallic /
   Principled, or Glossy with its opposite sign).
 """
@@ -24,6 +26,10 @@ from .. import constants as K
 from .conventions import (alpha_from_roughness, glossy_anisotropy, lobe_from_alpha,
                           metallic_anisotropy, metallic_to_glossy_anisotropy)
 from .mapping import HazeMapping, haze_mapping
+from .multiscatter import correct_mapping
+
+#: The lobe type of core.multiscatter.correct_mapping each kind draws.
+_MULTISCATTER_LOBE = {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGACY": "LEGACY"}
 
 __all__ = ("Lobe", "HazyLobes", "describe", "check_kind")
 
@@ -139,10 +145,16 @@ def describe(kind="CONDUCTOR", distribution="GGX", *, core_reflectivity, edge_ti
                     _out(rot + np.where(swap, dtype.type(0.25), dtype.type(0)), dtype, one_texel))
 
     no_halo = one_texel and (float(m.beta) <= 0.0 or (float(wx) == float(ax) and float(wy) == float(ay)))
+    if distribution == "MULTI_GGX" and not no_halo:
+        # Deviation from the paper: Cycles scales each lobe by an energy factor S(R, F_ss), so
+        # β and r are solved for r[(1-β)S_n + β p S_w] = r_c S_n(r_c) (docs/mapping.md).
+        m = correct_mapping(m, _MULTISCATTER_LOBE[kind])
     if kind == "CONDUCTOR":
         fresnel = dict(ior=m.ior, extinction=m.extinction)
     elif kind == "DIELECTRIC":
-        rc = np.asarray(m.core_reflectivity)
+        # F(0) = F0(η) · tint = r: the tint is the chroma of r (= that of r_c, except where the
+        # Multiscatter correction gives each channel its own peak ratio)
+        rc = np.asarray(m.core_reflectivity if m.multiscatter is None else m.reflectivity)
         rc_max = rc.max(axis=-1, keepdims=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             tint = np.where(rc_max > 0, rc / rc_max, dtype.type(1)).astype(dtype)

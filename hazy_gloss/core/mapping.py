@@ -89,6 +89,9 @@ class HazeMapping:
     smoothness: object
     #: Counts of clamped texels per reason, e.g. ``{"haziness >= 1": 12}``.
     clamped: dict = field(default_factory=dict)
+    #: None, or how the peak was kept under Cycles' Multiscatter GGX
+    #: (:class:`hazy_gloss.core.multiscatter.MultiscatterPeak`, set by core.lobes.describe).
+    multiscatter: object = None
 
     @property
     def warnings(self) -> tuple:
@@ -417,7 +420,8 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
                               an (x, y) tuple of them
     haziness           [β_h]  in [0, 1)
     haze_extent        [λ_h]  >= 0, in units of sqrt(α_n^x α_n^y); scalar/array or (x, y) tuple
-    distribution       "GGX" (default), "BECKMANN", "MULTI_GGX" (GGX peak; see docs), or
+    distribution       "GGX" (default), "BECKMANN", "MULTI_GGX" (GGX's p: the single-scatter
+                       mapping, which core.multiscatter.correct_mapping corrects), or
                        "ASHIKHMIN_SHIRLEY" (Cycles' exponent n = 2/α² - 2, α in [1e-4, 1])
     smoothness         None: Eq. 7.  A number w > 0 (or per-texel array): the rational Bézier of
                        Eqs. 12-15; w = inf is exactly Eq. 7.
