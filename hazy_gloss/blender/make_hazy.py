@@ -1,9 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Make Hazy and Import Two-Lobe Mix as plain functions (the operators only call these).
 
-- :func:`make_hazy`: turn a material's Principled / Metallic / Glossy BSDF into a hazy material
-  in place: its values become the core's parameters, textures linked to them stay linked (into
-  the in-shader node group), everything else in the tree is kept.
+- :func:`make_hazy`: a haze layer on the material's own Principled / Metallic / Glossy BSDF
+  (blender.layer): the node and everything else in the tree stay as they are.
 - :func:`import_two_lobe_mix`: a Mix Shader of two Glossy or two Metallic lobes -> perceptual
   parameters (core.inverse_haze_mapping), with a report of what is not exactly representable.
 
@@ -16,8 +15,8 @@ import numpy as np
 from .. import constants as K
 from ..core import gulbrandsen_inverse, inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
-from ..core.parameters import normalise
-from . import material, preferences
+from ..core.parameters import normalise, normalise_haze
+from . import layer, material, preferences
 from .context import edit_problem, maps_problem, plain_message
 
 MIN_ROUGHNESS = K.MIN_ROUGHNESS
@@ -93,126 +92,6 @@ def find_core_bsdf(tree):
     return None
 
 
-class Reading:
-    """What was read from a BSDF node: api parameters, sockets to relink into the hazy group
-    (by input name), and notes on what could not be carried over."""
-
-    def __init__(self, node):
-        self.node = node
-        self.params = {}
-        self.links = {}
-        self.notes = []
-        self.label = node.bl_label
-
-    def link(self, node_input, group_input):
-        src = _source(self.node.inputs.get(node_input))
-        if src is not None:
-            self.links[group_input] = src
-        return src is not None
-
-    def not_carried(self, node_input, what=None):
-        if _source(self.node.inputs.get(node_input)) is not None:
-            self.notes.append(f"the texture on {node_input} was not carried over"
-                              + (f" ({what})" if what else ""))
-            return True
-        return False
-
-
-def _shared_inputs(r, node, *, aniso_name, rot_name):
-    """Roughness, anisotropy, rotation, normal and tangent (same convention for Principled and
-    Metallic; the caller converts Glossy's)."""
-    n = node
-    r.params["roughness"] = float(np.clip(_value(n, "Roughness", 0.5), 0.0, 1.0))
-    r.link("Roughness", "Roughness")
-    if r.params["roughness"] < MIN_ROUGHNESS and "Roughness" not in r.links:
-        r.notes.append(f"roughness {r.params['roughness']:.4g} raised to {MIN_ROUGHNESS}: a perfect "
-                       f"mirror cannot carry a halo")
-    r.link("Normal", "Normal")
-    if aniso_name is not None:
-        r.params["anisotropy"] = float(np.clip(_value(n, aniso_name, 0.0), 0.0, 1.0))
-        r.params["rotation"] = float(_value(n, rot_name, 0.0))
-        if r.link(aniso_name, "Anisotropy") and r.params["anisotropy"] <= 0.0:
-            r.params["anisotropy"] = 1e-6  # builds the anisotropic group; the texture drives it
-        r.link(rot_name, "Rotation")
-        if r.params["anisotropy"] > 0.0:
-            if not r.link("Tangent", "Tangent"):
-                r.params["tangent"] = "RADIAL_Z"  # what an unconnected Tangent input uses
-
-
-def read_principled(node):
-    r = Reading(node)
-    p = r.params
-    metallic = _value(node, "Metallic", 0.0)
-    if r.not_carried("Metallic", "a hazy material is a metal or a dielectric, not a blend"):
-        pass
-    p["distribution"] = node.distribution
-    _shared_inputs(r, node, aniso_name="Anisotropic", rot_name="Anisotropic Rotation")
-    if metallic >= 0.5:
-        p["kind"] = "CONDUCTOR"
-        if metallic < 1.0:
-            r.notes.append(f"metallic {metallic:.3g} treated as fully metallic")
-        p["core_reflectivity"] = _rgb(_value(node, "Base Color"))
-        p["edge_tint"] = _rgb(_value(node, "Specular Tint", (1, 1, 1)))
-        r.link("Base Color", "Core Reflectivity")
-        r.link("Specular Tint", "Edge Tint")
-        r.notes.append("edge tint: Principled's F82 tint became Gulbrandsen's edge tint "
-                       "(identical at normal incidence, close towards grazing angles)")
-    else:
-        p["kind"] = "DIELECTRIC"
-        if metallic > 0.0:
-            r.notes.append(f"metallic {metallic:.3g} treated as 0")
-        ior = _value(node, "IOR", 1.5)
-        level = max(_value(node, "Specular IOR Level", 0.5), 0.0)
-        tint = np.maximum(np.asarray(_value(node, "Specular Tint", (1, 1, 1))[:3]), 0.0)
-        f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
-        p["core_reflectivity"] = tuple(float(x) for x in np.clip(f0 * tint, 0.0, 0.999))
-        p["base_color"] = _rgb(_value(node, "Base Color"))
-        p["transmission"] = float(np.clip(_value(node, "Transmission Weight", 0.0), 0, 1))
-        r.link("Base Color", "Base Color")
-        r.link("Transmission Weight", "Transmission")
-        for name in ("IOR", "Specular IOR Level", "Specular Tint"):
-            r.not_carried(name, "its value at conversion sets the core reflectivity")
-    for name, default in (("Coat Weight", 0.0), ("Sheen Weight", 0.0), ("Subsurface Weight", 0.0),
-                          ("Emission Strength", 0.0), ("Alpha", 1.0), ("Thin Film Thickness", 0.0),
-                          ("Diffuse Roughness", 0.0)):
-        v = _value(node, name, default)
-        linked = _source(node.inputs.get(name)) is not None
-        if linked or (v is not None and abs(v - default) > 1e-9):
-            r.notes.append(f"{name} ({'textured' if linked else f'{v:.3g}'}) is not part of a "
-                           f"hazy material and was dropped")
-    return r
-
-
-def read_metallic(node):
-    r = Reading(node)
-    p = r.params
-    p["kind"] = "CONDUCTOR"
-    p["distribution"] = node.distribution
-    _shared_inputs(r, node, aniso_name="Anisotropy", rot_name="Rotation")
-    if node.fresnel_type == "PHYSICAL_CONDUCTOR":
-        eta = np.asarray(_value(node, "IOR", (0.2, 0.9, 1.1))[:3])
-        kap = np.asarray(_value(node, "Extinction", (3.9, 2.4, 2.2))[:3])
-        refl, tint = gulbrandsen_inverse(np.maximum(eta, 0.0), np.maximum(kap, 0.0))
-        if np.any(tint < -1e-6) or np.any(tint > 1 + 1e-6):
-            r.notes.append("IOR and extinction are not on Gulbrandsen's curve: edge tint clamped "
-                           "(the peak colour is exact, grazing colours approximate)")
-        p["core_reflectivity"] = tuple(float(x) for x in np.clip(refl, 0.0, 0.999))
-        p["edge_tint"] = tuple(float(x) for x in np.clip(np.nan_to_num(tint), 0.0, 1.0))
-        r.not_carried("IOR")
-        r.not_carried("Extinction")
-    else:
-        p["core_reflectivity"] = _rgb(_value(node, "Base Color"))
-        p["edge_tint"] = _rgb(_value(node, "Edge Tint"))
-        r.link("Base Color", "Core Reflectivity")
-        r.link("Edge Tint", "Edge Tint")
-        r.notes.append("F82 edge tint became Gulbrandsen's edge tint (identical at normal "
-                       "incidence, close towards grazing angles)")
-    thin = _value(node, "Thin Film Thickness", 0.0)
-    if thin:
-        r.notes.append("thin film was dropped")
-    return r
-
-
 def glossy_to_metallic_anisotropy(a):
     """Glossy Anisotropy -> (Metallic anisotropy, extra rotation in turns, exact?).
 
@@ -223,32 +102,6 @@ def glossy_to_metallic_anisotropy(a):
     aniso = float(metallic_anisotropy(ratio))
     exact = ratio >= 0.1 - 1e-12
     return aniso, (0.25 if a > 0 else 0.0), exact
-
-
-def read_glossy(node):
-    r = Reading(node)
-    p = r.params
-    p["kind"] = "LEGACY"
-    p["distribution"] = node.distribution
-    _shared_inputs(r, node, aniso_name=None, rot_name=None)
-    p["core_reflectivity"] = _rgb(_value(node, "Color"))
-    r.link("Color", "Core Reflectivity")
-    a = _value(node, "Anisotropy", 0.0)
-    r.not_carried("Anisotropy", "Glossy's anisotropy convention differs")
-    if a:
-        aniso, extra_rot, exact = glossy_to_metallic_anisotropy(a)
-        p["anisotropy"] = aniso
-        p["rotation"] = (float(_value(node, "Rotation", 0.0)) + extra_rot) % 1.0
-        if not exact:
-            r.notes.append("anisotropy beyond 10:1 was limited to 10:1")
-        if not r.link("Tangent", "Tangent"):
-            p["tangent"] = "RADIAL_Z"
-        r.not_carried("Rotation")
-    return r
-
-
-READERS = {"ShaderNodeBsdfPrincipled": read_principled, "ShaderNodeBsdfMetallic": read_metallic,
-           **{g: read_glossy for g in GLOSSY}}
 
 
 # --------------------------------------------------------------------------------------------
@@ -320,49 +173,37 @@ def replace_with_hazy(mat, replaced, p, links):
     return m, dropped
 
 
-def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, shader_mapping=None):
-    """Convert ``mat`` in place.  Returns (status, message, notes): status "FINISHED" (converted),
-    "NOOP" (already hazy) or "ERROR"."""
+def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
+    """Put a haze layer on ``mat``'s own BSDF (blender.layer): the Principled, Metallic or Glossy
+    BSDF closest to the Material Output (also inside Mix / Add Shader trees) stays, with every
+    input and link; at haziness 0 the material renders as before.  Returns (status, message,
+    notes): status "FINISHED" (made hazy), "NOOP" (already hazy) or "ERROR"."""
     problem = edit_problem(mat)
     if problem is not None and (mat is None or mat.library is not None
                                 or getattr(mat, "override_library", None) is not None):
         return "ERROR", problem, []
-    if _is_live(mat):
+    if material.is_hazy(mat):
         return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
     if maps_problem(mat):
         return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
-    tree = mat.node_tree
-    node = find_core_bsdf(tree)
+    node = find_core_bsdf(mat.node_tree)
     if node is None:
         return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF connected to its "
-                "Material Output: nothing to convert (use New Hazy Material instead)", [])
-    reading = READERS[node.bl_idname](node)
-    p = dict(reading.params)
-    if p["distribution"] not in NODE_DISTRIBUTIONS[p["kind"]]:
-        reading.notes.append(f"{p['distribution']} is not offered for {p['kind'].lower()} lobes: "
-                             "GGX used")
-        p["distribution"] = "GGX"
-    p.update(haziness=float(haziness), haze_extent=haze_extent)
-    wants_shader = bool(reading.links)
-    if shader_mapping is None:
-        shader_mapping = wants_shader or bool(preferences.get().prefer_shader_mapping)
-    elif wants_shader and not shader_mapping:
-        reading.notes.append("constant mapping requested: the textures were disconnected")
-        reading.links.clear()
-    p["shader_mapping"] = bool(shader_mapping)
+                "Material Output: nothing to make hazy (use New Hazy Material instead)", [])
     try:
-        p = normalise(p)
-        m, dropped = replace_with_hazy(mat, [node], p, reading.links)
+        h = normalise_haze(dict(haze, haziness=haziness, haze_extent=haze_extent))
+        layer.apply(mat, h, core=node)
     except ValueError as exc:
-        return "ERROR", plain_message(exc), reading.notes
-    notes = list(reading.notes)
-    if dropped:
-        notes.append("could not connect: " + ", ".join(dropped))
-    kept = [k for k in reading.links if k not in dropped]
-    msg = (f"Converted “{mat.name}” ({reading.label}) to a hazy {p['kind'].lower()}"
-           + (f"; kept the links into {', '.join(kept)} (in-shader mapping)" if kept else ""))
+        return "ERROR", plain_message(exc), []
+    notes = []
+    r = node.inputs.get("Roughness")
+    if r is not None and not r.is_linked and r.default_value < MIN_ROUGHNESS:
+        notes.append(f"roughness {r.default_value:.4g} is below {MIN_ROUGHNESS}: haze needs a "
+                     f"rough core (a perfect mirror cannot carry a halo)")
+    msg = (f"Made “{mat.name}” hazy: a haze layer on its {node.bl_label} “{node.name}” (every input "
+           f"and link kept; haziness {h['haziness']:g})")
     return "FINISHED", msg, notes
 
 

@@ -20,11 +20,12 @@ import numpy as np
 
 from .. import constants as K
 from ..core.lobes import describe
-from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise
-from . import compat
+from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise, normalise_haze
+from . import compat, layer
 from .nodes.builder import TreeBuilder, socket_value
 from .nodes.groups import ensure_group
 from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
+from .nodes.ownership import is_ours, output_node, ours, role  # noqa: F401  (re-exported)
 
 GROUP_ROLE = "Hazy Gloss"
 GROUP_NODE = f"{K.NODE_PREFIX} {GROUP_ROLE}"  # its default name
@@ -73,10 +74,14 @@ def _stamp_dict(mat):
 
 def read_parameters(mat):
     """The perceptual parameters stamped on a hazy material, or None.  Raises ValueError (one
-    line naming the parameter) when the stored values are unreadable."""
+    line naming the parameter) when the stored values are unreadable.  A layered material (Make
+    Hazy on the user's BSDF) gives its haze parameters and the core's own (blender.layer.read),
+    with ``layered`` True."""
     d = _stamp_dict(mat)
     if d is None:
         return None
+    if "layer" in d:
+        return layer.read(mat)
     p = {k: d[k] for k in PARAMETERS if k in d and k != "smoothness"}
     for k in ("core_reflectivity", "edge_tint", "base_color", "haze_extent"):
         if k in p and hasattr(p[k], "__len__") and not isinstance(p[k], str):
@@ -92,51 +97,6 @@ def is_hazy(mat):
 # --------------------------------------------------------------------------------------------
 # The add-on's nodes
 # --------------------------------------------------------------------------------------------
-
-
-def role(node):
-    """The role of one of the add-on's nodes, or None for the user's nodes."""
-    r = node.get(K.ROLE)
-    if isinstance(r, str):
-        return r
-    if node.name.startswith(K.NODE_PREFIX + " "):  # files written before roles existed
-        return node.name[len(K.NODE_PREFIX) + 1:]
-    return None
-
-
-def is_ours(node):
-    """A node the add-on built (and updates); everything else in the tree is the user's."""
-    return role(node) is not None
-
-
-def ours(tree):
-    """{role: node} of the add-on's nodes.  A copy the user made of one of them (Shift+D keeps
-    the custom property) becomes the user's: only the first of a role is ours."""
-    found = {}
-    for n in tree.nodes:
-        r = role(n)
-        if r is None:
-            continue
-        if r in found:
-            if n.name == f"{K.NODE_PREFIX} {r}":  # the original kept its name: it is ours
-                found[r], n = n, found[r]
-            if K.ROLE in n:
-                del n[K.ROLE]
-            continue
-        found[r] = n
-    return found
-
-
-def output_node(tree, create=True):
-    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    for n in outs:
-        if n.is_active_output:
-            return n
-    if outs or not create:
-        return outs[0] if outs else None
-    n = tree.nodes.new("ShaderNodeOutputMaterial")
-    n.location = (1400, 0)
-    return n
 
 
 def _by_identifier(sockets, identifier):
@@ -427,6 +387,12 @@ def update_material(mat, **changes):
     if not hasattr(mat, "node_tree") or not hasattr(mat, "library"):
         raise TypeError(f"update_material expects a bpy.types.Material, got {type(mat).__name__}"
                         + (" (look it up with bpy.data.materials[name])" if isinstance(mat, str) else ""))
+    if mat.library is not None:
+        raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
+    if layer.is_layered(mat):
+        h = normalise_haze(changes, layer.haze_of(mat))
+        maps = layer.apply(mat, h)
+        return next(iter(maps.values()), None), []
     p = read_parameters(mat)
     if p is None:
         raise ValueError(f"material {mat.name!r} is not a hazy material (use Make Hazy or "

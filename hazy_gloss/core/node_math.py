@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from .. import constants as K
 
-__all__ = ("mapping", "haze_terms", "reflectivity", "gulbrandsen", "INPUTS")
+__all__ = ("mapping", "haze_terms", "reflectivity", "gulbrandsen", "gulbrandsen_inverse",
+           "glossy_to_metallic", "INPUTS")
 
 #: Inputs of :func:`mapping` (vector ones are colours).
 INPUTS = {"core_reflectivity": True, "edge_tint": True, "roughness": False, "anisotropy": False,
@@ -95,6 +96,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
     out["beta"] = beta
     out["halo_intensity"] = kh
     out["reflectivity_max"] = r_hat
+    out["core_max"] = rc_max
 
     # -- Eq. 5 with the core's chroma, and 1 - r per channel without cancellation ---------------
     r, omr_v, chroma = reflectivity(g, rc, rc_max, r_hat, omr_hat)
@@ -228,3 +230,31 @@ def gulbrandsen(g, r, omr_v, edge_tint):
     inner = g.vmath("MULTIPLY", a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
     kappa = g.vmath("SCALE", g.vmath("POWER", g.vmath("MULTIPLY", inner, r), 0.5), 2.0, label="κ")
     return eta, kappa
+
+
+def gulbrandsen_inverse(g, eta, kappa):
+    """(r, g) per channel from (η, κ) (core.mapping.gulbrandsen_inverse):
+    r = ((η-1)² + κ²)/((η+1)² + κ²), g = (n_d - η)/(n_d - n_m) with n_d = (1+√r)²/(1-r) and
+    n_m = (1-r)/(1+r); η, κ < 0 read as 0 (the Metallic BSDF clamps them)."""
+    eta = g.vmath("MAXIMUM", eta, 0.0)
+    k2 = g.vmath("MULTIPLY", kappa, kappa)
+    em, ep = g.vmath("SUBTRACT", eta, 1.0), g.vmath("ADD", eta, 1.0)
+    num = g.vmath("MULTIPLY_ADD", em, em, k2)
+    den = g.vmath("MULTIPLY_ADD", ep, ep, k2)
+    r = g.vmath("MINIMUM", g.vmath("DIVIDE", num, den), K.ONE_MINUS_ULP32, label="r")
+    # 1 - r = 4η / ((η+1)² + κ²): no cancellation
+    omr = g.vmath("MAXIMUM", g.vmath("DIVIDE", g.vmath("SCALE", eta, 4.0), den), _TINY)
+    ops = g.vmath("ADD", g.vmath("POWER", r, 0.5), 1.0)
+    n_d = g.vmath("DIVIDE", g.vmath("MULTIPLY", ops, ops), omr)
+    n_m = g.vmath("DIVIDE", omr, g.vmath("ADD", r, 1.0))
+    tint = g.vmath("DIVIDE", g.vmath("SUBTRACT", n_d, eta), g.vmath("SUBTRACT", n_d, n_m))
+    return r, g.vclamp01(tint, label="g")
+
+
+def glossy_to_metallic(g, anisotropy, rotation):
+    """A Glossy lobe's (anisotropy, rotation) in the Metallic convention (blender.make_hazy's
+    glossy_to_metallic_anisotropy): α_y/α_x = (1 - |a|)², a > 0 turns the long axis by ¼."""
+    a = g.minimum(g.maximum(anisotropy, -0.99), 0.99)
+    k = g.sub(1.0, g.math("ABSOLUTE", a))
+    metallic = g.clamp(g.div(g.madd(k, g.mul(k, -1.0), 1.0), 0.9), 0.0, 1.0)
+    return metallic, g.madd(g.math("GREATER_THAN", a, 0.0), 0.25, rotation)

@@ -16,7 +16,8 @@ import numpy as np
 from .. import constants as K
 from .lobes import check_kind
 
-__all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "normalise", "sanitise", "is_anisotropic")
+__all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "HAZE_PARAMETERS", "normalise", "normalise_haze",
+           "sanitise", "is_anisotropic")
 
 #: Every perceptual parameter of a hazy material (the stamp's keys).
 PARAMETERS = ("kind", "distribution", "core_reflectivity", "edge_tint", "roughness", "anisotropy",
@@ -30,11 +31,19 @@ DEFAULTS = dict(kind="CONDUCTOR", distribution="GGX", core_reflectivity=(0.5, 0.
 
 TANGENTS = ("UV_MAP", "RADIAL_X", "RADIAL_Y", "RADIAL_Z")
 
+#: The parameters of a haze layer on a user's BSDF (Make Hazy); the core's own parameters stay
+#: on its node.
+HAZE_PARAMETERS = ("haziness", "haze_extent", "smoothness", "coat_haziness", "coat_haze_extent",
+                   "keep_body_colour")
+HAZE_DEFAULTS = dict(haziness=0.0, haze_extent=(5.0, 5.0), smoothness=None, coat_haziness=0.0,
+                     coat_haze_extent=5.0, keep_body_colour=False)
+
 #: (lo, hi) of the numeric parameters, hi None = unbounded; colours per channel.
 RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "base_color": (0.0, 1.0),
           "roughness": (0.0, 1.0), "anisotropy": (0.0, 1.0), "transmission": (0.0, 1.0),
           "haziness": (0.0, K.MAX_HAZINESS), "haze_extent": (0.0, None),
-          "rotation": (-math.inf, math.inf), "smoothness": (K.MIN_SMOOTHNESS, math.inf)}
+          "rotation": (-math.inf, math.inf), "smoothness": (K.MIN_SMOOTHNESS, math.inf),
+          "coat_haziness": (0.0, K.MAX_HAZINESS), "coat_haze_extent": (0.0, None)}
 _COLOURS = ("core_reflectivity", "edge_tint", "base_color")
 _WHY = {"haziness": " (1 would break energy conservation)",
         "haze_extent": " (units of the core's roughness)",
@@ -151,6 +160,39 @@ def normalise(params, explicit=None):
     p["shader_mapping"] = bool(p["shader_mapping"])
     p["tangent"] = _choice("tangent", p["tangent"], TANGENTS)
     return p
+
+
+def normalise_haze(params, current=None):
+    """The haze parameters of a layer: ``current`` (default HAZE_DEFAULTS) updated with
+    ``params`` and checked; ValueError names the parameter (and points the core's own
+    parameters to the core node)."""
+    unknown = sorted(set(params) - set(HAZE_PARAMETERS))
+    if unknown:
+        core = [n for n in unknown if n in PARAMETERS]
+        if core:
+            _fail(f"{', '.join(core)} of a hazy layer belong{'s' if len(core) == 1 else ''} to "
+                  f"its BSDF node: edit the node itself (Hazy Gloss follows it); the layer's own "
+                  f"parameters are {', '.join(HAZE_PARAMETERS)}")
+        parts = []
+        for name in unknown:
+            close = difflib.get_close_matches(str(name), HAZE_PARAMETERS, n=1)
+            parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+        _fail(f"unknown haze parameter{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
+              f"valid: {', '.join(HAZE_PARAMETERS)}")
+    h = dict(HAZE_DEFAULTS if current is None else current)
+    h.update(params)
+    for name in ("haziness", "coat_haziness"):
+        h[name] = _in_range(name, _number(name, h[name]))
+    h["haze_extent"] = _extent(h["haze_extent"])
+    ce = h["coat_haze_extent"]
+    h["coat_haze_extent"] = _in_range("coat_haze_extent", _number("coat_haze_extent", ce[0] if
+                                      isinstance(ce, (tuple, list)) else ce))
+    if h["smoothness"] is not None:
+        h["smoothness"] = _in_range("smoothness", _number("smoothness", h["smoothness"]))
+    if not isinstance(h["keep_body_colour"], (bool, int, np.bool_)):
+        _fail(f"keep_body_colour must be True or False, got {h['keep_body_colour']!r}")
+    h["keep_body_colour"] = bool(h["keep_body_colour"])
+    return h
 
 
 def is_anisotropic(p):

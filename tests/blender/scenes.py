@@ -442,3 +442,66 @@ def render_exr(path=None, *, codec="ZIP"):
     if channels == 3:
         arr = np.concatenate([arr, np.ones((h, w, 1), np.float32)], axis=-1)
     return arr
+
+
+#: Render passes by the names :func:`render_passes` takes -> (view-layer property, EXR pass
+#: names: 5.x writes "Glossy Direct", 4.5 "GlossDir").
+PASSES = {
+    "combined": (None, ("Combined",)),
+    "glossy_direct": ("use_pass_glossy_direct", ("Glossy Direct", "GlossDir")),
+    "glossy_color": ("use_pass_glossy_color", ("Glossy Color", "GlossCol")),
+    "diffuse_direct": ("use_pass_diffuse_direct", ("Diffuse Direct", "DiffDir")),
+    "diffuse_color": ("use_pass_diffuse_color", ("Diffuse Color", "DiffCol")),
+    "emission": ("use_pass_emit", ("Emission", "Emit")),
+    "transmission_direct": ("use_pass_transmission_direct", ("Transmission Direct", "TransDir")),
+}
+
+
+def render_passes(read_exr, names=("combined",), *, path=None):
+    """Render the current scene to a multilayer EXR and return {name: (H, W, 3) float64} for the
+    pass ``names`` (keys of :data:`PASSES`) plus "alpha" (H, W).  Cycles' direct passes hold
+    the light without the BSDF's colour: "glossy" (glossy direct x glossy colour) and "diffuse"
+    are what the combined pass adds up.  ``read_exr`` is an EXR reader
+    ``path -> {channel: (H, W)}`` (hazy_gloss.exr.read_exr; the harness does not import it)."""
+    scene = bpy.context.scene
+    vl = bpy.context.view_layer
+    wanted = list(names)
+    for light in ("glossy", "diffuse"):
+        if light in wanted:
+            wanted.remove(light)
+            wanted += [f"{light}_direct", f"{light}_color"]
+    for name in wanted:
+        prop = PASSES[name][0]
+        if prop:
+            setattr(vl, prop, True)
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    keep = path is not None
+    if not keep:
+        fd, path = tempfile.mkstemp(suffix=".exr", prefix="hg_passes_")
+        os.close(fd)
+    old = scene.render.filepath
+    scene.render.filepath = path
+    try:
+        bpy.ops.render.render(write_still=True)
+        ch = read_exr(path)
+    finally:
+        scene.render.filepath = old
+        if not keep and os.path.exists(path):
+            os.remove(path)
+    out = {}
+    for name in wanted:
+        exr = PASSES[name][1]
+        keys = [k for k in ch if k.split(".")[-2] in exr]
+        by = {k.split(".")[-1]: ch[k] for k in keys}
+        out[name] = np.stack([by["R"], by["G"], by["B"]], axis=-1).astype(np.float64)
+    for light in ("glossy", "diffuse"):
+        if light in names:
+            out[light] = out[f"{light}_direct"] * out[f"{light}_color"]
+    alpha = [k for k in ch if k.endswith("Combined.A")]
+    out["alpha"] = ch[alpha[0]].astype(np.float64) if alpha else None
+    return out

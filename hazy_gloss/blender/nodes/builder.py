@@ -24,9 +24,24 @@ class TreeBuilder:
         self.x0 = x0
         self.y0 = y0
         self.created = []
+        self.reuse = None  # nodes to take instead of creating new ones (nodes.emit)
+        self._placed = set()  # names of reused nodes
 
     def node(self, bl_idname, *, label=None, name=None, depth=None, **props):
-        """A new node; ``name`` becomes "<prefix> <name>" and, in a material tree, its role."""
+        """A new node; ``name`` becomes "<prefix> <name>" and, in a material tree, its role.
+        With ``reuse`` set, the next node of that list (of the same type) is taken instead."""
+        if self.reuse:
+            n = self.reuse.pop(0)
+            if n.bl_idname != bl_idname:
+                raise ValueError(f"cannot reuse {n.bl_idname} as {bl_idname}")
+            for k, val in props.items():
+                if getattr(n, k) != val:
+                    setattr(n, k, val)
+            self.created.append(n)
+            self._placed.add(n.name)
+            if depth is not None:
+                self._depth[n.name] = depth
+            return n
         n = self.nodes.new(bl_idname)
         for k, val in props.items():
             setattr(n, k, val)
@@ -44,6 +59,9 @@ class TreeBuilder:
         return n
 
     def place(self, node, depth):
+        if node.name in self._placed:  # a reused node keeps where it is (the user may move it)
+            self._depth[node.name] = depth
+            return
         row = self._rows.get(depth, 0)
         self._rows[depth] = row + 1
         node.location = (self.x0 + 180.0 * depth, self.y0 - 160.0 * row)

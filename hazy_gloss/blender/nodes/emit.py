@@ -16,15 +16,22 @@ def _by_id(sockets, identifier):
     raise KeyError(identifier)
 
 
-def emit(tb, graph, outputs, sources, *, backend="SHADER"):
+def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None):
     """Build the nodes ``outputs`` (an Expr or a dict/list of them) need with TreeBuilder ``tb``.
 
     ``sources``: input name -> socket or constant.  Returns ``outputs`` with every Expr replaced
     by a socket or a Python constant (the shader backend), or, for the compositor, vectors by a
-    tuple of three lanes."""
+    tuple of three lanes.  ``reuse``: the nodes an earlier emit of a graph with the same
+    signature created (``tb.created`` order): they are updated in place instead of new ones
+    (constants and links set again), so a change of values rebuilds nothing."""
     emitter = (_ShaderEmitter if backend == "SHADER" else _CompositorEmitter)(tb, sources)
-    for e in graph.used(outputs):
-        emitter.visit(e)
+    if reuse is not None:
+        tb.reuse = list(reuse)
+    try:
+        for e in graph.used(outputs):
+            emitter.visit(e)
+    finally:
+        tb.reuse = None
     return _replace(outputs, emitter.value)
 
 

@@ -1,0 +1,702 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Haze as a layer on the artist's own BSDF (Make Hazy): nothing the user built is replaced.
+
+The user's node (Principled, Metallic or Glossy BSDF: the *core*) stays where it is with every
+input and link; it renders the narrow lobe of Eq. 1.  The layer adds copies of it that differ
+only in what haze changes — the wide lobe's roughness, anisotropy and rotation, and the
+Fresnel's F(0) raised from r_c to r (Eq. 3-5) — mixed by β.  The Principled BSDF is linear in
+its metallic part (Cycles svm/closure.h: the metal lobe has weight m, the rest 1 - m, under the
+same coat and sheen), so a metallic map splits it exactly into a dielectric and a metal part,
+each with its own haze mapping (its own r̂_c, so its own β):
+
+  hazy = Mix(m, Mix(β_d, D_n, D_w), Mix(β_m, M_n, M_w))      (the core is D_n, or M_n)
+
+The coat carries its own haze: a Mix by β_c of the above and a copy of it whose coats are the
+wide lobe.  At haziness 0 (and coat haziness 0) the layer holds no node at all: the material is
+exactly the user's.
+
+The *owned* inputs are those the layer writes on the core: the Principled IOR (F0(η') = gain
+F0(η), where gain = r̂ / r̂_c, Eq. 5), its Base Color when it is all metal (F0 = gain base), its
+Metallic (0 on the dielectric part when a map splits it), Coat IOR; a Metallic BSDF's η, κ
+(Gulbrandsen from (r, g), Physical Conductor) or F82 Base Color; a Glossy BSDF's colour
+(k_n = (1-β) r).  Their values as the user set them are kept in the stamp (when linked, the link
+stays the source and node math sits in between), so removing the haze restores them.  Every other
+input of the copies follows the core (:func:`sync`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import constants as K
+from ..core import gulbrandsen_inverse
+from ..core import node_math
+from ..core.graph import Graph
+from ..core.lobes import describe
+from ..core.parameters import HAZE_DEFAULTS
+from .nodes import ownership
+from .nodes.builder import TreeBuilder, socket_value
+from .nodes.emit import emit
+
+#: Custom property marking the user's core node (it is never one of ours: never removed).
+CORE_KEY = "hazy_gloss_core"
+LAYER_VERSION = 1
+STAMP_VERSION = 2  # blender.material.STAMP_VERSION (the stamp's format)
+
+PRINCIPLED = "ShaderNodeBsdfPrincipled"
+METALLIC = "ShaderNodeBsdfMetallic"
+GLOSSY = ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
+CORE_TYPES = (PRINCIPLED, METALLIC) + GLOSSY
+_NODE_PROPS = {PRINCIPLED: ("distribution", "subsurface_method"),
+               METALLIC: ("distribution", "fresnel_type"),
+               "ShaderNodeBsdfAnisotropic": ("distribution",), "ShaderNodeBsdfGlossy": ("distribution",)}
+_ANISO = {PRINCIPLED: ("Anisotropic", "Anisotropic Rotation"), METALLIC: ("Anisotropy", "Rotation"),
+          "ShaderNodeBsdfAnisotropic": ("Anisotropy", "Rotation"),
+          "ShaderNodeBsdfGlossy": ("Anisotropy", "Rotation")}
+HAZE = HAZE_DEFAULTS
+
+
+def core_type(node):
+    if node.bl_idname == PRINCIPLED:
+        return "PRINCIPLED"
+    if node.bl_idname == METALLIC:
+        return "METALLIC"
+    if node.bl_idname in GLOSSY:
+        return "GLOSSY"
+    return None
+
+
+def _source(sock):
+    if sock is None or not sock.is_linked:
+        return None
+    link = sock.links[0]
+    if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
+        return None
+    return link.from_socket
+
+
+def _plain(v):
+    if hasattr(v, "__len__") and not isinstance(v, str):
+        return tuple(float(x) for x in v)[:3]
+    return float(v)
+
+
+def _socket_ref(sock):
+    return [sock.node.name, sock.identifier]
+
+
+def _resolve(tree, ref):
+    node = tree.nodes.get(ref[0])
+    if node is None:
+        return None
+    return next((s for s in node.outputs if s.identifier == ref[1]), None)
+
+
+class Input:
+    """One input of the core as the mapping reads it: a constant or the socket linked into it.
+    For an owned input the user's own value (kept in the stamp) is read, not what the layer
+    wrote."""
+
+    __slots__ = ("value", "link")
+
+    def __init__(self, node, name, base=None):
+        self.value, self.link = None, None
+        if base is not None:
+            if "link" in base:
+                self.link = _resolve(node.id_data, base["link"])
+            if self.link is None and "value" in base:
+                self.value = _plain(base["value"])
+            if self.link is not None or self.value is not None:
+                return
+        sock = node.inputs.get(name)
+        self.link = _source(sock)
+        if self.link is None:
+            self.value = _plain(sock.default_value)
+
+    @property
+    def linked(self):
+        return self.link is not None
+
+
+# --------------------------------------------------------------------------------------------
+# The plan: parts, copies, owned inputs
+# --------------------------------------------------------------------------------------------
+
+
+class Plan:
+    """What the layer needs for a core node and its haze parameters."""
+
+    def __init__(self, core, haze, base):
+        self.core = core
+        self.type = core_type(core)
+        self.haze = haze
+        self.base = base  # owned input -> {"value": ...} / {"link": [node, socket]}
+        self.inp = lambda name: Input(core, name, base.get(name))  # noqa: E731
+        on = haze["haziness"] > 0.0
+        coat = False
+        if self.type == "PRINCIPLED":
+            m = self.inp("Metallic")
+            parts = (("DIELECTRIC", "METAL") if m.linked or 0.0 < m.value < 1.0 else
+                     ("METAL",) if m.value >= 1.0 else ("DIELECTRIC",))
+            cw = self.inp("Coat Weight")
+            coat = haze["coat_haziness"] > 0.0 and (cw.linked or cw.value > 0.0)
+        elif self.type == "METALLIC":
+            parts = ("PHYSICAL",) if core.fresnel_type == "PHYSICAL_CONDUCTOR" else ("METAL",)
+        else:
+            parts = ("GLOSSY",)
+        self.parts = parts if on else ()
+        self.split = len(self.parts) == 2
+        self.coat = coat
+        a_name = _ANISO[core.bl_idname][0]
+        a = self.inp(a_name)
+        lx, ly = haze["haze_extent"]
+        self.anisotropic = on and (a.linked or a.value != 0.0 or lx != ly)
+
+    @property
+    def active(self):
+        return bool(self.parts) or self.coat
+
+    def slots(self):
+        """(part, wide, coat_wide) of every BSDF the layer needs; the first is the core."""
+        base = [(p, w) for p in self.parts for w in (False, True)] or [(None, False)]
+        return [(p, w, cw) for cw in ((False, True) if self.coat else (False,)) for p, w in base]
+
+    def owned(self):
+        """The core's inputs the layer writes."""
+        names = []
+        if self.parts:
+            first = self.parts[0]
+            names += {"DIELECTRIC": ["IOR"], "METAL": ["Base Color"], "PHYSICAL": ["IOR", "Extinction"],
+                      "GLOSSY": ["Color"]}[first]
+            if self.split:
+                names.append("Metallic")
+        if self.coat:
+            names.append("Coat IOR")
+        return names
+
+    def key(self):
+        """The structure (which nodes exist and which inputs are linked); values of the same
+        structure are set in place."""
+        linked = tuple(sorted(s.name for s in self.core.inputs if _source(s) is not None
+                              and not ownership.is_ours(_source(s).node)))
+        return repr((self.type, self.parts, self.coat, self.anisotropic,
+                     self.haze["smoothness"] is not None, linked,
+                     tuple(sorted(k for k, v in self.base.items() if "link" in v))))
+
+
+def _slot_role(part, wide, coat_wide):
+    name = {"DIELECTRIC": "dielectric", "METAL": "metal", "PHYSICAL": "metal", "GLOSSY": "glossy",
+            None: "core"}[part]
+    return f"{name} {'wide' if wide else 'narrow'}{' coat wide' if coat_wide else ''}"
+
+
+# --------------------------------------------------------------------------------------------
+# Values
+# --------------------------------------------------------------------------------------------
+
+
+def _f0(g, ior):
+    return g.math("POWER", g.div(g.sub(ior, 1.0), g.add(ior, 1.0)), 2.0)
+
+
+def _ior_from_f0(g, f0):
+    """(1+√f)/(1-√f), with 1 - √f = (1 - f)/(1 + √f)."""
+    f0 = g.minimum(f0, K.ONE_MINUS_ULP32)
+    sq = g.add(g.sqrt(f0), 1.0)
+    return g.div(g.mul(sq, sq), g.maximum(g.sub(1.0, f0), 1e-12))
+
+
+def _mapping(plan, g, x, kind, rc, edge_tint, rough, aniso, rot, haziness, extent, smooth, dist,
+             anisotropic):
+    """The haze mapping of one part: core.lobes.describe (float64) when every input is a
+    constant, else core.node_math on the graph.  Returns Exprs."""
+    consts = [e for e in (rc, edge_tint, rough, aniso, rot) if hasattr(e, "is_const")]
+    dist = dist if dist in K.NODE_DISTRIBUTIONS[kind] else "GGX"
+    if all(e.is_const for e in consts):
+        val = lambda e: np.asarray(e.value, np.float64) if hasattr(e, "value") else e  # noqa: E731
+        d = describe(kind, dist, core_reflectivity=tuple(np.broadcast_to(val(rc), (3,))),
+                     edge_tint=tuple(np.broadcast_to(val(edge_tint), (3,))),
+                     roughness=float(val(rough)), anisotropy=float(val(aniso)),
+                     rotation=float(val(rot)), haziness=haziness, haze_extent=extent,
+                     smoothness=smooth, anisotropic=anisotropic, strict=False)
+        m = d.mapping
+        wide = d.wide if d.wide is not None else d.narrow
+        out = dict(beta=float(d.beta), reflectivity_max=float(m.reflectivity_max),
+                   core_max=float(np.max(m.core_reflectivity)),
+                   reflectivity=tuple(float(c) for c in m.reflectivity),
+                   roughness_wide=float(wide.roughness))
+        if anisotropic:
+            out.update(anisotropy_wide=float(wide.anisotropy), rotation_wide=float(wide.rotation))
+        if kind == "CONDUCTOR":
+            out.update(ior=tuple(map(float, m.ior)), extinction=tuple(map(float, m.extinction)))
+        if kind == "LEGACY":
+            out.update(colour_narrow=tuple(map(float, d.fresnel.get("colour_narrow", m.reflectivity))),
+                       colour_wide=tuple(map(float, d.fresnel.get("colour_wide", (0.0, 0.0, 0.0)))))
+        return {k: g.const(v) for k, v in out.items()}, m
+    src = dict(core_reflectivity=rc, edge_tint=edge_tint, roughness=rough, anisotropy=aniso,
+               rotation=rot, haziness=haziness, haze_extent_x=extent[0], haze_extent_y=extent[1],
+               smoothness=smooth)
+    return node_math.mapping(g, src, kind=kind, anisotropic=anisotropic, smooth=smooth is not None,
+                             distribution=dist), None
+
+
+def values(plan):
+    """(graph, {(slot, input name): Expr}, {mix role: Expr}, sources, mappings) of a plan."""
+    core, haze, t = plan.core, plan.haze, plan.type
+    g = Graph()
+    sources = {}
+
+    def x(name, vector=False):
+        i = plan.inp(name)
+        if i.linked:
+            key = f"in:{name}"
+            sources[key] = i.link
+            return g.input(key, vector=vector)
+        return g.const(i.value)
+
+    writes, mixes, maps = {}, {}, {}
+    a_name, r_name = _ANISO[core.bl_idname]
+    rough, aniso, rot = x("Roughness"), x(a_name), x(r_name)
+    if t == "GLOSSY":  # Glossy's anisotropy convention read into the Metallic one
+        aniso, rot = node_math.glossy_to_metallic(g, aniso, rot)
+    dist = core.distribution if core.distribution in K.DISTRIBUTIONS else "GGX"
+    for part in plan.parts:
+        edge = g.const(0.0)
+        if part == "DIELECTRIC":
+            f0_user = _f0(g, x("IOR"))
+            level = g.mul(g.maximum(x("Specular IOR Level"), 0.0), 2.0)
+            rc, kind = g.vmath("SCALE", x("Specular Tint", True), g.mul(f0_user, level)), "DIELECTRIC"
+        elif part == "PHYSICAL":
+            rc, edge = node_math.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
+            kind = "CONDUCTOR"
+        elif part == "METAL":
+            rc, kind = x("Base Color", True), "DIELECTRIC"
+        else:
+            rc, kind = x("Color", True), "LEGACY"
+        m, mp = _mapping(plan, g, x, kind, rc, edge, rough, aniso, rot, haze["haziness"],
+                         haze["haze_extent"], haze["smoothness"], dist, plan.anisotropic)
+        if mp is not None:
+            maps[part] = mp
+        own = {}
+        if part == "DIELECTRIC":
+            gain = g.div(m["reflectivity_max"], g.maximum(m["core_max"], 1e-30))
+            own["IOR"] = _ior_from_f0(g, g.mul(f0_user, gain))
+        elif part == "PHYSICAL":
+            own["IOR"], own["Extinction"] = m["ior"], m["extinction"]
+        elif part == "METAL":
+            own["Base Color"] = m["reflectivity"]
+        if plan.split:
+            own["Metallic"] = g.const(1.0 if part == "METAL" else 0.0)
+        for wide in (False, True):
+            w = dict(own)
+            if part == "GLOSSY":
+                w["Color"] = m["colour_wide" if wide else "colour_narrow"]
+            if wide:
+                w["Roughness"] = m["roughness_wide"]
+                if plan.anisotropic:  # kind LEGACY gives Glossy's convention, the others the Metallic one
+                    w[a_name], w[r_name] = m["anisotropy_wide"], m["rotation_wide"]
+            for name, e in w.items():
+                writes[((part, wide), name)] = e
+        mixes[f"Mix {part.lower()}"] = m["beta"]
+    if plan.split:
+        mixes["Mix metallic"] = x("Metallic")
+    if plan.coat:
+        f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
+        mc, mp = _mapping(plan, g, x, "DIELECTRIC", f0c, g.const(0.0), x("Coat Roughness"),
+                          g.const(0.0), g.const(0.0), haze["coat_haziness"],
+                          (haze["coat_haze_extent"],) * 2, None, "GGX", False)
+        if mp is not None:
+            maps["COAT"] = mp
+        gain = g.div(mc["reflectivity_max"], g.maximum(mc["core_max"], 1e-30))
+        writes[("coat", "Coat IOR")] = _ior_from_f0(g, g.mul(f0c, gain))
+        writes[("coat wide", "Coat Roughness")] = mc["roughness_wide"]
+        mixes["Mix coat"] = mc["beta"]
+    return g, writes, mixes, sources, maps
+
+
+def slot_writes(plan, writes, slot):
+    """{input name: value} one BSDF of the layer gets."""
+    part, wide, cw = slot
+    out = {}
+    for (key, name), e in writes.items():
+        if key == "coat" or (key == "coat wide" and cw) or key == (part, wide):
+            out[name] = e
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Building and updating
+# --------------------------------------------------------------------------------------------
+
+_ROLE = "layer "  # role prefix of the layer's nodes (math nodes: "layer math")
+
+
+def find_core(tree, name=None):
+    """The core node of a layered tree (tagged with CORE_KEY; ``name`` first, so a copy the
+    user made with Shift+D, which keeps the tag, is not taken), or None."""
+    tagged = [n for n in tree.nodes if n.get(CORE_KEY)]
+    if not tagged:
+        return None
+    core = next((n for n in tagged if n.name == name), tagged[0])
+    for n in tagged:
+        if n is not core:
+            del n[CORE_KEY]
+    return core
+
+
+def _layer_nodes(tree):
+    return {r: n for r, n in ownership.ours(tree).items() if r.startswith(_ROLE)}
+
+
+def _final(tree):
+    """The output socket the layer's BSDF leaves through (its last mix), or None."""
+    nodes = _layer_nodes(tree)
+    for r in ("layer Mix coat", "layer Mix metallic", "layer Mix dielectric", "layer Mix metal",
+              "layer Mix physical", "layer Mix glossy"):
+        if r in nodes:
+            return nodes[r].outputs[0]
+    return None
+
+
+def _destinations(tree, core):
+    """Where the material's hazy BSDF goes: the links out of the layer's last mix, or out of
+    the core when there is no layer (links into the layer's own nodes excluded)."""
+    out = _final(tree) or core.outputs[0]
+    return [(l.to_node.name, l.to_socket.identifier) for l in out.links
+            if not l.to_node.name.startswith(K.NODE_PREFIX + " " + _ROLE)
+            and not (ownership.role(l.to_node) or "").startswith(_ROLE)]
+
+
+def _connect(tree, out, destinations):
+    for name, ident in destinations:
+        node = tree.nodes.get(name)
+        sock = next((s for s in node.inputs if s.identifier == ident), None) if node else None
+        if sock is not None:
+            tree.links.new(out, sock)
+
+
+def _write(tree, node, name, value):
+    sock = node.inputs.get(name)
+    if sock is None:
+        return
+    if hasattr(value, "node"):
+        if not (sock.is_linked and sock.links[0].from_socket == value):
+            tree.links.new(value, sock)
+        return
+    for link in list(sock.links):
+        tree.links.remove(link)
+    v = socket_value(sock, value)
+    cur = sock.default_value
+    if (tuple(cur) if hasattr(cur, "__len__") else cur) != v:
+        sock.default_value = v
+
+
+def sync_node(core, copy, skip=()):
+    """``copy``'s inputs and node settings made the core's (values and links), except ``skip``."""
+    tree = core.id_data
+    for src, dst in zip(core.inputs, copy.inputs):
+        if src.identifier != dst.identifier or src.name in skip:
+            continue
+        link = _source(src)
+        if link is not None:
+            if not (dst.is_linked and dst.links[0].from_socket == link):
+                tree.links.new(link, dst)
+            continue
+        for l in list(dst.links):
+            tree.links.remove(l)
+        if hasattr(src, "default_value"):
+            val = src.default_value
+            val = tuple(val) if hasattr(val, "__len__") else val
+            cur = dst.default_value
+            if (tuple(cur) if hasattr(cur, "__len__") else cur) != val:
+                dst.default_value = val
+    for prop in _NODE_PROPS.get(core.bl_idname, ()):
+        if getattr(copy, prop) != getattr(core, prop):
+            setattr(copy, prop, getattr(core, prop))
+
+
+def _current(sock):
+    """What an input holds now: {"link": ref} or {"value": v}."""
+    src = _source(sock)
+    if src is not None:
+        return {"link": _socket_ref(src)}
+    return {"value": _plain(sock.default_value)}
+
+
+def _stamp(mat):
+    d = mat.get(K.STAMP)
+    return (d.to_dict() if hasattr(d, "to_dict") else dict(d)) if d is not None else None
+
+
+def layer_state(mat):
+    d = _stamp(mat)
+    return d.get("layer") if d else None
+
+
+def is_layered(mat):
+    return mat is not None and layer_state(mat) is not None
+
+
+def _adopt(core, state):
+    """Owned inputs the user changed since the layer wrote them become their new user values
+    (a node-editor edit of the core's IOR, say, is adopted, not overwritten)."""
+    base, written = dict(state.get("base", {})), state.get("written", {})
+    for name, w in written.items():
+        sock = core.inputs.get(name)
+        if sock is None:
+            continue
+        now = _current(sock)
+        if "link" in now:
+            node = core.id_data.nodes.get(now["link"][0])
+            if node is not None and not ownership.is_ours(node):
+                base[name] = now  # the user linked something new
+        elif "value" in w and not _same(now["value"], w["value"]):
+            base[name] = now
+    return base
+
+
+def _same(a, b):
+    a, b = np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(b, float))
+    return a.shape == b.shape and bool(np.all(np.abs(a - b) <= 1e-6 * np.maximum(1.0, np.abs(b))))
+
+
+def _restore(core, name, base):
+    """Give an input back its user value or link."""
+    tree = core.id_data
+    sock = core.inputs.get(name)
+    if sock is None or base is None:
+        return
+    if "link" in base:
+        src = _resolve(tree, base["link"])
+        if src is not None:
+            tree.links.new(src, sock)
+            return
+    for l in list(sock.links):
+        tree.links.remove(l)
+    if "value" in base:
+        sock.default_value = socket_value(sock, base["value"])
+
+
+def apply(mat, haze, *, core=None):
+    """Make ``mat``'s layer render ``haze`` (a dict like HAZE) on its core node: values set in
+    place when the structure is unchanged, else the layer's nodes rebuilt.  Returns the
+    constant parts' HazeMappings by part."""
+    tree = mat.node_tree
+    state = layer_state(mat) or {}
+    core = core or find_core(tree, state.get("core"))
+    if core is None:
+        raise ValueError(f"the core node of {mat.name!r} is gone, so its Hazy Gloss layer cannot "
+                         f"be updated: Remove Haze and Make Hazy again")
+    base = _adopt(core, state)
+    plan = Plan(core, haze, base)
+    for name in plan.owned():  # inputs owned for the first time: keep what the user has there
+        if name not in base:
+            base[name] = _current(core.inputs[name])
+    plan = Plan(core, haze, base)
+    for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back
+        _restore(core, name, base.pop(name))
+    key = plan.key()
+    g, writes, mixes, sources, maps = values(plan)
+    flat = {("w",) + k: e for k, e in writes.items()}
+    flat.update({("m", r): e for r, e in mixes.items()})
+    signature = str(g.signature(flat))
+    layer_nodes = _layer_nodes(tree)
+    old_math = [tree.nodes.get(n) for n in state.get("math", [])]
+    same = (plan.active and state.get("structure") == key and bool(layer_nodes)
+            and all(_ROLE + _slot_role(*s) in layer_nodes for s in plan.slots()[1:]))
+    reuse = old_math if same and state.get("signature") == signature and \
+        all(n is not None for n in old_math) else None
+    destinations = _destinations(tree, core)
+    if not same:
+        for n in layer_nodes.values():
+            tree.nodes.remove(n)
+    elif reuse is None:
+        for n in old_math:
+            if n is not None:
+                tree.nodes.remove(n)
+    tb = TreeBuilder(tree, x0=core.location.x - 180.0 * 10, y0=core.location.y - 480.0, roles=True)
+    out = emit(tb, g, flat, sources, reuse=reuse)
+    math_nodes = list(tb.created)
+    for i, n in enumerate(math_nodes):
+        n[K.ROLE] = f"{_ROLE}math {i}"
+    nodes = _existing(tree, plan) if same else _build(mat, plan, tb)
+    written = {}
+    w_all = {k[1:]: v for k, v in out.items() if k[0] == "w"}
+    for slot, node in nodes.items():
+        w = slot_writes(plan, w_all, slot)
+        for name, val in w.items():
+            _write(tree, node, name, val)
+        if node is core:
+            written = {name: _current(core.inputs[name]) for name in w}
+        else:
+            sync_node(core, node, skip=set(w))
+    current = _layer_nodes(tree)
+    for k, val in out.items():
+        if k[0] != "m":
+            continue
+        role = k[1]
+        for suffix in ("", " coat wide"):
+            mix = current.get(_ROLE + role + suffix)
+            if mix is not None and mix.bl_idname == "ShaderNodeMixShader":
+                tb.feed(mix.inputs[0], val)
+    if not same:
+        _connect(tree, _final(tree) or core.outputs[0], destinations)
+    core[CORE_KEY] = True
+    d = _stamp(mat) or {}
+    d["layer"] = {"version": LAYER_VERSION, "core": core.name, "structure": key,
+                  "signature": signature, "math": [n.name for n in math_nodes], "base": base,
+                  "written": written,
+                  "haze": {k: (list(v) if isinstance(v, tuple) else v) for k, v in haze.items()
+                           if v is not None}}
+    d["version"] = STAMP_VERSION
+    mat[K.STAMP] = d
+    return maps
+
+
+def _existing(tree, plan):
+    core = find_core(tree)
+    nodes = _layer_nodes(tree)
+    return {slot: (core if i == 0 else nodes[_ROLE + _slot_role(*slot)])
+            for i, slot in enumerate(plan.slots())}
+
+
+def _build(mat, plan, tb):
+    """The copies and mixes of ``plan`` (the core is the first slot)."""
+    core = plan.core
+    nodes = {}
+    for i, slot in enumerate(plan.slots()):
+        if i == 0:
+            nodes[slot] = core
+            continue
+        role = _slot_role(*slot)
+        n = tb.node(core.bl_idname, name=_ROLE + role, label=f"Hazy Gloss {role}")
+        for prop in _NODE_PROPS.get(core.bl_idname, ()):
+            setattr(n, prop, getattr(core, prop))
+        n.location = (core.location.x, core.location.y - 200.0 - 40.0 * i)
+        n.width = core.width
+        n.hide = True  # the copies follow the core: the user edits the core
+        nodes[slot] = n
+    x0 = core.location.x + core.width + 80.0
+    count = [0]
+
+    def mix(role, a, b, column, add=False):
+        m = tb.node("ShaderNodeAddShader" if add else "ShaderNodeMixShader", name=_ROLE + role,
+                    label=f"Hazy Gloss {role}")
+        m.location = (x0 + 200.0 * column, core.location.y - 140.0 * count[0])
+        count[0] += 1
+        first = 0 if add else 1
+        tb.link(a, m.inputs[first])
+        tb.link(b, m.inputs[first + 1])
+        return m.outputs[0]
+
+    results = {}
+    for cw in ((False, True) if plan.coat else (False,)):
+        sfx = " coat wide" if cw else ""
+        parts = {}
+        for part in plan.parts:
+            parts[part] = mix(f"Mix {part.lower()}{sfx}", nodes[(part, False, cw)].outputs[0],
+                              nodes[(part, True, cw)].outputs[0], 0, add=(part == "GLOSSY"))
+        if plan.split:
+            results[cw] = mix(f"Mix metallic{sfx}", parts["DIELECTRIC"], parts["METAL"], 1)
+        elif parts:
+            results[cw] = next(iter(parts.values()))
+        else:
+            results[cw] = nodes[(None, False, cw)].outputs[0]
+    if plan.coat:
+        mix("Mix coat", results[False], results[True], 2)
+    return nodes
+
+
+def haze_of(mat):
+    """The haze parameters stamped on a layered material (HAZE defaults filled in)."""
+    state = layer_state(mat) or {}
+    h = dict(HAZE)
+    h.update(state.get("haze", {}))
+    h["haze_extent"] = tuple(h["haze_extent"]) if hasattr(h["haze_extent"], "__len__") \
+        else (float(h["haze_extent"]),) * 2
+    if "smoothness" not in state.get("haze", {}):
+        h["smoothness"] = None
+    return h
+
+
+def remove(mat):
+    """Take the layer off: the core's owned inputs get the user's values and links back, the
+    layer's nodes go, the core's output goes where the layer's went."""
+    tree = mat.node_tree
+    state = layer_state(mat) or {}
+    core = find_core(tree)
+    if core is not None:
+        destinations = _destinations(tree, core)
+        for name, b in state.get("base", {}).items():
+            _restore(core, name, b)
+    for n in _layer_nodes(tree).values():
+        tree.nodes.remove(n)
+    if core is not None:
+        _connect(tree, core.outputs[0], destinations)
+        del core[CORE_KEY]
+    if K.STAMP in mat:
+        del mat[K.STAMP]
+
+
+def fingerprint(core):
+    """A hash of what the copies must follow: the core's inputs (values and link sources) and
+    node settings (the depsgraph handler resyncs when it changes)."""
+    items = []
+    for s in core.inputs:
+        src = _source(s)
+        if src is not None:
+            items.append((s.identifier, "L", src.node.name, src.identifier))
+        elif hasattr(s, "default_value"):
+            v = s.default_value
+            items.append((s.identifier, tuple(v) if hasattr(v, "__len__") else v))
+    items += [(p, getattr(core, p)) for p in _NODE_PROPS.get(core.bl_idname, ())]
+    return hash(tuple(items))
+
+
+def read(mat):
+    """The perceptual view of a layered material: the haze parameters, and the core's own
+    parameters as it holds them (linked inputs report their unlinked value and are listed in
+    ``textured``)."""
+    core = find_core(mat.node_tree)
+    h = haze_of(mat)
+    state = layer_state(mat) or {}
+    if core is None:
+        raise ValueError(f"the core node of {mat.name!r} is gone")
+    base = state.get("base", {})
+    inp = lambda n: Input(core, n, base.get(n))  # noqa: E731
+    t = core_type(core)
+    a_name, r_name = _ANISO[core.bl_idname]
+    p = dict(layered=True, core=core.name, core_type=t, distribution=core.distribution,
+             roughness=inp("Roughness").value, anisotropy=inp(a_name).value,
+             rotation=inp(r_name).value, edge_tint=(0.0, 0.0, 0.0), base_color=(0.0, 0.0, 0.0),
+             transmission=0.0, tangent="UV_MAP", shader_mapping=False, **h)
+    textured = sorted(s.name for s in core.inputs if _source(s) is not None
+                      and not ownership.is_ours(_source(s).node))
+    textured += sorted(n for n, b in base.items() if "link" in b and n not in textured)
+    p["textured"] = textured
+    if t == "PRINCIPLED":
+        m = inp("Metallic")
+        p["metallic"] = m.value if not m.linked else None
+        p["kind"] = ("DIELECTRIC" if (not m.linked and m.value <= 0.0) else
+                     "CONDUCTOR" if (not m.linked and m.value >= 1.0) else "MIXED")
+        f0 = ((inp("IOR").value - 1.0) / (inp("IOR").value + 1.0)) ** 2 * 2.0 * inp("Specular IOR Level").value
+        dielectric = tuple(min(max(f0 * c, 0.0), 1.0) for c in inp("Specular Tint").value)
+        metal = tuple(min(max(c, 0.0), 1.0) for c in inp("Base Color").value)
+        p["core_reflectivity"] = metal if p["kind"] == "CONDUCTOR" else dielectric
+        p["dielectric_reflectivity"], p["metal_reflectivity"] = dielectric, metal
+        p["base_color"] = inp("Base Color").value
+        p["transmission"] = inp("Transmission Weight").value
+    elif t == "METALLIC":
+        p["kind"] = "CONDUCTOR"
+        if core.fresnel_type == "PHYSICAL_CONDUCTOR":
+            r, g = gulbrandsen_inverse(np.maximum(np.asarray(inp("IOR").value, float), 0.0),
+                                       np.maximum(np.asarray(inp("Extinction").value, float), 0.0))
+            p["core_reflectivity"] = tuple(float(x) for x in np.clip(r, 0.0, 1.0))
+            p["edge_tint"] = tuple(float(x) for x in np.clip(np.nan_to_num(g), 0.0, 1.0))
+        else:
+            p["core_reflectivity"] = inp("Base Color").value
+            p["edge_tint"] = inp("Edge Tint").value
+    else:
+        p["kind"] = "LEGACY"
+        p["core_reflectivity"] = inp("Color").value
+    p["shader_mapping"] = bool(textured)
+    return p

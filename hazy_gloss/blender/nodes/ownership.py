@@ -1,0 +1,49 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Which nodes of a tree are the add-on's: a role (constants.ROLE, a node custom property that
+survives renaming) or, in files written before roles existed, a name starting with "HG "."""
+from ... import constants as K
+
+
+def role(node):
+    """The role of one of the add-on's nodes, or None for the user's nodes."""
+    r = node.get(K.ROLE)
+    if isinstance(r, str):
+        return r
+    if node.name.startswith(K.NODE_PREFIX + " "):  # files written before roles existed
+        return node.name[len(K.NODE_PREFIX) + 1:]
+    return None
+
+
+def is_ours(node):
+    """A node the add-on built (and updates); everything else in the tree is the user's."""
+    return role(node) is not None
+
+
+def ours(tree):
+    """{role: node} of the add-on's nodes.  A copy the user made of one of them (Shift+D keeps
+    the custom property) becomes the user's: only the first of a role is ours."""
+    found = {}
+    for n in tree.nodes:
+        r = role(n)
+        if r is None:
+            continue
+        if r in found:
+            if n.name == f"{K.NODE_PREFIX} {r}":  # the original kept its name: it is ours
+                found[r], n = n, found[r]
+            if K.ROLE in n:
+                del n[K.ROLE]
+            continue
+        found[r] = n
+    return found
+
+
+def output_node(tree, create=True):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    if outs or not create:
+        return outs[0] if outs else None
+    n = tree.nodes.new("ShaderNodeOutputMaterial")
+    n.location = (1400, 0)
+    return n
