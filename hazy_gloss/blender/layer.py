@@ -65,13 +65,52 @@ def core_type(node):
     return None
 
 
+class _Links:
+    """The links of a tree by (to node, to socket identifier), while :func:`apply` runs
+    (``socket.links`` walks every link of the tree; an update reads hundreds of sockets).
+    Invalidated whenever the layer adds or removes links."""
+
+    tree = None
+    into = None
+
+    @classmethod
+    def link(cls, sock):
+        tree = sock.id_data
+        if cls.tree is None or tree.as_pointer() != cls.tree:
+            return sock.links[0]
+        if cls.into is None:
+            cls.into = {(l.to_node.name, l.to_socket.identifier): l for l in tree.links}
+        return cls.into.get((sock.node.name, sock.identifier)) or sock.links[0]
+
+    @classmethod
+    def changed(cls):
+        cls.into = None
+
+
 def _source(sock):
     if sock is None or not sock.is_linked:
         return None
-    link = sock.links[0]
+    link = _Links.link(sock)
     if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
         return None
     return link.from_socket
+
+
+def _linked_from(sock, out):
+    """Whether ``out`` is what feeds ``sock``."""
+    return sock.is_linked and _Links.link(sock).from_socket == out
+
+
+def _new_link(tree, out, sock):
+    tree.links.new(out, sock)
+    _Links.changed()
+
+
+def _unlink(tree, sock):
+    if sock.is_linked:
+        for link in list(sock.links):
+            tree.links.remove(link)
+        _Links.changed()
 
 
 def _plain(v):
@@ -92,25 +131,20 @@ def _resolve(tree, ref):
 
 
 class Input:
-    """One input of the core as the mapping reads it: a constant or the socket linked into it.
-    For an owned input the user's own value (kept in the stamp) is read, not what the layer
-    wrote."""
+    """One input of the core as the mapping reads it: the socket linked into it (or None) and
+    its unlinked value.  For an owned input the user's own value and link (kept in the stamp)
+    are read, not what the layer wrote."""
 
     __slots__ = ("value", "link")
 
     def __init__(self, node, name, base=None):
-        self.value, self.link = None, None
-        if base is not None:
-            if "link" in base:
-                self.link = _resolve(node.id_data, base["link"])
-            if self.link is None and "value" in base:
-                self.value = _plain(base["value"])
-            if self.link is not None or self.value is not None:
-                return
         sock = node.inputs.get(name)
+        self.value = _plain(sock.default_value)
         self.link = _source(sock)
-        if self.link is None:
-            self.value = _plain(sock.default_value)
+        if base is not None:
+            self.link = _resolve(node.id_data, base["link"]) if "link" in base else None
+            if "value" in base:
+                self.value = _plain(base["value"])
 
     @property
     def linked(self):
@@ -206,18 +240,25 @@ def _ior_from_f0(g, f0):
 
 
 def _mapping(plan, g, x, kind, rc, edge_tint, rough, aniso, rot, haziness, extent, smooth, dist,
-             anisotropic):
+             anisotropic, lobe=None, tint=None):
     """The haze mapping of one part: core.lobes.describe (float64) when every input is a
-    constant, else core.node_math on the graph.  Returns Exprs."""
-    consts = [e for e in (rc, edge_tint, rough, aniso, rot) if hasattr(e, "is_const")]
+    constant, else core.node_math on the graph.  ``lobe``, ``tint``: the Multiscatter GGX lobe
+    type when the part's node is not the kind's own (core.multiscatter.correct_mapping).
+    Returns Exprs."""
+    consts = [e for e in (rc, edge_tint, rough, aniso, rot, tint) if hasattr(e, "is_const")]
     dist = dist if dist in K.NODE_DISTRIBUTIONS[kind] else "GGX"
     if all(e.is_const for e in consts):
         val = lambda e: np.asarray(e.value, np.float64) if hasattr(e, "value") else e  # noqa: E731
+        ms = None
+        if lobe is not None:
+            ms = dict(lobe=lobe)
+            if tint is not None:
+                ms["tint"] = np.broadcast_to(val(tint), (3,))
         d = describe(kind, dist, core_reflectivity=tuple(np.broadcast_to(val(rc), (3,))),
                      edge_tint=tuple(np.broadcast_to(val(edge_tint), (3,))),
                      roughness=float(val(rough)), anisotropy=float(val(aniso)),
                      rotation=float(val(rot)), haziness=haziness, haze_extent=extent,
-                     smoothness=smooth, anisotropic=anisotropic, strict=False)
+                     smoothness=smooth, anisotropic=anisotropic, strict=False, multiscatter=ms)
         m = d.mapping
         wide = d.wide if d.wide is not None else d.narrow
         out = dict(beta=float(d.beta), reflectivity_max=float(m.reflectivity_max),
@@ -272,8 +313,10 @@ def values(plan):
             rc, kind = x("Base Color", True), "DIELECTRIC"
         else:
             rc, kind = x("Color", True), "LEGACY"
+        tint_name = "Specular Tint" if t == "PRINCIPLED" else "Edge Tint"
+        lobe = dict(lobe="F82_TINT", tint=x(tint_name, True)) if part == "METAL" else {}
         m, mp = _mapping(plan, g, x, kind, rc, edge, rough, aniso, rot, haze["haziness"],
-                         haze["haze_extent"], haze["smoothness"], dist, plan.anisotropic)
+                         haze["haze_extent"], haze["smoothness"], dist, plan.anisotropic, **lobe)
         if mp is not None:
             maps[part] = mp
         own = {}
@@ -371,7 +414,7 @@ def _connect(tree, out, destinations):
         node = tree.nodes.get(name)
         sock = next((s for s in node.inputs if s.identifier == ident), None) if node else None
         if sock is not None:
-            tree.links.new(out, sock)
+            _new_link(tree, out, sock)
 
 
 def _write(tree, node, name, value):
@@ -379,11 +422,10 @@ def _write(tree, node, name, value):
     if sock is None:
         return
     if hasattr(value, "node"):
-        if not (sock.is_linked and sock.links[0].from_socket == value):
-            tree.links.new(value, sock)
+        if not _linked_from(sock, value):
+            _new_link(tree, value, sock)
         return
-    for link in list(sock.links):
-        tree.links.remove(link)
+    _unlink(tree, sock)
     v = socket_value(sock, value)
     cur = sock.default_value
     if (tuple(cur) if hasattr(cur, "__len__") else cur) != v:
@@ -398,11 +440,10 @@ def sync_node(core, copy, skip=()):
             continue
         link = _source(src)
         if link is not None:
-            if not (dst.is_linked and dst.links[0].from_socket == link):
-                tree.links.new(link, dst)
+            if not _linked_from(dst, link):
+                _new_link(tree, link, dst)
             continue
-        for l in list(dst.links):
-            tree.links.remove(l)
+        _unlink(tree, dst)
         if hasattr(src, "default_value"):
             val = src.default_value
             val = tuple(val) if hasattr(val, "__len__") else val
@@ -468,10 +509,9 @@ def _restore(core, name, base):
     if "link" in base:
         src = _resolve(tree, base["link"])
         if src is not None:
-            tree.links.new(src, sock)
+            _new_link(tree, src, sock)
             return
-    for l in list(sock.links):
-        tree.links.remove(l)
+    _unlink(tree, sock)
     if "value" in base:
         sock.default_value = socket_value(sock, base["value"])
 
@@ -480,6 +520,14 @@ def apply(mat, haze, *, core=None):
     """Make ``mat``'s layer render ``haze`` (a dict like HAZE) on its core node: values set in
     place when the structure is unchanged, else the layer's nodes rebuilt.  Returns the
     constant parts' HazeMappings by part."""
+    _Links.tree, _Links.into = mat.node_tree.as_pointer(), None
+    try:
+        return _apply(mat, haze, core)
+    finally:
+        _Links.tree = _Links.into = None
+
+
+def _apply(mat, haze, core):
     tree = mat.node_tree
     state = layer_state(mat) or {}
     core = core or find_core(tree, state.get("core"))
@@ -498,7 +546,7 @@ def apply(mat, haze, *, core=None):
     g, writes, mixes, sources, maps = values(plan)
     flat = {("w",) + k: e for k, e in writes.items()}
     flat.update({("m", r): e for r, e in mixes.items()})
-    signature = str(g.signature(flat))
+    signature = str((g.signature(flat), sorted((k, _socket_ref(v)) for k, v in sources.items())))
     layer_nodes = _layer_nodes(tree)
     old_math = [tree.nodes.get(n) for n in state.get("math", [])]
     same = (plan.active and state.get("structure") == key and bool(layer_nodes)
@@ -513,12 +561,14 @@ def apply(mat, haze, *, core=None):
         for n in old_math:
             if n is not None:
                 tree.nodes.remove(n)
+    _Links.changed()
     tb = TreeBuilder(tree, x0=core.location.x - 180.0 * 10, y0=core.location.y - 480.0, roles=True)
     out = emit(tb, g, flat, sources, reuse=reuse)
     math_nodes = list(tb.created)
     for i, n in enumerate(math_nodes):
         n[K.ROLE] = f"{_ROLE}math {i}"
     nodes = _existing(tree, plan) if same else _build(mat, plan, tb)
+    _Links.changed()
     written = {}
     w_all = {k[1:]: v for k, v in out.items() if k[0] == "w"}
     for slot, node in nodes.items():
@@ -537,7 +587,11 @@ def apply(mat, haze, *, core=None):
         for suffix in ("", " coat wide"):
             mix = current.get(_ROLE + role + suffix)
             if mix is not None and mix.bl_idname == "ShaderNodeMixShader":
-                tb.feed(mix.inputs[0], val)
+                if hasattr(val, "node"):
+                    if not _linked_from(mix.inputs[0], val):
+                        _new_link(tree, val, mix.inputs[0])
+                else:
+                    _write(tree, mix, mix.inputs[0].name, val)
     if not same:
         _connect(tree, _final(tree) or core.outputs[0], destinations)
     core[CORE_KEY] = True

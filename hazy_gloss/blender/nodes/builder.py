@@ -77,11 +77,19 @@ class TreeBuilder:
         return max(self._depth.values(), default=0)
 
     def feed(self, socket, value):
-        """Link a socket or type a constant into ``socket``."""
+        """Link a socket or type a constant into ``socket``.  Into a reused node (an update of
+        a tree of the same structure and sources, nodes.emit) links are already there and only
+        changed constants are written."""
         if isinstance(value, NodeSocket):
-            self.links.new(value, socket)
+            if not (self._placed and socket.is_linked and socket.node.name in self._placed):
+                self.links.new(value, socket)
         elif value is not None:
-            socket.default_value = socket_value(socket, value)
+            v = socket_value(socket, value)
+            if socket.node.name in self._placed:
+                cur = socket.default_value
+                if (tuple(cur) if hasattr(cur, "__len__") else cur) == v:
+                    return
+            socket.default_value = v
 
     def link(self, out_socket, in_socket):
         self.links.new(out_socket, in_socket)
