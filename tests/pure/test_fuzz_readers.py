@@ -52,7 +52,12 @@ def _record(name, data):
     (OUT / f"{name}.json").write_text(json.dumps(data, indent=1))
 
 
+WORST = {"seconds": 0.0, "peak_mb": 0.0}
+
+
 def _check(table, failures, path, attack, reader, outcome, detail, seconds, peak):
+    WORST["seconds"] = max(WORST["seconds"], seconds)
+    WORST["peak_mb"] = max(WORST["peak_mb"], peak / 2 ** 20)
     if outcome == "other exception":
         failures.append(f"{reader} / {attack}: {type(detail).__name__}: {detail}")
     elif outcome == "hang" or seconds > CASE_TIME:
@@ -115,7 +120,8 @@ def test_fuzz_exr_readers(workdir):
                                    for _ in range(c)))
               for reader in summary}
     _record("fuzz_readers", {"cases": n, "seconds": round(elapsed, 1), "totals": totals,
-                             "by_attack": summary})
+                             "slowest_case_s": round(WORST["seconds"], 3),
+                             "read_exr_peak_mb": round(WORST["peak_mb"], 2), "by_attack": summary})
     print(f"\n{n} EXR cases in {elapsed:.1f} s: {totals}")
     assert not failures, "\n".join(failures[:20])
     assert totals["read_exr"]["rejected"] > 0.8 * n
@@ -140,7 +146,10 @@ def test_fuzz_png_check(workdir):
     counts = dict(Counter(o for (_, _, o), c in table.items() for _ in range(c)))
     rec = OUT / "fuzz_readers.json"
     old = json.loads(rec.read_text()) if rec.exists() else {}
-    old["png"] = {"totals": counts, "by_attack": {a: {o: c} for (_, a, o), c in table.items()}}
+    by_attack = {}
+    for (_, a, o), c in table.items():
+        by_attack.setdefault(a, {})[o] = c
+    old["png"] = {"totals": counts, "by_attack": by_attack}
     _record("fuzz_readers", old)
     print(f"\nPNG: {counts}")
     assert not failures, "\n".join(failures[:20])
