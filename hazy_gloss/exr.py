@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import constants as K
 from .imagecheck import MAX_IMAGE_PIXELS, ImageFileError
 
 __all__ = ("ExrError", "ExrPart", "read_exr", "exr_header_check", "MAX_DECODED_BYTES")
@@ -52,14 +53,14 @@ _PIXEL_TYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
 _PIXEL_TYPE_NAMES = {0: "UINT", 1: "HALF", 2: "FLOAT"}
 _PART_TYPES = ("scanlineimage", "tiledimage", "deepscanline", "deeptile")
 
-#: Limits on a header (OpenEXR's own names are <= 255 bytes with the long-names flag).
-MAX_NAME = 255
-MAX_ATTRIBUTES = 4096
-MAX_PARTS = 4096
-MAX_CHANNELS = 4096
-#: Largest total decoded pixel data read_exr accepts (2 GiB; a 4K render with 30 float
-#: channels is 1 GiB).  The float32 result is at most twice this (HALF channels).
-MAX_DECODED_BYTES = 1 << 31
+#: Limits (hazy_gloss.constants).  The float32 result of read_exr is at most twice
+#: MAX_DECODED_BYTES (HALF channels).
+MAX_NAME = K.MAX_EXR_NAME
+MAX_ATTRIBUTES = K.MAX_EXR_ATTRIBUTES
+MAX_PARTS = K.MAX_EXR_PARTS
+MAX_CHANNELS = K.MAX_EXR_CHANNELS
+MAX_DECODED_BYTES = K.MAX_EXR_DECODED_BYTES
+MAX_CHUNKS = K.MAX_EXR_CHUNKS
 
 #: Attribute type and size that the parser relies on (others are skipped unread).
 _ATTR_TYPES = {"channels": ("chlist", None), "compression": ("compression", 1),
@@ -278,12 +279,15 @@ class _Part:
             nx, ny = _level_count(w, rounding), _level_count(h, rounding)
         levels = [(lx, lx) for lx in range(nx)] if level_mode != 2 else \
             [(lx, ly) for ly in range(ny) for lx in range(nx)]
-        # level -> (level width, height, tiles across, tiles down)
-        self.levels = {}
+        self.levels, base = {}, 0  # level -> (width, height, tiles across, down, first index)
         for lx, ly in levels:
             lw, lh = _level_size(w, lx, rounding), _level_size(h, ly, rounding)
-            self.levels[(lx, ly)] = (lw, lh, -(-lw // tx), -(-lh // ty))
-        self.chunks = sum(a * b for _, _, a, b in self.levels.values())
+            nx_, ny_ = -(-lw // tx), -(-lh // ty)
+            self.levels[(lx, ly)] = (lw, lh, nx_, ny_, base)
+            base += nx_ * ny_
+            if base > MAX_CHUNKS:
+                raise rd.error(f"tiled part {self.index} has more than {MAX_CHUNKS} tiles")
+        self.chunks = base
 
     def line_bytes(self, y_lo, y_hi):
         """Bytes of pixel data for scanlines y_lo..y_hi (inclusive), with sampling."""
@@ -292,9 +296,9 @@ class _Part:
                    for _, t, xs, ys in self.channels)
 
 
-def _parse(rd):
-    """(parts, multipart, [(part, chunk index, data start, data size)]) with every chunk
-    located and bounded."""
+def _parse(rd, keep=False):
+    """(parts, multipart, chunks) with every chunk located and bounded; ``chunks`` lists
+    (part, chunk index, data start, data size, raw size) when ``keep``, else is empty."""
     magic, version = rd.unpack("<ii", 0, "the magic number and version")
     if magic != _MAGIC:
         raise rd.error("not an OpenEXR file (bad magic number)")
@@ -321,22 +325,34 @@ def _parse(rd):
             break
     parts = [_Part(rd, attrs, i, multipart, version) for i, attrs in enumerate(headers)]
 
+    total = sum(part.chunks for part in parts)
+    if total > MAX_CHUNKS:
+        raise rd.error(f"{total} chunks exceeds the limit of {MAX_CHUNKS}")
     tables = []
     for part in parts:
         n = part.chunks
         if n * 8 > rd.n - pos:
             raise rd.error(f"truncated: the offset table of part {part.index} ({n} entries) "
                            f"needs {n * 8} bytes at byte {pos}, the file has {rd.n}")
-        tables.append(struct.unpack_from(f"<{n}Q", rd.buf, pos))
+        tables.append(np.frombuffer(rd.buf, "<u8", n, pos).copy())  # no view into an mmap
         pos += 8 * n
     table_end = pos
 
-    chunks, extents = [], []
+    chunks = []
+    starts, ends = np.empty(total, np.int64), np.empty(total, np.int64)
+    k = 0
     head = 4 if multipart else 0
     for part, offsets in zip(parts, tables):
         tiled = part.type == "tiledimage"
-        seen = set()
-        for i, off in enumerate(offsets):
+        if tiled:
+            seen = np.zeros(part.chunks, bool)
+            pixel_bytes = sum(_PIXEL_TYPES[t].itemsize for _, t, _, _ in part.channels)
+        else:
+            lines = part.lines or -(-part.height // part.chunks)
+            sampled = any(xs != 1 or ys != 1 for _, _, xs, ys in part.channels)
+            row = part.line_bytes(part.window[1], part.window[1])
+        for i in range(len(offsets)):
+            off = int(offsets[i])
             what = f"chunk {i} of part {part.index}"
             if off < table_end or off > rd.n:
                 raise rd.error(f"{what}: offset {off} is outside the file's chunk data "
@@ -348,22 +364,23 @@ def _parse(rd):
             if tiled:
                 tx, ty, lx, ly, size = rd.unpack("<iiiii", off + head, what)
                 level = part.levels.get((lx, ly))
-                if level is None or not (0 <= tx < level[2] and 0 <= ty < level[3]) \
-                        or (tx, ty, lx, ly) in seen:
+                index = -1 if level is None or not (0 <= tx < level[2] and 0 <= ty < level[3]) \
+                    else level[4] + ty * level[2] + tx
+                if index < 0 or seen[index]:
                     raise rd.error(f"{what} has invalid or repeated tile coordinates "
                                    f"({tx}, {ty}) level ({lx}, {ly})")
-                seen.add((tx, ty, lx, ly))
+                seen[index] = True
                 tw = min(part.tile[0], level[0] - tx * part.tile[0])
                 th = min(part.tile[1], level[1] - ty * part.tile[1])
-                raw = tw * th * sum(_PIXEL_TYPES[t].itemsize for _, t, _, _ in part.channels)
+                raw = tw * th * pixel_bytes
                 data = off + head + 20
             else:
                 y, size = rd.unpack("<ii", off + head, what)
-                lines = part.lines or -(-part.height // part.chunks)
                 want = part.window[1] + i * lines
                 if y != want:
                     raise rd.error(f"{what} starts at scanline {y}, expected {want}")
-                raw = part.line_bytes(y, min(y + lines - 1, part.window[3]))
+                last = min(y + lines - 1, part.window[3])
+                raw = part.line_bytes(y, last) if sampled else row * (last - y + 1)
                 data = off + head + 8
             if size < 0 or size > rd.n - data:
                 raise rd.error(f"truncated or corrupt: {what} claims {size} bytes at byte "
@@ -375,12 +392,16 @@ def _parse(rd):
             if ratio is not None and raw > ratio * size:
                 raise rd.error(f"{what}: {size} bytes cannot hold {raw} bytes of "
                                f"{part.comp_name} data")
-            chunks.append((part, i, data, size, raw))
-            extents.append((off, data + size))
-    extents.sort()
-    for (a0, a1), (b0, _) in zip(extents, extents[1:]):
-        if b0 < a1:
-            raise rd.error(f"chunks overlap (bytes {a0}..{a1} and {b0}..)")
+            if keep:
+                chunks.append((part, i, data, size, raw))
+            starts[k], ends[k] = off, data + size
+            k += 1
+    order = np.argsort(starts, kind="stable")
+    s, e = starts[order], ends[order]
+    clash = np.flatnonzero(s[1:] < e[:-1])
+    if clash.size:
+        j = int(clash[0])
+        raise rd.error(f"chunks overlap (bytes {s[j]}..{e[j]} and {s[j + 1]}..)")
     return parts, multipart, chunks
 
 
@@ -478,7 +499,7 @@ def read_exr(path):
     with open(path, "rb") as fh:
         data = fh.read()
     rd = _Reader(data, path)
-    parts, _, chunks = _parse(rd)
+    parts, _, chunks = _parse(rd, keep=True)
     names = set()
     for part in parts:
         if part.type != "scanlineimage":

@@ -18,12 +18,14 @@ import struct
 import zlib
 from typing import NamedTuple
 
+from . import constants as K
+
 __all__ = ("ImageFileError", "ImageInfo", "check_image_file", "check_png",
            "MAX_IMAGE_PIXELS")
 
-#: Largest width x height accepted (1 G pixels, e.g. 32768 x 32768): anything larger is a
-#: damaged or hostile header, not a texture (Blender would need 16 GiB for it as RGBA float).
-MAX_IMAGE_PIXELS = 1 << 30
+#: Largest width x height accepted (hazy_gloss.constants): anything larger is a damaged or
+#: hostile header, not a texture.
+MAX_IMAGE_PIXELS = K.MAX_IMAGE_PIXELS
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _EXR_MAGIC = b"\x76\x2f\x31\x01"

@@ -112,10 +112,11 @@ def test_blender_loads_the_fuzz_writer_files(ic, tmp_path):
         path.write_bytes(data)
         got = _load(path)
         assert np.array_equal(got, np.stack([ch[c] for c in "RGBA"], -1)), comp
-    tiled = tmp_path / "w_tiled.exr"
-    tiled.write_bytes(F.encode_tiled_exr({c: ch[c] for c in "RGBA"}, tile=(4, 4)))
-    assert ic.check_image_file(str(tiled)) == ("OPEN_EXR", w, h)
-    assert np.array_equal(_load(tiled), np.stack([ch[c] for c in "RGBA"], -1))
+    for levels in ("ONE", "MIPMAP", "RIPMAP"):  # Blender reads level 0 through the offset table
+        tiled = tmp_path / f"w_tiled_{levels}.exr"
+        tiled.write_bytes(F.encode_tiled_exr({c: ch[c] for c in "RGBA"}, tile=(4, 4), levels=levels))
+        assert ic.check_image_file(str(tiled)) == ("OPEN_EXR", w, h)
+        assert np.array_equal(_load(tiled), np.stack([ch[c] for c in "RGBA"], -1)), levels
     px = rng.integers(0, 256, (h, w, 4))
     png = tmp_path / "w.png"
     png.write_bytes(F.encode_png(px, idat_parts=3))

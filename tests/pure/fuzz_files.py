@@ -159,34 +159,46 @@ def encode_exr(parts, *, multipart=None, header_hook=None):
     return bytes(out), layout
 
 
-def encode_tiled_exr(channels, tile=(4, 4)):
-    """A single-part, one-level, uncompressed tiled EXR (for the structure check and Blender)."""
+def encode_tiled_exr(channels, tile=(4, 4), levels="ONE"):
+    """A single-part uncompressed tiled EXR (for the structure check and Blender): ``levels``
+    "ONE", "MIPMAP" or "RIPMAP" (rounding down; lower levels hold every 2^l-th pixel)."""
     h, w = next(iter(channels.values())).shape
     tx, ty = tile
+    mode = {"ONE": 0, "MIPMAP": 1, "RIPMAP": 2}[levels]
     box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
     attrs = [("channels", "chlist", _chlist(channels)), ("compression", "compression", b"\0"),
              ("dataWindow", "box2i", box), ("displayWindow", "box2i", box),
              ("lineOrder", "lineOrder", b"\0"), ("pixelAspectRatio", "float", struct.pack("<f", 1)),
              ("screenWindowCenter", "v2f", struct.pack("<ff", 0, 0)),
              ("screenWindowWidth", "float", struct.pack("<f", 1)),
-             ("tiles", "tiledesc", struct.pack("<IIB", tx, ty, 0))]
+             ("tiles", "tiledesc", struct.pack("<IIB", tx, ty, mode))]
     out = bytearray(struct.pack("<ii", 20000630, 2 | 0x200))
     for a in attrs:
         out += _attr(*a)
     out += b"\0"
-    nx, ny = -(-w // tx), -(-h // ty)
-    table = len(out)
-    out += b"\0" * (8 * nx * ny)
+    nlx = nly = 1
+    if mode == 1:
+        nlx = nly = max(w, h).bit_length()
+    elif mode == 2:
+        nlx, nly = w.bit_length(), h.bit_length()
+    order = [(lx, lx) for lx in range(nlx)] if mode != 2 else \
+        [(lx, ly) for ly in range(nly) for lx in range(nlx)]
     names = sorted(channels)
-    k = 0
-    for j in range(ny):
-        for i in range(nx):
-            rows = range(j * ty, min((j + 1) * ty, h))
-            raw = b"".join(np.ascontiguousarray(channels[n][h - 1 - r, i * tx:(i + 1) * tx]).tobytes()
-                           for r in rows for n in names)
-            struct.pack_into("<Q", out, table + 8 * k, len(out))
-            out += struct.pack("<iiiii", i, j, 0, 0, len(raw)) + raw
-            k += 1
+    tiles = []
+    for lx, ly in order:
+        img = {n: channels[n][::-1][::2 ** ly, ::2 ** lx] for n in names}  # top row first
+        lh, lw = max(h >> ly, 1), max(w >> lx, 1)
+        img = {n: a[:lh, :lw] for n, a in img.items()}
+        for j in range(-(-lh // ty)):
+            for i in range(-(-lw // tx)):
+                raw = b"".join(np.ascontiguousarray(img[n][r, i * tx:(i + 1) * tx]).tobytes()
+                               for r in range(j * ty, min((j + 1) * ty, lh)) for n in names)
+                tiles.append(struct.pack("<iiiii", i, j, lx, ly, len(raw)) + raw)
+    table = len(out)
+    out += b"\0" * (8 * len(tiles))
+    for k, t in enumerate(tiles):
+        struct.pack_into("<Q", out, table + 8 * k, len(out))
+        out += t
     return bytes(out)
 
 

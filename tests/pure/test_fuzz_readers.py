@@ -233,6 +233,13 @@ def test_tiled_exr_checked_not_read(workdir):
         exr.read_exr(path)
     with pytest.raises(exr.ExrError, match="truncated"):
         exr.exr_header_check(_write(workdir / "tiled_cut.exr", data[:-5]))
+    # mip and rip levels (rounding down): 9 x 10 pixels in 4 x 4 tiles
+    for levels, chunks in (("MIPMAP", 9 + 2 + 1 + 1), ("RIPMAP", None)):  # 9x10, 4x5, 2x2, 1x1
+        data = F.encode_tiled_exr(ch, tile=(4, 4), levels=levels)
+        (part,) = exr.exr_header_check(_write(workdir / "mip.exr", data))
+        assert chunks is None or part.chunks == chunks
+        with pytest.raises(exr.ExrError):
+            exr.exr_header_check(_write(workdir / "mip.exr", data[:-1]))
 
 
 def test_passes_from_exr_inconsistent_file(workdir):
