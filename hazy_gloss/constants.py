@@ -54,3 +54,13 @@ RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in re
 GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups
 #: Node custom property naming a node's role in a hazy material (survives renaming).
 ROLE = "hazy_gloss_role"
+
+#: Limits of the add-on's own file readers (hazy_gloss.exr, hazy_gloss.imagecheck): anything
+#: beyond them is a damaged or hostile file, refused before memory is allocated for it.
+MAX_IMAGE_PIXELS = 1 << 30  # width x height (e.g. 32768 x 32768; 16 GiB as RGBA float)
+MAX_EXR_DECODED_BYTES = 1 << 31  # decoded pixel data read_exr accepts (a 4K 30-channel render: 1 GiB)
+MAX_EXR_NAME = 255  # attribute / type / channel name bytes (OpenEXR's long-name limit)
+MAX_EXR_ATTRIBUTES = 4096  # per header
+MAX_EXR_PARTS = 4096
+MAX_EXR_CHANNELS = 4096  # per part
+MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP image has 2048)

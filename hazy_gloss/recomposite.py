@@ -28,7 +28,7 @@ import numpy as np
 
 from . import constants as K
 from .core import node_math
-from .exr import read_exr
+from .exr import ExrError, read_exr
 
 #: View layer custom property read by the hazy materials (Attribute node, type VIEW_LAYER).
 PROPERTY = "hg_recomposite"
@@ -66,7 +66,11 @@ def passes_from_exr(path, original=None, layers=LAYERS):
     that is not one of ``layers``).  Returns a dict for :func:`recomposite`: ``original``,
     ``narrow_delta``, ``narrow_one``, ``wide_delta``, ``wide_one`` as (H, W, 4) RGBA and the
     AOVs ``beta``, ``peak_ratio``, ``mask``, ``haziness`` (H, W) and ``reflectivity``,
-    ``core_reflectivity`` (H, W, 3).  Row 0 = bottom row."""
+    ``core_reflectivity`` (H, W, 3).  Row 0 = bottom row.
+
+    Raises :class:`~hazy_gloss.exr.ExrError` (a ValueError) for a damaged or unsupported file
+    or passes of different sizes, KeyError for a well-formed file without the passes; both
+    one line naming the file."""
     ch = read_exr(path)
     if original is None:
         others = [name for name in exr_layers(ch) if name not in layers and name != "Composite"]
@@ -84,7 +88,15 @@ def passes_from_exr(path, original=None, layers=LAYERS):
         a = ch.get(names[3])
         if a is None:
             a = np.ones_like(ch[names[0]])
-        return np.stack([ch[n] for n in names[:3]] + [a], axis=-1)
+        return np.stack(list(same_size({n: ch[n] for n in names[:3]} | {names[3]: a}).values()),
+                        axis=-1)
+
+    def same_size(passes):
+        sizes = {k: v.shape[:2] for k, v in passes.items()}
+        if len(set(sizes.values())) > 1:
+            raise ExrError(f"{path}: the recomposite passes have different sizes "
+                           f"({', '.join(f'{k} {w}x{h}' for k, (h, w) in sizes.items())})")
+        return passes
 
     passes = {key: rgba(f"{layer}.Combined") for key, layer in zip(BUFFER_KEYS, layers)}
     passes["original"] = rgba(f"{original}.Combined")
@@ -100,7 +112,7 @@ def passes_from_exr(path, original=None, layers=LAYERS):
             passes[key] = ch[name]
         else:
             passes[key] = rgba(f"{first}.{aov}")[..., :3]
-    return passes
+    return same_size(passes)
 
 
 # ============================================================================================

@@ -20,7 +20,7 @@ from ..core import node_math
 from ..core.graph import Graph
 from ..recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                            LAYERS, PROPERTY, compositor_graph, exr_layers)
-from ..exr import read_exr
+from ..exr import exr_header_check, read_exr
 from . import compat, material
 from .nodes.builder import TreeBuilder
 from .nodes.emit import combine_compositor, emit
@@ -541,6 +541,7 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
 
     image = None
     if source is not None:
+        exr_header_check(bpy.path.abspath(str(source)))  # a damaged EXR can crash Blender's loader
         image = bpy.data.images.load(bpy.path.abspath(str(source)), check_existing=True)
         image.reload()
         if original is None:

@@ -57,7 +57,8 @@ class HazeMapping:
     ior: np.ndarray
     #: [κ] extinction per channel (Gulbrandsen 2014); exactly 0 where g = 0 (dielectric).
     extinction: np.ndarray
-    #: [α_n^x, α_n^y] narrow (core) roughness, as given (clamped only if invalid).
+    #: [α_n^x, α_n^y] narrow (core) roughness as the renderer uses it: as given, clamped if
+    #: invalid or outside ``alpha_max`` / Ashikhmin-Shirley's [1e-4, 1] (counted).
     alpha: tuple
     #: [α_w^x, α_w^y] wide roughness, Eq. 8 (limited to ``alpha_max`` if one was given).
     alpha_wide: tuple
@@ -300,17 +301,22 @@ def _haze_terms(core_max, p, q, haziness, smoothness=None):
             one_minus_beta = np.where(lower, omb_lo, omb_up)
         else:
             m = 1.0 / np.asarray(smoothness, dtype=dtype)
+            # Deviation: a w so small that 1/w overflows (float64 w < ~5.6e-309, float32 < ~2.9e-39)
+            # is the w -> 0 limit of Eqs. 12-15, t = 0 (no haze): exact to rounding, t ~ 2w√(r_c(1-r_c)).
+            lim0 = np.isinf(m)
+            if np.any(lim0):
+                m = np.where(lim0, dtype.type(1), m)  # finite stand-in; lim0 texels set below
             s = np.sqrt(rc * omr)
             ms = np.where(s > 0, m * s, zero)
             hyp = np.hypot(d, ms)
             den = rc * q + p * omr + hyp
             t = np.where(den > 0, 2.0 * rc * omr / den, zero)
-            t = np.where(np.isinf(m), zero, t)
+            t = np.where(lim0, zero, t)
             kh = haziness * t
             two_omr_bh = 2.0 * omr * haziness
             den_b = den + q * two_omr_bh
             beta = np.where(den_b > 0, two_omr_bh / den_b, np.where(omr > 0, dtype.type(1), zero))
-            beta = np.where(np.isinf(m), zero, beta)
+            beta = np.where(lim0, zero, beta)
             # 1 - r̂ = c_0 + (1-p) t (1 - β_h) with c_0 = (1-u)²/d the Bézier weight of (0, 0);
             # when c_0 is the smaller of c_0, c_2 use the conic t² = 4 w² c_0 c_2 (no cancellation)
             c0 = omr - q * t
@@ -322,6 +328,9 @@ def _haze_terms(core_max, p, q, haziness, smoothness=None):
             d_hyp = np.where(d >= 0, d + hyp, np.where(hyp - d > 0, ms * ms / (hyp - d), zero))
             one_minus_beta = np.where(den_b > 0, (d_hyp + 2.0 * p * omr * omb) / den_b,
                                       1.0 - beta)
+            if np.any(lim0):  # no halo: 1 - r̂ = 1 - r̂_c, 1 - β = 1
+                omr_hat = np.where(lim0, omr, omr_hat)
+                one_minus_beta = np.where(lim0, dtype.type(1), one_minus_beta)
             if np.any(np.isinf(smoothness)):  # mixed per-texel w with some w = ∞: Eq. 7 there
                 kh7, beta7, omr7, omb7 = _haze_terms(rc, p, q, haziness, None)
                 inf = np.isinf(smoothness)
@@ -368,8 +377,14 @@ def gulbrandsen_inverse(ior, extinction):
 
     g lies in [0, 1] only for (η, κ) on Gulbrandsen's manifold; returned unclamped."""
     eta = ior
-    k2 = extinction * extinction
-    r = ((eta - 1.0) ** 2 + k2) / ((eta + 1.0) ** 2 + k2)
+    with np.errstate(over="ignore", invalid="ignore"):
+        k2 = extinction * extinction
+        r = ((eta - 1.0) ** 2 + k2) / ((eta + 1.0) ** 2 + k2)
+    if not np.all(np.isfinite(r)):  # the squares overflow (huge η or κ): scale them first
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sc = np.maximum(np.abs(eta) + 1.0, np.abs(extinction))
+            a, k, c = (eta - 1.0) / sc, extinction / sc, (eta + 1.0) / sc
+            r = np.where(np.isfinite(r), r, (a * a + k * k) / (c * c + k * k))
     s = np.sqrt(r)
     omr = 1.0 - r
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -427,6 +442,8 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
                        Eqs. 12-15; w = inf is exactly Eq. 7.
     alpha_max          None: Eq. 8 unbounded (the paper).  A number (Blender: 1.0): α_w is
                        limited to it and p computed from the limited α — what the renderer uses.
+                       α_n above it (or, for Ashikhmin-Shirley, outside [1e-4, 1]) is invalid:
+                       ValueError in strict mode, else clamped and counted.
     max_aspect         None: no limit.  A number (Blender's Metallic/Principled: 10): the longer
                        axis of α_w is shortened to max_aspect × the shorter, p follows.
     strict             None: raise ValueError on bad input for a scalar call (every input one
@@ -496,11 +513,26 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
     if lo is not None or hi is not None:
         lo_v = dtype.type(lo if lo is not None else 0.0)
         hi_v = dtype.type(hi if hi is not None else big)
+        # α_n itself outside what the renderer uses: counted (raises in strict mode) and reported
+        # as the clamped value, so that α_w >= α_n holds in the output
+        alpha_out = np.zeros(shape, dtype=bool)
+        for side, bad_x, bad_y, bound in (("<", nx < lo_v, ny < lo_v, lo),
+                                          (">", nx > hi_v, ny > hi_v, hi)):
+            if bound is None:
+                continue
+            for axis, bad in (("x", bad_x), ("y", bad_y)):
+                if v.strict and np.any(bad):
+                    raise ValueError(f"haze_mapping: alpha.{axis} {side} {bound:g} (renderer limit: "
+                                     + ("alpha_max" if distribution != "ASHIKHMIN_SHIRLEY" else
+                                        "Cycles clamps Ashikhmin-Shirley alpha to [0.0001, 1]")
+                                     + ")")
+            v._count(f"alpha {side} {bound:g} (renderer limit)", bad_x | bad_y)
+            alpha_out |= bad_x | bad_y
         cnx, cny = np.clip(nx, lo_v, hi_v), np.clip(ny, lo_v, hi_v)
         cwx, cwy = np.clip(wx, lo_v, hi_v), np.clip(wy, lo_v, hi_v)
         # the exact α_w exceeds the limit iff spread > limit - α_n (α_w itself may round onto it)
         over_x, over_y = sx > hi_v - cnx, sy > hi_v - cny
-        limited = over_x | over_y
+        limited = (over_x | over_y) & ~alpha_out
         if np.any(limited):
             v.clamped[f"alpha_wide > {float(hi_v):g} (renderer limit)"] = int(np.count_nonzero(limited))
         sx = np.where(cnx != nx, cwx - cnx, np.minimum(sx, hi_v - cnx))
@@ -557,8 +589,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
         reflectivity=r.astype(dtype, copy=False),
         ior=eta.astype(dtype, copy=False),
         extinction=kappa.astype(dtype, copy=False),
-        alpha=(nx if distribution == "ASHIKHMIN_SHIRLEY" else ax,
-               ny if distribution == "ASHIKHMIN_SHIRLEY" else ay),
+        alpha=(nx, ny),
         alpha_wide=(wx.astype(dtype, copy=False), wy.astype(dtype, copy=False)),
         peak_ratio=p.astype(dtype, copy=False),
         peak_complement=q.astype(dtype, copy=False),
@@ -622,7 +653,11 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     parameter reproduces are clamped to the nearest representable value, flagged in ``exact``
     and counted in ``clamped``: α_w < α_n, g outside [0, 1], β_h >= 1 (outside the bounds of
     Eq. 6, or outside the Bézier's reachable set), β or r outside [0, 1], α_w at ``alpha_max``
-    (its extent beyond the limit is lost), r_c = 1 (β_h has no effect, so it is not recoverable).
+    (its extent beyond the limit is lost), α_n outside the renderer's range, r_c = 1 (β_h has no
+    effect, so it is not recoverable).  Invalid inputs — NaN, ±inf, α or α_w < 0, η <= 0, κ < 0,
+    w <= 0 — are counted once per texel under their own reason, replaced by a neutral value (α:
+    0, or the largest float for +inf; (η, κ): (1, 0); w: the smallest normal float) and flagged;
+    no output is ever NaN or inf.
     """
     distribution = _normalise_distribution(distribution)
     ax_in, ay_in = _pair(alpha, "alpha")
@@ -632,6 +667,16 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     values = [beta, ax_in, ay_in, wx_in, wy_in, reflectivity, ior, extinction]
     dtype = _working_dtype(*[x for x in values if x is not None])
     v = _Validator(strict=False)
+    big = np.finfo(dtype).max
+    # invalid inputs (NaN, ±inf, negative where meaningless): counted once per texel and reason,
+    # replaced by a neutral value, flagged not exact; the consequences are not counted again
+    invalid_inputs = []
+
+    def screen(reason, ok):
+        bad = ~ok
+        if np.any(bad):
+            invalid_inputs.append((reason, bad))
+        return bad
 
     if reflectivity is not None:
         r = _colour(reflectivity, dtype, "reflectivity")
@@ -639,35 +684,69 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     else:
         eta = _colour(ior, dtype, "ior")
         kap = _colour(0.0 if extinction is None else extinction, dtype, "extinction")
+        with np.errstate(invalid="ignore"):
+            bad = screen("ior is NaN, <= 0 or infinite", np.isfinite(eta) & (eta > 0)) \
+                | screen("extinction is NaN, negative or infinite", np.isfinite(kap) & (kap >= 0))
+        if np.any(bad):  # treated as (η, κ) = (1, 0): no reflection
+            eta = np.where(bad, dtype.type(1), eta)
+            kap = np.where(bad, dtype.type(0), kap)
         r, g = gulbrandsen_inverse(eta, kap)
         r = r.astype(dtype)
         g = g.astype(dtype)
     b = np.asarray(beta, dtype=dtype)
     ax, ay = np.asarray(ax_in, dtype=dtype), np.asarray(ay_in, dtype=dtype)
     wx, wy = np.asarray(wx_in, dtype=dtype), np.asarray(wy_in, dtype=dtype)
-    shape = _broadcast_shape([("beta", b.shape), ("alpha.x", ax.shape), ("alpha.y", ay.shape),
-                              ("alpha_wide.x", wx.shape), ("alpha_wide.y", wy.shape),
-                              ("reflectivity", r.shape[:-1]), ("edge_tint", g.shape[:-1])])
+    named = [("beta", b.shape), ("alpha.x", ax.shape), ("alpha.y", ay.shape),
+             ("alpha_wide.x", wx.shape), ("alpha_wide.y", wy.shape),
+             ("reflectivity", r.shape[:-1]), ("edge_tint", g.shape[:-1])]
+    w = None if smoothness is None else np.asarray(smoothness, dtype=dtype)
+    if w is not None:
+        named.append(("smoothness", w.shape))
+    shape = _broadcast_shape(named)
     r = np.broadcast_to(r, shape + (3,))
     g = np.broadcast_to(g, shape + (3,))
     b, ax, ay, wx, wy = (np.broadcast_to(x, shape) for x in (b, ax, ay, wx, wy))
     inexact = np.zeros(shape, dtype=bool)
+    invalid = np.zeros(shape, dtype=bool)
 
-    def flag(reason, mask):
-        nonlocal inexact
+    def per_texel(mask):
         mask = np.asarray(mask)
         if mask.ndim > len(shape):
             mask = mask.any(axis=-1)
+        return np.broadcast_to(mask, shape)
+
+    def flag(reason, mask, primary=False):
+        nonlocal inexact, invalid
+        mask = per_texel(mask)
+        if not primary:
+            mask = mask & ~invalid
         n = int(np.count_nonzero(mask))
         if n:
             v.clamped[reason] = v.clamped.get(reason, 0) + n
             inexact = inexact | mask
+            if primary:
+                invalid = invalid | mask
+
+    for reason, mask in invalid_inputs:
+        flag(reason, mask, primary=True)
+    with np.errstate(invalid="ignore"):
+        for name, (x, y) in (("alpha", (ax, ay)), ("alpha_wide", (wx, wy))):
+            bad = ~(np.isfinite(x) & (x >= 0)) | ~(np.isfinite(y) & (y >= 0))
+            flag(f"{name} is NaN, negative or infinite", bad, primary=True)
+        # NaN and negative -> 0, +inf -> the largest finite value
+        ax, ay, wx, wy = (np.where(np.isposinf(x), big, np.where(x >= 0, x, 0)).astype(dtype)
+                          for x in (ax, ay, wx, wy))
+    if w is not None:
+        w = np.broadcast_to(w, shape)
+        bad_w = np.isnan(w) | (w <= 0)
+        flag("smoothness <= 0 or NaN", bad_w, primary=True)
+        w = np.where(bad_w, np.finfo(dtype).tiny, w).astype(dtype)
 
     bad_b = ~((b >= 0) & (b <= 1))
-    flag("beta outside [0, 1]", bad_b)
+    flag("beta outside [0, 1]", bad_b, primary=True)
     b = np.clip(np.nan_to_num(b), 0, 1)
     bad_r = ~((r >= 0) & (r <= 1))
-    flag("reflectivity outside [0, 1]", bad_r)
+    flag("reflectivity outside [0, 1]", bad_r, primary=reflectivity is not None)
     r = np.clip(np.nan_to_num(r), 0, 1)
     # rounding leaves g a few ulps outside [0, 1] for points on the manifold's edges (g = 0, 1);
     # recovering g from η divides by n_d - n_m ~ 1/(1-r), so the slack grows like ε/(1-r)
@@ -680,16 +759,22 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
 
     # -- haze extent: invert Eq. 8 ------------------------------------------------------------
     gm = np.sqrt(ax) * np.sqrt(ay)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         lx = np.where(gm > 0, (wx - ax) / gm, 0.0).astype(dtype)
         ly = np.where(gm > 0, (wy - ay) / gm, 0.0).astype(dtype)
     flag("alpha_wide < alpha (negative haze extent)", (lx < 0) | (ly < 0))
     flag("alpha_wide > alpha = 0 (Eq. 8 gives alpha_wide = 0 there)", (gm <= 0) & ((wx > ax) | (wy > ay)))
     lx, ly = np.maximum(lx, 0), np.maximum(ly, 0)
+    flag("haze extent overflows (alpha_wide / alpha beyond the float range)",
+         np.isinf(lx) | np.isinf(ly))
+    lx, ly = np.minimum(lx, big), np.minimum(ly, big)
     limit = alpha_max
     if distribution == "ASHIKHMIN_SHIRLEY":  # Cycles clamps AS roughness to <= 1 anyway
         limit = min(alpha_max or _AS_ALPHA_RANGE[1], _AS_ALPHA_RANGE[1])
+        flag(f"alpha < {_AS_ALPHA_RANGE[0]:g} (renderer limit)",
+             (ax < _AS_ALPHA_RANGE[0]) | (ay < _AS_ALPHA_RANGE[0]))
     if limit is not None:
+        flag(f"alpha > {limit:g} (renderer limit)", (ax > limit) | (ay > limit))
         flag(f"alpha_wide at the renderer limit {limit:g} (extent beyond it lost)",
              (wx >= limit) | (wy >= limit))
     wx, wy = np.maximum(wx, ax), np.maximum(wy, ay)
@@ -710,7 +795,8 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
             sigma = np.where(_on_positivity_side(rc_max, 1.0 - rc_max, p, q), p,
                              rc_max * q / (1.0 - rc_max))
         else:
-            m = 1.0 / np.asarray(smoothness, dtype=dtype)
+            with np.errstate(over="ignore"):
+                m = 1.0 / w  # inf where 1/w overflows: the w -> 0 limit, only β = 0 is reachable
             omr = 1.0 - rc_max
             d = np.where(p <= 0.5, rc_max - p, q - omr)
             s = np.sqrt(rc_max * omr)

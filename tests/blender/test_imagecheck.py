@@ -1,0 +1,124 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The bpy-free file readers against Blender: the structure check accepts what Blender writes
+(every EXR codec, multilayer, PNG 8/16-bit) and refuses those files cut short; Blender loads
+what the fuzz tests' pure-python writer writes (scanline and tiled EXR, PNG) with the same
+pixels, so the fuzz bases are real files."""
+import importlib
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "pure"))
+import fuzz_files as F  # noqa: E402
+
+#: Lossless and lossy codecs Blender writes (the check does not decode, so all are checked).
+CODECS = ("NONE", "RLE", "ZIPS", "ZIP", "PIZ", "PXR24", "B44", "B44A", "DWAA", "DWAB")
+
+
+@pytest.fixture
+def ic(hg, clean_file):
+    return importlib.import_module(hg.__name__ + ".imagecheck")
+
+
+def _settings(file_format, depth, codec=None, mode="RGBA"):
+    s = bpy.context.scene.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "MULTI_LAYER_IMAGE" if file_format == "OPEN_EXR_MULTILAYER" else "IMAGE"
+    s.file_format = file_format
+    s.color_depth = depth
+    s.color_mode = mode
+    if codec is not None:
+        s.exr_codec = codec
+    return s
+
+
+def _image(w=37, h=23):
+    img = bpy.data.images.new("HG check", w, h, float_buffer=True)
+    rng = np.random.default_rng(2)
+    img.pixels.foreach_set((rng.random((h, w, 4), dtype=np.float32) * 2).ravel())
+    return img
+
+
+def _assert_refused_when_cut(ic, path, tmp_path):
+    data = Path(path).read_bytes()
+    for cut in (len(data) // 2, len(data) - 1):
+        p = tmp_path / ("cut" + Path(path).suffix)
+        p.write_bytes(data[:cut])
+        with pytest.raises(ic.ImageFileError, match="cut"):
+            ic.check_image_file(str(p))
+
+
+def test_check_accepts_blender_exr_and_refuses_it_cut(ic, tmp_path):
+    scenes.setup_render(samples=1, resolution=(37, 23), bounces=0)
+    img = _image()
+    codecs = [c for c in CODECS
+              if c in bpy.types.ImageFormatSettings.bl_rna.properties["exr_codec"].enum_items]
+    assert {"NONE", "ZIP", "PIZ", "DWAA"} <= set(codecs)
+    for codec in codecs:
+        _settings("OPEN_EXR", "32" if codec not in ("B44", "B44A") else "16", codec)
+        path = str(tmp_path / f"img_{codec}.exr")
+        img.save_render(path, scene=bpy.context.scene)
+        assert ic.check_image_file(path) == ("OPEN_EXR", 37, 23), codec
+        _assert_refused_when_cut(ic, path, tmp_path)
+
+
+def test_check_accepts_blender_multilayer_render(ic, tmp_path):
+    scenes.setup_render(samples=1, resolution=(12, 9), bounces=0)
+    scenes._ortho_camera("HG camera", scenes.spherical_direction(0.0), 2.0)
+    _settings("OPEN_EXR_MULTILAYER", "32", "ZIP")
+    sc = bpy.context.scene
+    sc.view_layers.new("Second")
+    sc.render.filepath = str(tmp_path / "ml.exr")
+    bpy.ops.render.render(write_still=True)
+    assert ic.check_image_file(sc.render.filepath).format == "OPEN_EXR"
+    _assert_refused_when_cut(ic, sc.render.filepath, tmp_path)
+
+
+@pytest.mark.parametrize("depth", ["8", "16"])
+def test_check_accepts_blender_png_and_refuses_it_cut(ic, tmp_path, depth):
+    scenes.setup_render(samples=1, resolution=(37, 23), bounces=0)
+    _settings("PNG", depth)
+    path = str(tmp_path / f"img{depth}.png")
+    _image().save_render(path, scene=bpy.context.scene)
+    assert ic.check_image_file(path) == ("PNG", 37, 23)
+    _assert_refused_when_cut(ic, path, tmp_path)
+
+
+def _load(path):
+    img = bpy.data.images.load(str(path), check_existing=False)
+    img.colorspace_settings.name = "Non-Color"
+    w, h = img.size
+    buf = np.empty(w * h * img.channels, np.float32)
+    img.pixels.foreach_get(buf)
+    out = buf.reshape(h, w, img.channels)
+    bpy.data.images.remove(img)
+    return out
+
+
+def test_blender_loads_the_fuzz_writer_files(ic, tmp_path):
+    """The pure-python writer's files are real EXRs and PNGs: Blender reads the same pixels."""
+    rng = np.random.default_rng(5)
+    h, w = 19, 7
+    ch = {c: (np.round(rng.random((h, w), dtype=np.float32) * 64) / 16).astype(np.float32)
+          for c in "RGBA"}
+    for comp in ("NONE", "RLE", "ZIPS", "ZIP"):
+        data, _ = F.encode_exr([{"channels": ch, "compression": comp}])
+        path = tmp_path / f"w_{comp}.exr"
+        path.write_bytes(data)
+        got = _load(path)
+        assert np.array_equal(got, np.stack([ch[c] for c in "RGBA"], -1)), comp
+    for levels in ("ONE", "MIPMAP", "RIPMAP"):  # Blender reads level 0 through the offset table
+        tiled = tmp_path / f"w_tiled_{levels}.exr"
+        tiled.write_bytes(F.encode_tiled_exr({c: ch[c] for c in "RGBA"}, tile=(4, 4), levels=levels))
+        assert ic.check_image_file(str(tiled)) == ("OPEN_EXR", w, h)
+        assert np.array_equal(_load(tiled), np.stack([ch[c] for c in "RGBA"], -1)), levels
+    px = rng.integers(0, 256, (h, w, 4))
+    png = tmp_path / "w.png"
+    png.write_bytes(F.encode_png(px, idat_parts=3))
+    got = _load(png)[::-1]  # Blender's row 0 is the bottom row; PNG's the top
+    assert np.allclose(got * 255, px, atol=1e-3)
