@@ -6,6 +6,7 @@
     mat = api.create_material("Brushed", kind="CONDUCTOR", core_reflectivity=(0.9, 0.6, 0.3),
                               edge_tint=(1, 0.8, 0.5), roughness=0.1, haziness=0.8, haze_extent=5)
     api.update_material(mat, haziness=0.3)      # sets socket values; the peak does not change
+    api.make_hazy(bpy.data.materials["Car Paint"], haziness=0.4, coat_haziness=0.6)  # a layer
 
 Roughness is Blender's R = √α (α = R²).  Perceptual parameters are stamped on the material as
 an ID property (``mat["hazy_gloss"]``), so a file saved with hazy materials keeps them and
@@ -41,11 +42,43 @@ def create_material(name, *, kind="CONDUCTOR", core_reflectivity=(0.5, 0.5, 0.5)
         smoothness=smoothness, distribution=distribution, shader_mapping=shader_mapping, **extra)
 
 
+def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
+    """Put a haze layer on ``mat``'s own Principled, Metallic or Glossy BSDF (the one closest to
+    the Material Output, also inside Mix / Add Shader trees): every input and link of it and
+    everything else in the tree stay; at haziness 0 the material renders exactly as before.
+    Haze keywords: haziness, haze_extent (a number or an (x, y) pair), smoothness,
+    coat_haziness, coat_haze_extent, keep_body_colour.  Returns ``mat``; raises ValueError
+    (one line, the reason) when it cannot, touching nothing."""
+    from .blender import make_hazy as _make
+    status, msg, _ = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
+    if status == "ERROR":
+        raise ValueError(msg)
+    return mat
+
+
+def remove_haze(mat):
+    """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
+    the layer's nodes go.  Returns whether there was a layer."""
+    from .blender import make_hazy as _make
+    status, msg, _ = _make.remove_haze(mat)
+    if status == "ERROR":
+        raise ValueError(msg)
+    return status == "FINISHED"
+
+
+def sync_haze(mat):
+    """Bring ``mat``'s haze layer up to date after its BSDF was edited (a handler does this for
+    materials in use; call it for a material no object uses).  Returns whether it changed."""
+    from .blender import sync as _sync
+    return _sync.sync(mat)
+
+
 def update_material(mat, **changes):
-    """Change some perceptual parameters of a hazy material: socket values are set in place
-    when the node structure stays the same, else the hazy nodes are rebuilt keeping the user's
-    links into the group (textures) and out of the BSDF (e.g. into a Mix Shader).  Returns the
-    HazeMapping of the new parameters."""
+    """Change some parameters of a hazy material: socket values are set in place when the node
+    structure stays the same, else the hazy nodes are rebuilt keeping the user's links.  On a
+    material made hazy with :func:`make_hazy` (a haze layer) the changes are haze parameters
+    (the core's own are its node's inputs).  Returns the HazeMapping of the new parameters
+    (of a layer: of its first constant part, or None when node math varies it per pixel)."""
     return _material.update_material(mat, **changes)[0]
 
 
@@ -73,6 +106,6 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
                                  distribution=distribution, file_format=file_format, **options)
 
 
-__all__ = ("create_material", "update_material", "update_material_links", "read_parameters",
+__all__ = ("create_material", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
            "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")

@@ -53,6 +53,8 @@ _ANISO = {PRINCIPLED: ("Anisotropic", "Anisotropic Rotation"), METALLIC: ("Aniso
           "ShaderNodeBsdfAnisotropic": ("Anisotropy", "Rotation"),
           "ShaderNodeBsdfGlossy": ("Anisotropy", "Rotation")}
 HAZE = HAZE_DEFAULTS
+#: material session_uid -> fingerprint of its core when the layer last wrote it (blender.sync).
+FINGERPRINTS = {}
 
 
 def core_type(node):
@@ -603,6 +605,7 @@ def _apply(mat, haze, core):
                            if v is not None}}
     d["version"] = STAMP_VERSION
     mat[K.STAMP] = d
+    FINGERPRINTS[mat.session_uid] = fingerprint(core)
     return maps
 
 
@@ -689,6 +692,7 @@ def remove(mat):
         del core[CORE_KEY]
     if K.STAMP in mat:
         del mat[K.STAMP]
+    FINGERPRINTS.pop(mat.session_uid, None)
 
 
 def fingerprint(core):
@@ -702,7 +706,7 @@ def fingerprint(core):
         elif hasattr(s, "default_value"):
             v = s.default_value
             items.append((s.identifier, tuple(v) if hasattr(v, "__len__") else v))
-    items += [(p, getattr(core, p)) for p in _NODE_PROPS.get(core.bl_idname, ())]
+    items += [(p, getattr(core, p)) for p in _NODE_PROPS.get(core.bl_idname, ())] + [core.mute]
     return hash(tuple(items))
 
 
@@ -754,3 +758,17 @@ def read(mat):
         p["core_reflectivity"] = inp("Color").value
     p["shader_mapping"] = bool(textured)
     return p
+
+
+def summary(mat):
+    """What the panel shows of a layered material: the core, the plan, the constant parts'
+    HazeMappings by part ("COAT" for the coat), whether node math varies them per pixel, and the
+    number of BSDF nodes the layer renders."""
+    state = layer_state(mat) or {}
+    core = find_core(mat.node_tree, state.get("core"))
+    if core is None:
+        raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
+    plan = Plan(core, haze_of(mat), dict(state.get("base", {})))
+    _, _, _, sources, maps = values(plan)
+    return dict(core=core, plan=plan, maps=maps, textured=sorted(k[3:] for k in sources),
+                bsdfs=len(plan.slots()) if plan.active else 1)

@@ -207,6 +207,20 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     return "FINISHED", msg, notes
 
 
+def remove_haze(mat):
+    """Take a haze layer off: the user's BSDF gets its own values and links back and the
+    layer's nodes go.  Returns (status, message, notes)."""
+    if not layer.is_layered(mat):
+        return "NOOP", f"“{mat.name}” has no haze layer: nothing to remove", []
+    problem = edit_problem(mat)
+    if problem is not None:
+        return "ERROR", problem, []
+    core = layer.find_core(mat.node_tree)
+    layer.remove(mat)
+    where = f" from its {core.bl_label} “{core.name}”" if core is not None else ""
+    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", []
+
+
 # --------------------------------------------------------------------------------------------
 # Two-lobe mix -> perceptual parameters
 # --------------------------------------------------------------------------------------------

@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The artist's operators (all ``hazy_gloss.*``, undoable, reporting in plain words).
 
-- ``make_hazy``: turn the active material's Principled / Metallic / Glossy BSDF into a hazy
-  material in place: its values become the core's parameters, textures linked to them stay
-  linked (into the in-shader node group), everything else in the tree is kept.
+- ``make_hazy``: a haze layer on the active material's own Principled / Metallic / Glossy BSDF
+  (blender.layer): the node and everything else in the tree stay; ``remove_haze`` takes the
+  layer off again.
 - ``new_material``: a new hazy material (optionally from a preset) on the active object.
 - ``apply_preset``: the paper's Table 3 and figure examples; ``preset_add`` saves / removes
   user presets the Blender way (AddPresetBase, listed in the preset menu).
@@ -22,10 +22,11 @@ from bl_operators.presets import AddPresetBase
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 
 from .. import constants as K
+from ..core.parameters import HAZE_PARAMETERS
 from ..utils import presets
-from . import material, plots, preferences, properties
+from . import layer, material, plots, preferences, properties
 from .context import PRESET_SUBDIR, plain_message, target_material
-from .make_hazy import import_two_lobe_mix, make_hazy
+from .make_hazy import import_two_lobe_mix, make_hazy, remove_haze
 
 #: (level, message) of every report, newest last (kept short).
 last_reports = []
@@ -57,7 +58,8 @@ def _finish(op, status, msg, notes):
 
 
 class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
-    """Turn the material's BSDF into a hazy material: its values and textures become the core"""
+    """Put a haze layer on the material's own Principled, Metallic or Glossy BSDF: every input,
+    link and layer of it stays; at haziness 0 it renders exactly as before"""
 
     bl_idname = "hazy_gloss.make_hazy"
     bl_label = "Make Hazy"
@@ -76,6 +78,23 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
                     else "No active material")
             return {"CANCELLED"}
         return _finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent))
+
+
+class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):
+    """Take the haze layer off: the material's BSDF gets its own values and links back"""
+
+    bl_idname = "hazy_gloss.remove_haze"
+    bl_label = "Remove Haze"
+    bl_options = {"REGISTER", "UNDO"}
+
+    material: StringProperty(**_MATERIAL_PROP)
+
+    def execute(self, context):
+        mat = target_material(context, self.material)
+        if mat is None:
+            _report(self, "ERROR", "No material")
+            return {"CANCELLED"}
+        return _finish(self, *remove_haze(mat))
 
 
 class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
@@ -178,6 +197,8 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
                     "Material first")
             return {"CANCELLED"}
         p = presets.parameters(self.preset)
+        if layer.is_layered(mat):  # a layer takes the preset's haze; its core is the user's
+            p = {k: v for k, v in p.items() if k in HAZE_PARAMETERS}
         _, msg = properties.edit_material(mat, **p)
         if msg:
             _report(self, "ERROR", msg)
@@ -201,7 +222,13 @@ class HAZY_GLOSS_OT_preset_add(AddPresetBase, bpy.types.Operator):
         "mat = getattr(bpy.context, 'material', None) or bpy.context.object.active_material",
         f"hazy = mat.{properties.PROPERTY_NAME}",
     ]
-    preset_values = [f"hazy.{name}" for name in properties.PRESET_PROPERTIES]
+    @property
+    def preset_values(self):
+        """A haze layer's preset holds haze only (its core is the user's BSDF)."""
+        names = properties.PRESET_PROPERTIES
+        if layer.is_layered(target_material(bpy.context)):
+            names = properties.LAYER_PRESET_PROPERTIES
+        return [f"hazy.{name}" for name in names]
 
     @classmethod
     def poll(cls, context):
@@ -235,6 +262,7 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
 
 classes = (
     HAZY_GLOSS_OT_make_hazy,
+    HAZY_GLOSS_OT_remove_haze,
     HAZY_GLOSS_OT_import_two_lobe_mix,
     HAZY_GLOSS_OT_new_material,
     HAZY_GLOSS_OT_apply_preset,

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core.parameters import is_anisotropic
-from . import material, plots, preferences, properties
+from . import layer, material, plots, preferences, properties
 from .context import edit_problem, maps_problem, plain_message, target_material
 from .menus import draw_recomposite_operators
 
@@ -136,6 +136,9 @@ def draw_material(layout, context, mat, idname):
         col.operator("hazy_gloss.new_material", icon="ADD")
         return
     hg = properties.settings(mat)
+    if layer.is_layered(mat):
+        draw_layer(layout, context, mat, idname, hg, problem)
+        return
     p = properties.parameters(mat)
 
     col = layout.column()
@@ -243,6 +246,133 @@ def draw_material(layout, context, mat, idname):
             c2.label(text="BRDF: core, halo, total")
             panel.label(text="Red: bounds P, E / total · magenta: core · cyan: halo")
             panel.operator("hazy_gloss.plot_to_image", icon="IMAGE_DATA")
+
+
+_PART_NAMES = {"DIELECTRIC": "Dielectric", "METAL": "Metal", "PHYSICAL": "Metal",
+               "GLOSSY": "Glossy", "COAT": "Coat"}
+
+
+def layer_rows(info):
+    """[(label, value text)] of a layer's constant parts (β, r, IOR or colour, wide roughness)."""
+    rows = []
+    for part, m in info["maps"].items():
+        name = _PART_NAMES.get(part, part.title())
+        rows.append((f"{name}: β", _fmt(m.beta)))
+        rows.append((f"{name}: r = F(0)", _fmt(m.reflectivity)))
+        if part in ("DIELECTRIC", "COAT"):  # what the layer wrote on the core
+            sock = info["core"].inputs["IOR" if part == "DIELECTRIC" else "Coat IOR"]
+            if not sock.is_linked:
+                rows.append((f"{name}: IOR", _fmt(sock.default_value, 4)))
+        elif part == "PHYSICAL":
+            rows += [(f"{name}: η", _fmt(m.ior)), (f"{name}: κ", _fmt(m.extinction))]
+        wx, wy = (float(np.asarray(a)) for a in m.alpha_wide)
+        rows.append((f"{name}: α_w", _fmt((wx, wy) if wx != wy else wx, 4)))
+    return rows
+
+
+def layer_warnings(info, context=None, prefs=None):
+    """Plain-language warnings for a haze layer (list of strings)."""
+    prefs = prefs or preferences.get(context)
+    out = []
+    maps, plan = info["maps"], info["plan"]
+    m = maps.get("DIELECTRIC")
+    if m is not None and float(np.asarray(m.reflectivity_max)) > prefs.dielectric_warning:
+        out.append(f"The dielectric reflects r = {float(np.asarray(m.reflectivity_max)):.3f}: "
+                   f"it will look like a metal. Lower Haziness or Haze Extent")
+    if info["textured"] and plan.active:
+        out.append("Textured " + ", ".join(info["textured"]) + ": the haze mapping runs per "
+                   "pixel in the shader")
+    for part, mp in maps.items():
+        for reason in mp.clamped:
+            out.append(f"{_PART_NAMES.get(part, part)}: " + next(
+                (t for k, t in _CLAMP_TEXT.items() if reason.startswith(k)), reason))
+    core = info["core"]
+    tf = core.inputs.get("Thin Film Thickness")
+    if plan.parts and tf is not None and (tf.is_linked or tf.default_value > 0.0):
+        out.append("Thin film: its interference sets the peak, which haze moves slightly")
+    scene = getattr(context, "scene", None) if context is not None else None
+    if scene is not None and "EEVEE" in scene.render.engine and info["bsdfs"] > 2:
+        out.append(f"EEVEE renders at most 3 closures per pixel: this layer mixes "
+                   f"{info['bsdfs']} BSDFs (render with Cycles for the full haze)")
+    return out
+
+
+def draw_layer(layout, context, mat, idname, hg, problem):
+    """A haze layer on the user's BSDF: haze controls only (the core is the user's node)."""
+    col = layout.column()
+    try:
+        info = layer.summary(mat)
+    except ValueError as exc:
+        box = col.box()
+        box.alert = True
+        box.label(text=plain_message(exc), icon="ERROR")
+        col.operator("hazy_gloss.remove_haze", icon="X")
+        return
+    core = info["core"]
+    if problem is not None:
+        box = col.box()
+        box.alert = True
+        box.label(text=problem, icon="LIBRARY_DATA_DIRECT")
+    err = properties.error_for(mat)
+    if err and problem is None:
+        box = col.box()
+        box.alert = True
+        box.label(text=err, icon="ERROR")
+    head = col.box().column(align=True)
+    head.label(text=f"Haze layer on {core.bl_label} “{core.name}”", icon="NODE_MATERIAL")
+    head.label(text="Edit the material as usual: the layer follows it")
+    body = col.column()
+    body.enabled = problem is None
+    row = body.row(align=True)
+    row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
+    row.operator("hazy_gloss.preset_add", text="", icon="ADD")
+    row.operator("hazy_gloss.preset_add", text="", icon="REMOVE").remove_active = True
+
+    haze = body.box().column()
+    haze.use_property_split = True
+    haze.use_property_decorate = False
+    haze.label(text="Haze", icon="LIGHT_SUN")
+    haze.prop(hg, "haziness", slider=True)
+    row = haze.row(align=True)
+    row.prop(hg, "haze_extent_x", text="Extent" if hg.haze_extent_linked else "Extent X")
+    row.prop(hg, "haze_extent_linked", text="", icon="LINKED" if hg.haze_extent_linked else "UNLINKED")
+    if not hg.haze_extent_linked:
+        haze.prop(hg, "haze_extent_y", text="Extent Y")
+    row = haze.row(align=True)
+    row.prop(hg, "use_smoothness", text="Smooth")
+    sub = row.row(align=True)
+    sub.active = hg.use_smoothness
+    sub.prop(hg, "smoothness", text="w")
+    plan = info["plan"]
+    if plan.type == "PRINCIPLED":
+        coat = core.inputs["Coat Weight"]
+        box = body.box().column()
+        box.use_property_split = True
+        box.use_property_decorate = False
+        box.label(text="Coat", icon="MOD_SMOOTH")
+        box.active = coat.is_linked or coat.default_value > 0.0
+        box.prop(hg, "coat_haziness", slider=True, text="Haziness")
+        box.prop(hg, "coat_haze_extent", text="Extent")
+        if not box.active:
+            box.label(text="The BSDF has no coat (Coat Weight 0)", icon="INFO")
+        if "DIELECTRIC" in plan.parts or not plan.parts:
+            body.prop(hg, "keep_body_colour")
+
+    warns = layer_warnings(info, context)
+    if warns:
+        box = col.box()
+        for text in warns:
+            box.label(text=text, icon="ERROR")
+    header, panel = col.panel(f"{idname}_physical", default_closed=True)
+    header.label(text="Physical Values")
+    if panel is not None:
+        grid = panel.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
+        for label, value in layer_rows(info):
+            grid.label(text=label)
+            grid.label(text=value)
+        if not info["maps"] and plan.active:
+            panel.label(text="Varies per pixel (textured inputs)", icon="TEXTURE")
+    col.operator("hazy_gloss.remove_haze", icon="X")
 
 
 def _context_material(context):

@@ -33,7 +33,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
 from .. import constants as K
-from ..core.parameters import normalise
+from ..core.parameters import HAZE_DEFAULTS, normalise
 from . import material
 from .context import edit_problem, plain_message
 
@@ -165,7 +165,7 @@ def _set(pg, **changes):
 
 def _get_float(key):
     def get(self):
-        return float(parameters(self.id_data)[key])
+        return float(parameters(self.id_data).get(key, HAZE_DEFAULTS.get(key, 0.0)))
     return get
 
 
@@ -187,8 +187,13 @@ def _set_rgb(key):
     return set_
 
 
+def _index(ids, value):
+    """The enum index of ``value`` (0 for what the enum does not list, e.g. a layer's MIXED)."""
+    return ids.index(value) if value in ids else 0
+
+
 def _get_kind(self):
-    return _KIND_IDS.index(parameters(self.id_data)["kind"])
+    return _index(_KIND_IDS, parameters(self.id_data)["kind"])
 
 
 def _set_kind(self, value):
@@ -208,7 +213,7 @@ def _set_kind(self, value):
 
 
 def _get_distribution(self):
-    return _DIST_IDS.index(parameters(self.id_data)["distribution"])
+    return _index(_DIST_IDS, parameters(self.id_data)["distribution"])
 
 
 def _set_distribution(self, value):
@@ -216,7 +221,7 @@ def _set_distribution(self, value):
 
 
 def _get_tangent(self):
-    return _TANGENT_IDS.index(parameters(self.id_data)["tangent"])
+    return _index(_TANGENT_IDS, parameters(self.id_data)["tangent"])
 
 
 def _set_tangent(self, value):
@@ -286,7 +291,7 @@ def _set_smoothness(self, value):
 
 def _get_bool(key):
     def get(self):
-        return bool(parameters(self.id_data)[key])
+        return bool(parameters(self.id_data).get(key, HAZE_DEFAULTS.get(key, False)))
     return get
 
 
@@ -373,6 +378,25 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
         name="Transmission", min=0.0, max=1.0, subtype="FACTOR",
         get=_get_float("transmission"), set=_set_float("transmission"), options=_NO_ANIM,
         description="Transmission weight of a dielectric (the BTDF shares β, η and α)")
+    # a haze layer on the user's Principled BSDF (Make Hazy)
+    coat_haziness: FloatProperty(
+        name="Coat Haziness", min=0.0, max=K.MAX_HAZINESS, soft_max=0.99, subtype="FACTOR",
+        precision=3, get=_get_float("coat_haziness"), set=_set_float("coat_haziness"),
+        options=_NO_ANIM,
+        description="β_h of the coat: a halo around the clear coat's reflection (lacquer, "
+                    "varnish, car paint), mapped on the coat's own Fresnel (Coat IOR); the "
+                    "coat's peak stays")
+    coat_haze_extent: FloatProperty(
+        name="Coat Haze Extent", min=0.0, max=1000.0, soft_max=20.0,
+        get=_get_float("coat_haze_extent"), set=_set_float("coat_haze_extent"), options=_NO_ANIM,
+        description="λ_h of the coat: width of the coat's halo in units of the coat roughness")
+    keep_body_colour: BoolProperty(
+        name="Keep Body Colour", get=_get_bool("keep_body_colour"),
+        set=_set_bool("keep_body_colour"), options=_NO_ANIM,
+        description="Brighten the base colour under a hazy dielectric so that the diffuse "
+                    "colour stays what it was (haze raises the reflectivity, which lets less "
+                    "light reach the base); where a colour cannot get brighter, the rest is "
+                    "reported")
     # plain stored UI state
     edge_tint_memory: FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0), options={"HIDDEN"})
     smoothness_memory: FloatProperty(default=2.0, min=K.MIN_SMOOTHNESS, options={"HIDDEN"})
@@ -383,6 +407,10 @@ PRESET_PROPERTIES = ("kind", "distribution", "shader_mapping", "core_reflectivit
                      "roughness", "anisotropy", "rotation", "tangent", "haziness",
                      "haze_extent_linked", "haze_extent_x", "haze_extent_y", "use_smoothness",
                      "smoothness", "base_color", "transmission")
+#: The properties a preset sets on a haze layer (Make Hazy): the core is the user's node.
+LAYER_PRESET_PROPERTIES = ("haziness", "haze_extent_linked", "haze_extent_x", "haze_extent_y",
+                           "use_smoothness", "smoothness", "coat_haziness", "coat_haze_extent",
+                           "keep_body_colour")
 
 classes = (HazyGlossMaterialSettings,)
 

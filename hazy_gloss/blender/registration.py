@@ -4,7 +4,7 @@
 (the Material property, the plot previews, menu entries, the asset library) is added here, after
 the classes, and removed first."""
 from . import (composite_ops, convert_ops, menus, operators, panels, plots, preferences,
-               properties)
+               properties, sync)
 
 # Order matters: properties before the operators and panels that use them.
 _MODULES = (preferences, properties, operators, convert_ops, composite_ops, panels, menus)
@@ -14,6 +14,7 @@ def register():
     for mod in _MODULES:
         mod.register()
     properties.attach()
+    sync.register()
     plots.open_previews()
     menus.add_entries()
     try:
@@ -26,6 +27,7 @@ def unregister():
     menus.unregister_asset_library()
     menus.remove_entries()
     plots.close_previews()
+    sync.unregister()
     properties.detach()
     for mod in reversed(_MODULES):
         mod.unregister()

@@ -497,3 +497,68 @@ def test_coat_peak_is_invariant_and_independent(env):
     env.api.update_material(mat, haziness=0.9)
     p2 = render(env, mat, **peak)["glossy"]
     assert rel_diff(p1, p2) <= 1e-5
+
+
+# --------------------------------------------------------------------------------------------
+# The layer follows the user's edits of the core; Remove Haze gives the material back
+# --------------------------------------------------------------------------------------------
+
+
+def _edit(bsdf):
+    bsdf.inputs["Base Color"].default_value = (0.2, 0.5, 0.7, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.45
+    bsdf.inputs["Sheen Weight"].default_value = 0.5
+    bsdf.inputs["Metallic"].default_value = 0.4
+
+
+def test_layer_follows_edits_of_the_core(env):
+    """Edit the user's BSDF after Make Hazy (as in the node editor): the depsgraph handler
+    reruns the layer, which then renders what Make Hazy on the edited material renders."""
+    mat = car_paint()
+    make_hazy(env, mat, haziness=0.6, coat_haziness=0.3)
+    view = dict(light=(35.0, 0.0), view=(10.0, 180.0))
+    render(env, mat, **view)  # the material is in use: edits reach the depsgraph
+    core = env.layer.find_core(mat.node_tree)
+    calls = []
+    real = env.layer.apply
+    env.layer.apply = lambda *a, **k: calls.append(1) or real(*a, **k)
+    try:
+        _edit(core)
+        bpy.context.view_layer.update()
+        bpy.context.view_layer.update()  # nothing changed since: no second rerun
+    finally:
+        env.layer.apply = real
+    assert len(calls) == 1, calls
+    got = render(env, mat, **view)["combined"]
+    fresh = car_paint()
+    _edit(next(n for n in fresh.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"))
+    make_hazy(env, fresh, haziness=0.6, coat_haziness=0.3)
+    want = render(env, fresh, **view)["combined"]
+    assert rel_diff(got, want) <= 1e-6
+
+
+def test_edit_of_an_owned_input_is_adopted(env):
+    """The user types a new IOR into the core while haze is on: it becomes the user's IOR
+    (what Remove Haze restores), not something the layer overwrites."""
+    mat, bsdf = principled("Plastic", **{"Base Color": (0.3, 0.3, 0.3, 1.0), "Roughness": 0.3})
+    make_hazy(env, mat, haziness=0.3)
+    hazy_ior = bsdf.inputs["IOR"].default_value
+    assert hazy_ior > 1.6
+    bsdf.inputs["IOR"].default_value = 1.33
+    assert env.api.sync_haze(mat)
+    assert env.layer.layer_state(mat)["base"]["IOR"] == {"value": pytest.approx(1.33)}
+    assert bsdf.inputs["IOR"].default_value > 1.33  # the layer raises the new IOR
+    env.api.remove_haze(mat)
+    assert bsdf.inputs["IOR"].default_value == pytest.approx(1.33)
+    assert not env.api.is_hazy(mat)
+    assert [n.name for n in mat.node_tree.nodes if env.material.is_ours(n)] == []
+
+
+def test_remove_haze_restores_links(env):
+    mat = metallic_map()
+    sig = signature(mat)
+    make_hazy(env, mat, haziness=0.5)
+    assert signature(mat) != sig
+    assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"FINISHED"}
+    assert signature(mat) == sig
+    assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"CANCELLED"}

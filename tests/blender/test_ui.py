@@ -904,6 +904,46 @@ def test_panels_draw_hazy(env, case):
         assert "no UV map" in text  # the stand-in object has an empty mesh
 
 
+@pytest.mark.parametrize("case", ["coated metal", "textured plastic", "glossy"])
+def test_panels_draw_a_haze_layer(env, case):
+    """A layered material (Make Hazy) shows haze controls, its coat, the body-colour option on
+    dielectrics, the parts' physical values and Remove Haze; never the core's sliders (they are
+    the user's node)."""
+    panels = env.panels
+    if case == "coated metal":
+        mat, bsdf = principled_material("Layer P")
+        bsdf.inputs["Metallic"].default_value = 1.0
+        bsdf.inputs["Coat Weight"].default_value = 1.0
+    elif case == "textured plastic":
+        mat, _ = textured_plastic()
+    else:
+        mat, _ = glossy_only()
+    assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
+    settings(mat).haziness = 0.4
+    settings(mat).coat_haziness = 0.5
+    assert settings(mat).haziness == pytest.approx(0.4)
+    obj = bpy.data.objects.new("Obj", bpy.data.meshes.new("Obj"))
+    obj.data.materials.append(mat)
+    log = draw_panel(panels.HAZY_GLOSS_PT_material, fake_context(mat, obj))
+    drawn = props_drawn(log)
+    assert {"haziness", "haze_extent_x", "use_smoothness"} <= drawn
+    assert not drawn & {"kind", "roughness", "core_reflectivity", "edge_tint", "base_color"}
+    assert ("coat_haziness" in drawn) == (case != "glossy")
+    assert ("keep_body_colour" in drawn) == (case == "textured plastic")
+    assert "hazy_gloss.remove_haze" in ops_drawn(log)
+    text = " ".join(labels(log))
+    assert "Haze layer on" in text
+    if case == "coated metal":
+        assert "Metal: β" in text and "Coat: β" in text
+    if case == "textured plastic":
+        assert "Textured" in text and "per pixel" in text
+    # a core slider on a layer is refused with the reason, the material untouched
+    before = tree_signature(mat)
+    settings(mat).roughness = 0.7
+    assert tree_signature(mat) == before
+    assert "belongs to its bsdf node" in (env.props.error_for(mat) or "").lower()
+
+
 def test_panels_poll_and_non_hazy(env):
     panels = env.panels
     assert panels.HAZY_GLOSS_PT_shader_editor.bl_category == "Hazy Gloss"
