@@ -47,7 +47,8 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     the Material Output, also inside Mix / Add Shader trees): every input and link of it and
     everything else in the tree stay; at haziness 0 the material renders exactly as before.
     Haze keywords: haziness, haze_extent (a number or an (x, y) pair), smoothness,
-    coat_haziness, coat_haze_extent, keep_body_colour.  Returns ``mat``; raises ValueError
+    coat_haziness, coat_haze_extent, keep_body_colour; ``node`` (a node or its name) picks the
+    BSDF.  Returns ``mat``; raises ValueError
     (one line, the reason) when it cannot, touching nothing."""
     from .blender import make_hazy as _make
     status, msg, _ = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)

@@ -143,3 +143,23 @@ def compositor_output(tree, name, location=(900, 0)):
         out.name = name
         out.location = location
     return out.inputs["Image"]
+
+
+def animated_paths(idblock):
+    """The data paths of ``idblock`` driven by drivers or keyframes (legacy actions of 4.x and
+    the slotted/layered actions of 4.4+, where ``Action.fcurves`` is gone)."""
+    anim = getattr(idblock, "animation_data", None)
+    if anim is None:
+        return set()
+    paths = {fc.data_path for fc in anim.drivers}
+    action = anim.action
+    if action is None:
+        return paths
+    curves = getattr(action, "fcurves", None)
+    if curves is None or not len(curves):
+        curves = []
+        for layer in getattr(action, "layers", ()):
+            for strip in layer.strips:
+                for bag in getattr(strip, "channelbags", ()):
+                    curves.extend(bag.fcurves)
+    return paths | {fc.data_path for fc in curves}

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import constants as K
+from . import compat
 from ..core import gulbrandsen_inverse
 from ..core import node_math
 from ..core.graph import Graph
@@ -538,8 +539,14 @@ def _apply(mat, haze, core):
                          f"be updated: Remove Haze and Make Hazy again")
     base = _adopt(core, state)
     plan = Plan(core, haze, base)
+    animated = compat.animated_paths(tree)
     for name in plan.owned():  # inputs owned for the first time: keep what the user has there
         if name not in base:
+            path = core.inputs[name].path_from_id() + ".default_value"
+            if path in animated:
+                raise ValueError(f"the {name} of “{core.name}” is animated (keyframes or a "
+                                 f"driver), and haze has to set it: connect the animated value "
+                                 f"through a Value node instead, then add haze")
             base[name] = _current(core.inputs[name])
     plan = Plan(core, haze, base)
     for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back

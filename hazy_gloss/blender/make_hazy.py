@@ -70,14 +70,15 @@ def active_output(tree):
     return outs[0] if outs else None
 
 
-def find_core_bsdf(tree):
-    """The Principled / Metallic / Glossy BSDF feeding the active output's Surface, directly or
-    through Mix / Add Shader nodes (breadth first: the one closest to the output)."""
+def surface_bsdfs(tree):
+    """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the active output's
+    Surface, directly or through Mix / Add Shader nodes and reroutes, closest to the output
+    first; and the node groups met on the way (their insides are not searched)."""
     out = active_output(tree)
     if out is None:
-        return None
+        return [], []
     queue = [_source(out.inputs["Surface"])]
-    seen = set()
+    seen, found, groups = set(), [], []
     while queue:
         sock = queue.pop(0)
         if sock is None or sock.node.name in seen:
@@ -85,11 +86,19 @@ def find_core_bsdf(tree):
         node = sock.node
         seen.add(node.name)
         if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
-            return node
-        if node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
+            found.append(node)
+        elif node.bl_idname == "ShaderNodeGroup":
+            groups.append(node)
+        elif node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
             queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
                          node.bl_idname == "NodeReroute")
-    return None
+    return found, groups
+
+
+def find_core_bsdf(tree):
+    """The BSDF Make Hazy puts its layer on: the one closest to the Material Output."""
+    found, _ = surface_bsdfs(tree)
+    return found[0] if found else None
 
 
 def glossy_to_metallic_anisotropy(a):
@@ -173,11 +182,12 @@ def replace_with_hazy(mat, replaced, p, links):
     return m, dropped
 
 
-def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
-    """Put a haze layer on ``mat``'s own BSDF (blender.layer): the Principled, Metallic or Glossy
-    BSDF closest to the Material Output (also inside Mix / Add Shader trees) stays, with every
-    input and link; at haziness 0 the material renders as before.  Returns (status, message,
-    notes): status "FINISHED" (made hazy), "NOOP" (already hazy) or "ERROR"."""
+def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
+    """Put a haze layer on ``mat``'s own BSDF (blender.layer): ``node`` (a node or its name),
+    else the Principled, Metallic or Glossy BSDF closest to the Material Output (also inside
+    Mix / Add Shader trees) stays, with every input and link; at haziness 0 the material
+    renders as before.  Returns (status, message, notes): status "FINISHED" (made hazy), "NOOP"
+    (already hazy) or "ERROR"."""
     problem = edit_problem(mat)
     if problem is not None and (mat is None or mat.library is not None
                                 or getattr(mat, "override_library", None) is not None):
@@ -188,8 +198,20 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
         return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
-    node = find_core_bsdf(mat.node_tree)
-    if node is None:
+    found, groups = surface_bsdfs(mat.node_tree)
+    if node is not None:
+        name = node if isinstance(node, str) else node.name
+        node = mat.node_tree.nodes.get(name)
+        if node is None or node.bl_idname not in CORE_NODES or material.is_ours(node):
+            return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF named "
+                    f"“{name}”", [])
+    elif found:
+        node = found[0]
+    elif groups:
+        return ("ERROR", f"The BSDF of “{mat.name}” is inside the node group “{groups[0].name}” "
+                f"(“{groups[0].node_tree.name if groups[0].node_tree else '?'}”), which other "
+                f"materials may share: ungroup it (Ctrl+Alt+G) to add haze to this material", [])
+    else:
         return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF connected to its "
                 "Material Output: nothing to make hazy (use New Hazy Material instead)", [])
     try:
@@ -198,6 +220,10 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     except ValueError as exc:
         return "ERROR", plain_message(exc), []
     notes = []
+    others = [n.name for n in found if n != node]
+    if others:
+        notes.append(f"also found {', '.join('“' + n + '”' for n in others)}, not hazed (one "
+                     f"layer per material: pick the BSDF with the operator's Node option)")
     r = node.inputs.get("Roughness")
     if r is not None and not r.is_linked and r.default_value < MIN_ROUGHNESS:
         notes.append(f"roughness {r.default_value:.4g} is below {MIN_ROUGHNESS}: haze needs a "

@@ -26,7 +26,7 @@ from ..core.parameters import HAZE_PARAMETERS
 from ..utils import presets
 from . import layer, material, plots, preferences, properties
 from .context import PRESET_SUBDIR, plain_message, target_material
-from .make_hazy import import_two_lobe_mix, make_hazy, remove_haze
+from .make_hazy import CORE_NODES, import_two_lobe_mix, make_hazy, remove_haze
 
 #: (level, message) of every report, newest last (kept short).
 last_reports = []
@@ -70,6 +70,10 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
                             description="Haziness to start with (0: renders exactly as before)")
     haze_extent: FloatProperty(name="Haze Extent", default=5.0, min=0.0, soft_max=20.0,
                                description="Width of the halo in units of the core's roughness")
+    node: StringProperty(name="Node", default="", options={"SKIP_SAVE"},
+                         description="The BSDF to put the layer on (default: the active node of "
+                                     "the Shader Editor if it is one, else the BSDF closest to "
+                                     "the Material Output)")
 
     def execute(self, context):
         mat = target_material(context, self.material)
@@ -77,7 +81,13 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
             _report(self, "ERROR", f"No material named “{self.material}”" if self.material
                     else "No active material")
             return {"CANCELLED"}
-        return _finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent))
+        node = self.node or None
+        active = getattr(context, "active_node", None)
+        if node is None and active is not None and getattr(active, "id_data", None) == mat.node_tree \
+                and active.bl_idname in CORE_NODES and not material.is_ours(active):
+            node = active.name
+        return _finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent,
+                                        node=node))
 
 
 class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):

@@ -170,7 +170,7 @@ def normalise_haze(params, current=None):
     if unknown:
         core = [n for n in unknown if n in PARAMETERS]
         if core:
-            _fail(f"{', '.join(core)} of a hazy layer belong{'s' if len(core) == 1 else ''} to "
+            _fail(f"{', '.join(core)} of a haze layer belong{'s' if len(core) == 1 else ''} to "
                   f"its BSDF node: edit the node itself (Hazy Gloss follows it); the layer's own "
                   f"parameters are {', '.join(HAZE_PARAMETERS)}")
         parts = []

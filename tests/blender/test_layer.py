@@ -562,3 +562,57 @@ def test_remove_haze_restores_links(env):
     assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"FINISHED"}
     assert signature(mat) == sig
     assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"CANCELLED"}
+
+
+# --------------------------------------------------------------------------------------------
+# What cannot be kept is refused with the reason, touching nothing
+# --------------------------------------------------------------------------------------------
+
+
+def test_refuses_what_it_cannot_keep(env):
+    api = env.api
+    # the BSDF inside a node group (shared by other materials)
+    mat, b = principled("Grouped")
+    tree = mat.node_tree
+    group = bpy.data.node_groups.new("Shared Look", "ShaderNodeTree")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    inner = group.nodes.new("ShaderNodeBsdfPrincipled")
+    gout = group.nodes.new("NodeGroupOutput")
+    group.links.new(inner.outputs[0], gout.inputs[0])
+    gnode = tree.nodes.new("ShaderNodeGroup")
+    gnode.node_tree = group
+    tree.nodes.remove(b)
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    tree.links.new(gnode.outputs[0], out.inputs["Surface"])
+    sig = signature(mat)
+    with pytest.raises(ValueError, match="inside the node group “Group”.*ungroup"):
+        api.make_hazy(mat, haziness=0.5)
+    assert signature(mat) == sig and not api.is_hazy(mat)
+    # an animated input haze has to set: refused when haze would take it over
+    mat, b = principled("Animated IOR", **{"Roughness": 0.3})
+    b.inputs["IOR"].keyframe_insert("default_value", frame=1)
+    api.make_hazy(mat)
+    sig = signature(mat)
+    with pytest.raises(ValueError, match="IOR of “Principled BSDF” is animated"):
+        api.update_material(mat, haziness=0.4)
+    assert signature(mat) == sig and env.api.read_parameters(mat)["haziness"] == 0.0
+
+
+def test_picks_the_bsdf_and_names_the_others(env):
+    mat, b = principled("Two BSDFs", **{"Roughness": 0.3})
+    tree = mat.node_tree
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(b.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    env.ops.last_reports.clear()
+    assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
+    warn = " ".join(m for level, m in env.ops.last_reports if level == "WARNING")
+    assert "not hazed" in warn and "Glossy BSDF" in warn
+    assert env.layer.find_core(tree).name == "Principled BSDF"
+    env.api.remove_haze(mat)
+    env.api.make_hazy(mat, node=glossy.name, haziness=0.3)
+    assert env.layer.find_core(tree) == glossy
+    assert env.api.read_parameters(mat)["kind"] == "LEGACY"

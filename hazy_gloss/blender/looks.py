@@ -1,0 +1,82 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Build a look (utils.looks): a Principled material as an artist would make it, with its haze
+layer (blender.layer).  Only built-in nodes."""
+from ..utils.looks import LOOKS
+from . import compat, make_hazy
+
+
+def _principled(mat):
+    return next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+
+
+def _wood(tree, bsdf):
+    coord = tree.nodes.new("ShaderNodeTexCoord")
+    wave = tree.nodes.new("ShaderNodeTexWave")
+    wave.wave_type, wave.bands_direction = "RINGS", "Y"
+    for k, v in {"Scale": 1.6, "Distortion": 6.0, "Detail": 3.0, "Detail Scale": 1.5}.items():
+        wave.inputs[k].default_value = v
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.16, 0.06, 0.02, 1.0)
+    ramp.color_ramp.elements[1].color = (0.42, 0.2, 0.08, 1.0)
+    tree.links.new(coord.outputs["Object"], wave.inputs["Vector"])
+    tree.links.new(wave.outputs["Fac"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    coord.location, wave.location, ramp.location = (-900, 200), (-700, 200), (-450, 200)
+
+
+def _flakes(tree, bsdf):
+    """Metal flakes: a fine Voronoi varying the base's roughness."""
+    vor = tree.nodes.new("ShaderNodeTexVoronoi")
+    vor.inputs["Scale"].default_value = 400.0
+    rng = tree.nodes.new("ShaderNodeMapRange")
+    rng.inputs["To Min"].default_value = 0.26
+    rng.inputs["To Max"].default_value = 0.4
+    tree.links.new(vor.outputs["Distance"], rng.inputs["Value"])
+    tree.links.new(rng.outputs["Result"], bsdf.inputs["Roughness"])
+    vor.location, rng.location = (-700, -200), (-450, -200)
+
+
+def _worn_roughness(tree, bsdf):
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    noise.inputs["Detail"].default_value = 6.0
+    rng = tree.nodes.new("ShaderNodeMapRange")
+    rng.inputs["From Min"].default_value = 0.35
+    rng.inputs["From Max"].default_value = 0.65
+    rng.inputs["To Min"].default_value = 0.18
+    rng.inputs["To Max"].default_value = 0.5
+    tree.links.new(noise.outputs["Fac"], rng.inputs["Value"])
+    tree.links.new(rng.outputs["Result"], bsdf.inputs["Roughness"])
+    noise.location, rng.location = (-700, -200), (-450, -200)
+
+
+def _uv_tangent(tree, bsdf):
+    t = tree.nodes.new("ShaderNodeTangent")
+    t.direction_type = "UV_MAP"
+    tree.links.new(t.outputs["Tangent"], bsdf.inputs["Tangent"])
+    t.location = (-450, -500)
+
+
+#: Procedural set-ups a look can name (utils.looks.Look.textures).
+TEXTURES = {"wood": _wood, "flakes": _flakes, "worn_roughness": _worn_roughness,
+            "uv_tangent": _uv_tangent}
+
+
+def create_look(look_id, name=None, **haze):
+    """A new material for ``look_id`` (utils.looks.LOOKS) with its haze layer; ``haze``
+    overrides the look's haze (e.g. haziness=0 for the haze-free original)."""
+    try:
+        look = LOOKS[look_id]
+    except KeyError:
+        raise ValueError(f"unknown look {look_id!r}; known: {', '.join(LOOKS)}") from None
+    mat = compat.new_material(name or look.name)
+    bsdf = _principled(mat)
+    bsdf.distribution = "MULTI_GGX"  # Blender's default, kept (the mapping corrects for it)
+    for key, value in look.principled.items():
+        bsdf.inputs[key].default_value = value
+    for texture in look.textures:
+        TEXTURES[texture](mat.node_tree, bsdf)
+    status, msg, _ = make_hazy.make_hazy(mat, **dict(look.haze, **haze))
+    if status == "ERROR":
+        raise ValueError(msg)
+    return mat
