@@ -3,15 +3,26 @@
 ``blender -b --python-expr "import sys; from bl_ext.user_default.hazy_gloss.__main__ import main;
 sys.exit(main(['convert', ...]))"``.  See docs/textures.md.
 
-Exit status: 0 success; 2 bad input or usage (one line ``hazy_gloss convert: error: <reason>``
-on stderr: missing file, mismatched sizes, bad kind...); 3 bpy is not importable.
+Exit status (constants.EXIT_*; tested in tests/blender/test_convert.py and tests/pure):
+
+- 0: success;
+- 2: bad input or usage, one line ``hazy_gloss convert: error: <reason>`` on stderr (missing,
+  unreadable, truncated or non-image file, mismatched sizes, bad kind or constant, empty or
+  unwritable --out, bad --prefix, unknown flag); nothing is written;
+- 3: the bpy module is not importable (one line);
+- 130 (SIGINT, Ctrl+C) or 143 (SIGTERM): interrupted, one line; the maps this run wrote are
+  removed and the maps it was replacing restored, so the output folder is as it was;
+- 1: an internal error (a bug: Python prints a traceback).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import sys
+
+from . import constants as K
 
 #: (parameter name, flag) of the map/constant inputs.
 INPUT_FLAGS = (
@@ -76,25 +87,89 @@ def build_parser():
     return parser
 
 
+class Interrupted(KeyboardInterrupt):
+    """Raised by the CLI's SIGINT / SIGTERM handler (the conversion undoes its files)."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def _trap_signals():
+    """SIGINT and SIGTERM raise Interrupted (unless ignored, e.g. under nohup); returns the
+    previous handlers' restorer."""
+    saved = {}
+    for name in ("SIGINT", "SIGTERM"):
+        sig = getattr(signal, name, None)
+        if sig is None:
+            continue
+        try:
+            old = signal.getsignal(sig)
+            if old is signal.SIG_IGN:
+                continue
+            signal.signal(sig, _raise_interrupted)
+        except (ValueError, OSError):  # not the main thread
+            continue
+        saved[sig] = old
+
+    def restore():
+        for sig, old in saved.items():
+            signal.signal(sig, old if old is not None else signal.SIG_DFL)
+    return restore
+
+
+def _error(message, code=K.EXIT_BAD_INPUT):
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return code
+
+
 def _convert(args):
+    restore = _trap_signals()
+    try:
+        try:
+            return _run_convert(args, restore)
+        finally:
+            restore()
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        name = signal.Signals(signum).name
+        if getattr(exc, "committed", False):
+            print(f"{PROG}: interrupted ({name}) after every map was written and verified; the "
+                  "new maps are in place", file=sys.stderr)
+        else:
+            print(f"{PROG}: interrupted ({name}); the maps of this run were removed and the "
+                  "output folder is as it was", file=sys.stderr)
+        return K.EXIT_INTERRUPTED.get(int(signum), 128 + int(signum))
+
+
+def _run_convert(args, restore):
+    if not args.out.strip():
+        return _error(f"--out must name a folder, got {args.out!r}")
     inputs = {name: parse_value(getattr(args, name)) for name, _ in INPUT_FLAGS
               if getattr(args, name) is not None}
     try:
         import bpy  # noqa: F401  (the conversion reads and writes images through Blender)
     except ImportError as exc:
-        print(f"{PROG}: error: bpy is not importable ({exc}); install the bpy module or run "
-              "inside Blender", file=sys.stderr)
-        return 3
+        return _error(f"bpy is not importable ({exc}); install the bpy module or run inside "
+                      "Blender", K.EXIT_NO_BPY)
     from . import api
     from .convert import ConversionError
     try:
-        result = api.convert_maps(inputs, os.path.abspath(args.out), kind=args.kind,
+        result = api.convert_maps(inputs, args.out, kind=args.kind,
                                   smoothness=args.smoothness, distribution=args.distribution,
                                   file_format=args.file_format, resample=args.resample,
                                   prefix=args.prefix, exr_codec=args.exr_codec)
     except ConversionError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(exc)
+    except OSError as exc:  # not expected (the conversion turns them into ConversionError)
+        return _error(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
+    except MemoryError:
+        return _error("not enough memory for these images")
+    restore()  # the maps are in place: an interruption now is an ordinary one
     rep = result.report
     if args.json:
         print(json.dumps({"maps": dict(result), "texels": rep.texels, "size": list(rep.size),
@@ -107,7 +182,7 @@ def _convert(args):
             print(f"warning: {w}")
         for name, path in result.items():
             print(f"{name}: {path}")
-    return 0
+    return K.EXIT_OK
 
 
 def main(argv=None):

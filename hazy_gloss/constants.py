@@ -54,3 +54,18 @@ RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in re
 GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups
 #: Node custom property naming a node's role in a hazy material (survives renaming).
 ROLE = "hazy_gloss_role"
+
+
+# -- texture conversion (hazy_gloss/convert.py, blender/convert.py, python -m hazy_gloss) -------
+#: Exit statuses of ``python -m hazy_gloss convert`` (docs/textures.md).
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2  # bad input or usage: one line "hazy_gloss convert: error: ..." on stderr
+EXIT_NO_BPY = 3  # the bpy module is not importable
+EXIT_INTERRUPTED = {2: 130, 15: 143}  # SIGINT, SIGTERM: 128 + signal number, run undone
+#: OpenEXR codecs that store 32-bit floats exactly (measured in 4.5, 5.2 and 5.3): maps written
+#: with them are read back and compared bit for bit; the others only for size and finiteness.
+LOSSLESS_EXR_CODECS = ("NONE", "ZIP", "ZIPS", "PIZ", "RLE", "HTJ2K")
+#: Files a conversion writes before it commits: ".<name>.<run>.tmp<ext>" (new maps) and
+#: ".<name>.<run>.bak<ext>" (the maps they replace, until the whole set is in place), <run>
+#: being CONVERT_RUN_ID_HEX lowercase hex digits.
+CONVERT_RUN_ID_HEX = 12
