@@ -84,7 +84,13 @@ DEFAULTS = dict(core_reflectivity=_API_DEFAULTS["core_reflectivity"][0],
 
 class ConversionError(ValueError):
     """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is
-    one line meant for the user."""
+    one line meant for the user (several lines given are joined with '; ')."""
+
+    def __init__(self, message=""):
+        text = str(message)
+        if "\n" in text or "\r" in text:
+            text = "; ".join(p.strip() for p in text.splitlines() if p.strip())
+        super().__init__(text)
 
 
 class ConversionOptionError(ConversionError, TypeError):

@@ -24,7 +24,6 @@ The operator is ``convert_ops.HAZY_GLOSS_OT_convert_maps``.
 from __future__ import annotations
 
 import array
-import difflib
 import glob
 import os
 import re
@@ -33,6 +32,7 @@ import signal
 import stat
 import struct
 import sys
+import tempfile
 import threading
 import time
 import uuid
@@ -82,8 +82,9 @@ class _Unreadable(Exception):
 
 def _check_readable(path, label):
     """Cheap checks before ``bpy.data.images.load``: the file exists and is a non-empty regular
-    file, it starts like an image format Blender reads, and an OpenEXR or PNG file is not cut off
-    (EXR: header, offset table and every chunk inside the file; PNG: the chunks up to IEND).
+    file, it starts like an image format Blender reads, and an OpenEXR, PNG or JPEG file is not
+    cut off (EXR: header, offset table and every chunk inside the file; PNG: the chunks up to
+    IEND; JPEG: the segments, then an end-of-image marker after the image data).
     Raises ConversionError (one line naming ``label`` and ``path``); returns the format name."""
     # TODO(issue 14): delegate to the shared bpy-free header checker (hazy_gloss.imagecheck / exr)
     try:
@@ -116,6 +117,8 @@ def _check_readable(path, label):
                 _check_exr(f, st.st_size)
             elif fmt == "PNG":
                 _check_png(f, st.st_size)
+            elif fmt == "JPEG":
+                _check_jpeg(f, st.st_size)
     except _Unreadable as exc:
         raise ConversionError(f"{label}: {path} {exc}") from None
     except OSError as exc:
@@ -150,6 +153,44 @@ def _check_png(f, size):
             return
         idat = idat or ctype == b"IDAT"
         pos = end
+
+
+def _check_jpeg(f, size):
+    """Walk the marker segments to the first scan, then find the end-of-image marker after it
+    (Blender fills a cut-off JPEG with grey without an error)."""
+    pos = 2
+    while True:
+        f.seek(pos)
+        head = f.read(4)
+        if len(head) < 2 or head[0] != 0xFF:
+            raise _Unreadable(f"is a truncated or corrupt JPEG (no marker at byte {pos})")
+        m = head[1]
+        if m == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if m == 0x01 or 0xD0 <= m <= 0xD8:  # standalone markers
+            pos += 2
+            continue
+        if m == 0xD9:
+            raise _Unreadable("is a corrupt JPEG (it ends before its image data)")
+        if len(head) < 4:
+            raise _Unreadable("is a truncated JPEG (a marker segment is cut off)")
+        length, = struct.unpack(">H", head[2:4])
+        if length < 2 or pos + 2 + length > size:
+            raise _Unreadable(f"is a truncated JPEG (segment at byte {pos} needs "
+                              f"{pos + 2 + length} bytes, the file has {size})")
+        pos += 2 + length
+        if m == 0xDA:  # start of scan: entropy-coded data (0xFF is always escaped) follows
+            break
+    f.seek(pos)
+    prev = b""
+    while True:
+        block = f.read(1 << 20)
+        if not block:
+            raise _Unreadable("is a truncated JPEG (no end-of-image marker after its image data)")
+        if b"\xff\xd9" in prev[-1:] + block:
+            return
+        prev = block
 
 
 def _exr_header(buf, pos, long_names):
@@ -296,11 +337,73 @@ def _check_exr(f, size):
                                   f"{off + head + 4 + length} bytes, the file has {size})")
 
 
+class _BlenderMessages:
+    """What Blender prints (on stdout and stderr: its log goes to stdout in 5.x) while it reads
+    or writes a file: passed on unchanged when the call succeeds, folded into the one-line
+    error (:meth:`suffix`) when it fails."""
+
+    _CLOG = re.compile(r"^\d+:\d+\.\d+\s+\S+\s+\|\s*(?:ERROR|WARNING|INFO)?\s*")
+
+    def __enter__(self):
+        self.raw, self._keep, self._saved = b"", False, []
+        for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
+            try:
+                if stream is not None:
+                    stream.flush()
+                tmp = tempfile.TemporaryFile()
+                saved = os.dup(fd)
+            except (OSError, ValueError, AttributeError):  # no real fd: not captured
+                continue
+            os.dup2(tmp.fileno(), fd)
+            self._saved.append((fd, stream, saved, tmp))
+        return self
+
+    def swallow(self):
+        """The call failed: the messages go into the error instead of the console."""
+        self._keep = True
+
+    def __exit__(self, exc_type, exc, tb):
+        texts = []
+        for fd, stream, saved, tmp in self._saved:
+            try:
+                if stream is not None:
+                    stream.flush()
+            except (OSError, ValueError):
+                pass
+            os.dup2(saved, fd)
+            os.close(saved)
+            tmp.seek(0)
+            raw = tmp.read()
+            tmp.close()
+            texts.append(raw)
+            if raw and not self._keep and exc_type is None:
+                os.write(fd, raw)
+        self._saved = []
+        self.raw = b"\n".join(texts)
+        return False
+
+    def suffix(self):
+        lines = []
+        for line in self.raw.decode("utf-8", "replace").splitlines():
+            line = self._CLOG.sub("", line).strip()
+            if line and line not in lines:
+                lines.append(line)
+        text = "; ".join(lines)
+        if len(text) > 300:
+            text = text[:297] + "..."
+        return f" (Blender: {text})" if text else ""
+
+
+def _one_line(text):
+    """A Blender exception's message (sometimes several lines) as one line."""
+    return "; ".join(p.strip() for p in str(text).splitlines() if p.strip())
+
+
 def _reason(exc):
     """An OSError (or the ValueError of a NUL in a path) as a short reason."""
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
-    return str(exc).strip() or type(exc).__name__
+    return _one_line(exc) or type(exc).__name__
 
 
 # --------------------------------------------------------------------------------------------
@@ -460,6 +563,15 @@ class _Source:
         """(H, W[, 3]) float32 values: linear for colour maps, raw for data maps."""
         if self.array is not None:
             return self.array
+        with _BlenderMessages() as said:
+            try:
+                return self._read(tile, warnings)
+            except ConversionError as exc:
+                said.swallow()
+                error = exc
+        raise ConversionError(f"{error}{said.suffix()}") from None
+
+    def _read(self, tile, warnings):
         if self.image is not None:
             return _read_datablock(self.image, self.role, self.label, warnings)
         path = self.path if self.tiles is None else self.tiles.get(tile, None)
@@ -525,7 +637,7 @@ def _load(path, label):
     try:
         return bpy.data.images.load(path, check_existing=False)
     except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {str(exc).strip()}") from None
+        raise ConversionError(f"{label}: cannot read {path}: {_one_line(exc)}") from None
 
 
 def _read_file(path, role, label, warnings, colourspace=None):
@@ -659,15 +771,27 @@ class _Writer:
         view[..., 3] = 1.0
         img = bpy.data.images.new(".hazy_gloss_out", w, h, alpha=False, float_buffer=True,
                                   is_data=True)
+        error = None
         try:
             img.pixels.foreach_set(self._buf)
-            try:
-                self._save(img, path)
-            except RuntimeError as exc:
-                raise ConversionError(f"could not write {final}: {str(exc).strip()}") from None
+            with _BlenderMessages() as said:
+                try:
+                    self._save(img, path)
+                except RuntimeError as exc:
+                    said.swallow()
+                    error = _one_line(exc)
         finally:
             bpy.data.images.remove(img)
-        self.verify(path, final, w, h)
+        if error is not None:
+            raise ConversionError(f"could not write {final}: {error}{said.suffix()}")
+        with _BlenderMessages() as said:
+            try:
+                self.verify(path, final, w, h)
+            except ConversionError as exc:
+                said.swallow()
+                error = exc
+        if error is not None:
+            raise ConversionError(f"{error}{said.suffix()}") from None
 
     def verify(self, path, final, w, h):
         """Read ``path`` back (after the file checks) and compare it with the written buffer."""
@@ -679,7 +803,7 @@ class _Writer:
             img = bpy.data.images.load(path, check_existing=False)
         except RuntimeError as exc:
             raise ConversionError(f"could not write {final}: it does not load back "
-                                  f"({str(exc).strip()})") from None
+                                  f"({_one_line(exc)})") from None
         try:
             img.colorspace_settings.name = "Non-Color"
             img.alpha_mode = "CHANNEL_PACKED"

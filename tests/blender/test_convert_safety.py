@@ -111,16 +111,37 @@ def test_truncated_exr_is_one_clear_error_not_a_crash(api, core, tmp_path):
         api.convert_maps({"haziness": img}, str(out))
 
 
-@pytest.mark.parametrize("fmt", ["exr", "png"])
+def _jpeg_bytes(tmp_path, n=40):
+    """An 8-bit JPEG from Blender's writer (Blender fills a cut-off JPEG with grey silently)."""
+    img = bpy.data.images.new("src", n, n)
+    px = np.random.default_rng(5).random((n, n, 4)).astype(np.float32)
+    img.pixels.foreach_set(px.ravel())
+    sc = bpy.data.scenes.new("w")
+    s = sc.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "IMAGE"
+    s.file_format = "JPEG"
+    img.save_render(str(tmp_path / "full.jpg"), scene=sc)
+    bpy.data.scenes.remove(sc)
+    bpy.data.images.remove(img)
+    return (tmp_path / "full.jpg").read_bytes()
+
+
+@pytest.mark.parametrize("fmt", ["exr", "png", "jpg"])
 def test_every_cut_of_a_file_is_refused_and_whole_files_pass(bconv, tmp_path, fmt):
     if fmt == "exr":
         data = _exr_bytes(tmp_path, n=40)
+    elif fmt == "jpg":
+        data = _jpeg_bytes(tmp_path)
     else:
         p = write_png(tmp_path / "full.png", np.arange(40 * 40).reshape(40, 40) * 37 % 65536, 16)
         data = Path(p).read_bytes()
     whole = tmp_path / f"whole.{fmt}"
     whole.write_bytes(data)
-    assert bconv._check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG"}[fmt]
+    assert bconv._check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG",
+                                                      "jpg": "JPEG"}[fmt]
+    (tmp_path / f"trailing.{fmt}").write_bytes(data + b"\0" * 4096)  # data after the end: fine
+    assert bconv._check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
     cut = tmp_path / f"cut.{fmt}"
     accepted = []
     for n in sorted(set(range(1, len(data), max(1, len(data) // 400))) | {len(data) - 1}):
@@ -480,6 +501,36 @@ def _cli_env(tmp_path):
                 PYTHONPATH=str(REPO_ROOT), PYTHONDONTWRITEBYTECODE="1")
 
 
+@pytest.mark.parametrize("fmt", ["PNG", "OPEN_EXR"])
+def test_real_file_size_limit_in_the_cli(api, tmp_path, fmt):
+    """Not simulated: the CLI runs under RLIMIT_FSIZE = 64 KiB, which cuts every larger file
+    as a full disk does.  Blender's PNG writer reports success on the cut file (before issue 14
+    it was renamed into place: exit 0 with a 61440-byte beta.png); now exit 2, one line, and
+    the earlier set is untouched."""
+    import resource
+    rng = np.random.default_rng(8)
+    noisy = write_png(tmp_path / "noisy.png", rng.integers(0, 58000, (256, 256)), 16)
+    out = tmp_path / "out"
+    api.convert_maps({"haziness": 0.2, "roughness": write_png(
+        tmp_path / "r.png", np.full((256, 256), 9000), 16)}, str(out), file_format=fmt)
+    before = snapshot(out)
+    limit = 64 << 10
+    assert max(len(b) for b in before.values()) < limit
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    r = subprocess.run([sys.executable, "-m", "hazy_gloss", "convert", "--haziness", noisy,
+                        "--format", fmt, "--out", str(out)], cwd=str(tmp_path),
+                       env=_cli_env(tmp_path), capture_output=True, text=True, timeout=300,
+                       preexec_fn=cap)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    line = _error_line(r)
+    assert "could not write" in line and "beta" in line, line
+    assert r.stdout.strip() == ""
+    assert snapshot(out) == before
+
+
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_from_outside_during_the_cli_run(api, tmp_path, sig, code):
     paths, out, before = old_set(api, tmp_path)
@@ -671,16 +722,17 @@ def test_option_mistakes_are_one_line_and_write_nothing(api, core, tmp_path, opt
 
 
 def test_file_check_fuzz(bconv, tmp_path):
-    """4000 mutations (cuts, byte flips, random 32-bit fields) of an EXR and a PNG: the check
-    returns or raises ConversionError, within a time bound, never anything else."""
+    """4000 mutations (cuts, byte flips, random 32-bit fields) of an EXR, a PNG and a JPEG: the
+    check returns or raises ConversionError, within a time bound, never anything else."""
     rng = np.random.default_rng(14)
     exr = _exr_bytes(tmp_path, n=40)
     png = Path(write_png(tmp_path / "f.png", np.arange(1600).reshape(40, 40) % 256, 8)).read_bytes()
+    jpg = _jpeg_bytes(tmp_path)
     p = tmp_path / "fuzz.bin"
     outcomes = {"ok": 0, "refused": 0}
     t0 = time.perf_counter()
     for i in range(4000):
-        data = bytearray(exr if i % 2 else png)
+        data = bytearray((exr, png, jpg)[i % 3])
         op = rng.integers(4)
         if op == 0:
             data = data[:rng.integers(1, len(data))]
