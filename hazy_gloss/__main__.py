@@ -99,27 +99,49 @@ def _raise_interrupted(signum, frame):
     raise Interrupted(signum)
 
 
-def _trap_signals():
-    """SIGINT and SIGTERM raise Interrupted (unless ignored, e.g. under nohup); returns the
-    previous handlers' restorer."""
-    saved = {}
-    for name in ("SIGINT", "SIGTERM"):
-        sig = getattr(signal, name, None)
-        if sig is None:
-            continue
-        try:
-            old = signal.getsignal(sig)
-            if old is signal.SIG_IGN:
-                continue
-            signal.signal(sig, _raise_interrupted)
-        except (ValueError, OSError):  # not the main thread
-            continue
-        saved[sig] = old
+class _Signals:
+    """The CLI's SIGINT / SIGTERM handling (signals ignored at start, e.g. under nohup, stay
+    ignored).  First the signals are only recorded: an exception raised inside ``import bpy``
+    leaves Blender half initialised (tracebacks from its registration, crashes at exit);
+    :meth:`arm` then reports a recorded one and makes the next ones raise Interrupted, which the
+    conversion undoes; :meth:`hold` records them again once the maps are in place (reported
+    after the summary); :meth:`restore` puts the previous handlers back."""
 
-    def restore():
-        for sig, old in saved.items():
+    def __init__(self):
+        self.saved, self.pending = {}, []
+        for name in ("SIGINT", "SIGTERM"):
+            sig = getattr(signal, name, None)
+            if sig is None:
+                continue
+            try:
+                old = signal.getsignal(sig)
+                if old is signal.SIG_IGN:
+                    continue
+                signal.signal(sig, self._record)
+            except (ValueError, OSError):  # not the main thread
+                continue
+            self.saved[sig] = old
+
+    def _record(self, signum, frame):
+        self.pending.append(signum)
+
+    def arm(self):
+        for sig in self.saved:
+            signal.signal(sig, _raise_interrupted)
+        if self.pending:
+            raise Interrupted(self.pending[0])
+
+    def hold(self):
+        for sig in self.saved:
+            signal.signal(sig, self._record)
+
+    def ignore(self):
+        for sig in self.saved:
+            signal.signal(sig, signal.SIG_IGN)
+
+    def restore(self):
+        for sig, old in self.saved.items():
             signal.signal(sig, old if old is not None else signal.SIG_DFL)
-    return restore
 
 
 def _error(message, code=K.EXIT_BAD_INPUT):
@@ -128,12 +150,20 @@ def _error(message, code=K.EXIT_BAD_INPUT):
 
 
 def _convert(args):
-    restore = _trap_signals()
+    signals = _Signals()
     try:
         try:
-            return _run_convert(args, restore)
+            code = _run_convert(args, signals)
+            if code == K.EXIT_OK and signals.pending:  # arrived after the maps were in place
+                exc = Interrupted(signals.pending[0])
+                exc.committed = True
+                raise exc
+            return code
         finally:
-            restore()
+            if __name__ == "__main__":  # a CLI process: its status is decided, it only exits
+                signals.ignore()  # now (Python's shutdown would reset a handler to default)
+            else:  # in-process (inside Blender): hand the signals back
+                signals.restore()
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         name = signal.Signals(signum).name
@@ -146,7 +176,7 @@ def _convert(args):
         return K.EXIT_INTERRUPTED.get(int(signum), 128 + int(signum))
 
 
-def _run_convert(args, restore):
+def _run_convert(args, signals):
     if not args.out.strip():
         return _error(f"--out must name a folder, got {args.out!r}")
     inputs = {name: parse_value(getattr(args, name)) for name, _ in INPUT_FLAGS
@@ -157,7 +187,9 @@ def _run_convert(args, restore):
         return _error(f"bpy is not importable ({exc}); install the bpy module or run inside "
                       "Blender", K.EXIT_NO_BPY)
     from . import api
+    from .blender import convert as _  # noqa: F401  (imported before the signals raise)
     from .convert import ConversionError
+    signals.arm()
     try:
         result = api.convert_maps(inputs, args.out, kind=args.kind,
                                   smoothness=args.smoothness, distribution=args.distribution,
@@ -169,7 +201,7 @@ def _run_convert(args, restore):
         return _error(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
     except MemoryError:
         return _error("not enough memory for these images")
-    restore()  # the maps are in place: an interruption now is an ordinary one
+    signals.hold()  # the maps are in place: a signal now is reported after the summary
     rep = result.report
     if args.json:
         print(json.dumps({"maps": dict(result), "texels": rep.texels, "size": list(rep.size),

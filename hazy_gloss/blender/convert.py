@@ -346,16 +346,21 @@ class _BlenderMessages:
 
     def __enter__(self):
         self.raw, self._keep, self._saved = b"", False, []
-        for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
-            try:
-                if stream is not None:
-                    stream.flush()
-                tmp = tempfile.TemporaryFile()
-                saved = os.dup(fd)
-            except (OSError, ValueError, AttributeError):  # no real fd: not captured
-                continue
-            os.dup2(tmp.fileno(), fd)
-            self._saved.append((fd, stream, saved, tmp))
+        try:
+            with _DeferredSignals():  # an interruption must not leave stdout/stderr redirected
+                for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
+                    try:
+                        if stream is not None:
+                            stream.flush()
+                        tmp = tempfile.TemporaryFile()
+                        saved = os.dup(fd)
+                    except (OSError, ValueError, AttributeError):  # no real fd: not captured
+                        continue
+                    os.dup2(tmp.fileno(), fd)
+                    self._saved.append((fd, stream, saved, tmp))
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
         return self
 
     def swallow(self):
@@ -364,22 +369,23 @@ class _BlenderMessages:
 
     def __exit__(self, exc_type, exc, tb):
         texts = []
-        for fd, stream, saved, tmp in self._saved:
-            try:
-                if stream is not None:
-                    stream.flush()
-            except (OSError, ValueError):
-                pass
-            os.dup2(saved, fd)
-            os.close(saved)
-            tmp.seek(0)
-            raw = tmp.read()
-            tmp.close()
-            texts.append(raw)
-            if raw and not self._keep and exc_type is None:
-                os.write(fd, raw)
-        self._saved = []
-        self.raw = b"\n".join(texts)
+        with _DeferredSignals():
+            while self._saved:
+                fd, stream, saved, tmp = self._saved.pop(0)
+                try:
+                    if stream is not None:
+                        stream.flush()
+                except (OSError, ValueError):
+                    pass
+                os.dup2(saved, fd)
+                os.close(saved)
+                tmp.seek(0)
+                raw = tmp.read()
+                tmp.close()
+                texts.append(raw)
+                if raw and not self._keep and exc_type is None:
+                    os.write(fd, raw)
+            self.raw = b"\n".join(texts)
         return False
 
     def suffix(self):

@@ -572,6 +572,42 @@ def test_signal_during_the_commit_is_undone(api, tmp_path, sig, code, k):
     assert snapshot(out) == before
 
 
+def test_signals_at_any_time_leave_the_old_or_the_new_set(api, tmp_path):
+    """SIGINT / SIGTERM at 8 moments spread over a whole CLI run (during ``import bpy``, reading,
+    writing, renaming, printing, exiting): exit 0 with the complete new set, or 130 / 143 with
+    one line and the folder as it was (or, after the last rename, the complete new set) —
+    never a mixed set, a temporary, a traceback or a death by the signal."""
+    paths, _ = make_inputs(tmp_path / "in", aniso=True)
+    args = ["convert", "--haziness", paths["haziness"], "--roughness", paths["roughness"],
+            "--anisotropy", paths["anisotropy"], "--out"]
+    env = _cli_env(tmp_path)
+    t = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "hazy_gloss", *args, str(tmp_path / "new")], env=env,
+                   capture_output=True, timeout=300, check=True)
+    runtime = time.perf_counter() - t
+    new = snapshot(tmp_path / "new")
+    for i in range(8):
+        out = tmp_path / f"o{i}"
+        api.convert_maps(dict(paths, haziness=0.3), str(out))
+        old = snapshot(out)
+        sig = (signal.SIGINT, signal.SIGTERM)[i % 2]
+        proc = subprocess.Popen([sys.executable, "-m", "hazy_gloss", *args, str(out)], env=env,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(runtime * (0.15 + 0.13 * i))
+        proc.send_signal(sig)
+        so, se = proc.communicate(timeout=120)
+        now = snapshot(out)
+        assert now in (old, new), (i, sorted(now))
+        assert "Traceback" not in se, se
+        if proc.returncode == 0:
+            assert now == new and se.strip() == ""
+            continue
+        assert proc.returncode == {signal.SIGINT: 130, signal.SIGTERM: 143}[sig], (i, proc.returncode, se)
+        lines = [ln for ln in se.splitlines() if ln.strip()]
+        assert len(lines) == 1 and "interrupted" in lines[0], se
+        assert (now == new) == ("new maps are in place" in lines[0]), (i, lines)
+
+
 # --------------------------------------------------------------------------------------------
 # 7. CLI and API errors; exit codes
 # --------------------------------------------------------------------------------------------
