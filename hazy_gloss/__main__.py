@@ -11,7 +11,8 @@ Exit status (constants.EXIT_*; tested in tests/blender/test_convert.py and tests
   unwritable --out, bad --prefix, unknown flag); nothing is written;
 - 3: the bpy module is not importable (one line);
 - 130 (SIGINT, Ctrl+C) or 143 (SIGTERM): interrupted, one line; the maps this run wrote are
-  removed and the maps it was replacing restored, so the output folder is as it was;
+  removed and the maps it was replacing restored, so the output folder is as it was (a signal
+  after the last map is in place says so instead: the new set is complete);
 - 1: an internal error (a bug: Python prints a traceback).
 """
 from __future__ import annotations
