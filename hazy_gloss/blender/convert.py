@@ -74,6 +74,10 @@ _FORMATS_READ = "PNG, JPEG, OpenEXR, TIFF, Radiance HDR, TGA, BMP, WebP, DPX, Ci
 _EXR_LINES = (1, 1, 1, 16, 32, 16, 32, 32, 32, 256, 256, 32)
 _EXR_HEADER_MAX = 16 << 20  # header bytes read at most (previews included)
 _EXR_MAX_CHUNKS = 1 << 24
+#: Texels per file byte beyond which a data window is not believed: a loose bound (a constant
+#: 32768-wide HTJ2K image packs ~4000 texels into a byte) that only stops tiny files whose
+#: header would make Blender allocate gigabytes.
+_EXR_MAX_TEXELS_PER_BYTE = 1 << 16
 
 
 class _Unreadable(Exception):
@@ -127,8 +131,9 @@ def _check_readable(path, label):
 
 
 def _check_png(f, size):
-    """Walk the chunks (length, type, data, CRC) from the signature to IEND."""
-    pos, first, idat = 8, True, False
+    """Walk the chunks (length, type, data, CRC) from the signature to IEND; the image data must
+    be able to hold the size IHDR claims (deflate packs at most ~1032 bytes into one)."""
+    pos, first, idat, raw = 8, True, 0, 0
     while True:
         if pos + 12 > size:
             raise _Unreadable(f"is a truncated PNG (no IEND chunk: the file ends at byte {size})")
@@ -143,15 +148,23 @@ def _check_png(f, size):
         if first:
             if ctype != b"IHDR" or length != 13:
                 raise _Unreadable("is a corrupt PNG (no IHDR chunk first)")
-            w, h = struct.unpack(">II", f.read(8))
-            if not (0 < w < 1 << 31 and 0 < h < 1 << 31):
-                raise _Unreadable(f"is a corrupt PNG (size {w}x{h})")
+            w, h, depth, colour = struct.unpack(">IIBB", f.read(10))
+            channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(colour)
+            if not (0 < w < 1 << 31 and 0 < h < 1 << 31) or channels is None or \
+                    depth not in (1, 2, 4, 8, 16):
+                raise _Unreadable(f"is a corrupt PNG (size {w}x{h}, colour type {colour}, "
+                                  f"depth {depth})")
+            raw = h * (1 + -(-w * channels * depth // 8))
             first = False
         if ctype == b"IEND":
             if not idat:
                 raise _Unreadable("is a corrupt PNG (no image data)")
+            if raw > 1100 * idat + 4096:
+                raise _Unreadable(f"is a truncated or corrupt PNG ({idat} bytes of image data "
+                                  f"cannot hold {w}x{h})")
             return
-        idat = idat or ctype == b"IDAT"
+        if ctype == b"IDAT":
+            idat += length
         pos = end
 
 
@@ -222,7 +235,7 @@ def _exr_header(buf, pos, long_names):
         pos += n
 
 
-def _exr_chunks(attrs, tiled):
+def _exr_chunks(attrs, tiled, size=None):
     """Chunk count of one part (None: cannot tell, e.g. an unknown compression)."""
     if b"chunkCount" in attrs:
         t, v = attrs[b"chunkCount"]
@@ -234,6 +247,9 @@ def _exr_chunks(attrs, tiled):
     w, h = x1 - x0 + 1, y1 - y0 + 1
     if w < 1 or h < 1:
         raise _Unreadable(f"is a corrupt OpenEXR file (data window {w}x{h})")
+    if size is not None and w * h > _EXR_MAX_TEXELS_PER_BYTE * size:
+        raise _Unreadable(f"is a truncated or corrupt OpenEXR file (data window {w}x{h} in "
+                          f"{size} bytes)")
     t, v = attrs.get(b"channels", (b"", b""))
     if t != b"chlist" or not v or v[0] == 0:
         raise _Unreadable("is a corrupt OpenEXR file (no channels)")
@@ -300,7 +316,7 @@ def _check_exr(f, size):
         part_deep = ptype.startswith(b"deep") or (deep and not multi)
         if (multi or part_deep) and b"chunkCount" not in attrs:
             raise _Unreadable("is a corrupt OpenEXR file (no chunk count)")
-        n = _exr_chunks(attrs, part_tiled)
+        n = _exr_chunks(attrs, part_tiled, size)
         if n is None:
             return  # an unknown compression: only the header could be checked
         if n < 1 or n > _EXR_MAX_CHUNKS:

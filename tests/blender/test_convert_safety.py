@@ -202,6 +202,27 @@ def test_tiled_exr_chunk_counts(bconv, tmp_path, w, h, xs, ys, mode, chunks):
             bconv._check_readable(str(p), "x")
 
 
+def test_headers_claiming_huge_images_are_refused(bconv, tmp_path):
+    """A 300-byte PNG claiming 40000x40000 (Blender would try to allocate 25.6 GB) and an EXR
+    whose data window is 2^30 wide: refused by the check."""
+    import zlib
+
+    def chunk(t, d):
+        return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 40000, 40000, 16, 2, 0, 0, 0))
+           + chunk(b"IDAT", zlib.compress(b"\0" * 240001)) + chunk(b"IEND", b""))
+    (tmp_path / "big.png").write_bytes(png)
+    with pytest.raises(bconv.ConversionError, match="cannot hold 40000x40000"):
+        bconv._check_readable(str(tmp_path / "big.png"), "x")
+    data = bytearray(_exr_bytes(tmp_path))
+    at = data.index(b"dataWindow\0box2i\0") + len(b"dataWindow\0box2i\0") + 4
+    data[at:at + 16] = struct.pack("<4i", 0, 0, (1 << 30) - 1, 31)
+    (tmp_path / "wide.exr").write_bytes(bytes(data))
+    with pytest.raises(bconv.ConversionError, match="data window 1073741824x32"):
+        bconv._check_readable(str(tmp_path / "wide.exr"), "x")
+
+
 @pytest.mark.parametrize("case", ["png_no_iend", "not_image", "folder", "nul"])
 def test_bad_files_are_one_line(api, core, tmp_path, case):
     paths, _ = make_inputs(tmp_path / "in")
