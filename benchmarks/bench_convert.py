@@ -9,7 +9,7 @@ and float EXR files, smooth patterns plus noise) in a temp dir, then measures in
 
 A  conversion: ``api.convert_maps`` (conductor, anisotropic: 9 maps, float EXR ZIP) wall time;
 B  floor: the same image reads (load + pixels + decoding) and the same writes (the same output
-   arrays, same format and codec, atomic) through bpy, with no mapping math;
+   arrays, same format and codec, each read back and verified) through bpy, no mapping math;
    A and B run interleaved (A..B, B..A, ...) so machine load drifts hit both;
 C  the pure-numpy mapping (``hazy_gloss.convert.map_textures``) on the in-memory inputs;
 D  a naive per-texel Python loop (``api.map_parameters``-style: conventions + haze_mapping on one
@@ -139,7 +139,8 @@ def run_conversion(api, paths, out):
 
 def run_floor(bconv, core, paths, out, outputs):
     """The conversion's image I/O without the mapping: the same sources read (load, pixels,
-    decoding), the same arrays written (same format, codec, atomic replace)."""
+    decoding), the same arrays written and read back (same format, codec, verification; the
+    conversion's renames into place are left out)."""
     t = time.perf_counter()
     specs, _ = core.resolve_inputs(paths)
     warnings = []

@@ -101,10 +101,27 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     reason and parameter, seconds, warnings).  Options: resample=False, prefix="",
     exr_codec="ZIP", material=None (wire the maps into that material's lean tree),
     interpolation="Linear", progress=None (callable(done, total, message)).
-    Bad input raises hazy_gloss.convert.ConversionError (a ValueError) with a one-line message."""
+
+    All or nothing: every target is checked before anything is written, the maps are written
+    to temporary names, read back and compared, then renamed into place together; on any
+    failure or KeyboardInterrupt the output folder is left as it was (docs/textures.md).
+    Every error the caller can cause raises hazy_gloss.convert.ConversionError (a ValueError)
+    with a one-line message naming the parameter or file (an unknown option:
+    ConversionOptionError, also a TypeError)."""
+    from .convert import ConversionOptionError, did_you_mean
+    unknown = [k for k in options if k not in _CONVERT_OPTIONS]
+    if unknown:
+        k = unknown[0]
+        raise ConversionOptionError(f"convert_maps: unknown option {k!r}"
+                                    f"{did_you_mean(k, _CONVERT_OPTIONS)}; options: "
+                                    f"{', '.join(_CONVERT_OPTIONS)}")
     from .blender import convert as _convert
     return _convert.convert_maps(inputs, out_dir, kind=kind, smoothness=smoothness,
                                  distribution=distribution, file_format=file_format, **options)
+
+
+_CONVERT_OPTIONS = ("resample", "prefix", "exr_codec", "material", "interpolation", "progress",
+                    "tile_texels")
 
 
 __all__ = ("create_material", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",

@@ -64,3 +64,17 @@ MAX_EXR_ATTRIBUTES = 4096  # per header
 MAX_EXR_PARTS = 4096
 MAX_EXR_CHANNELS = 4096  # per part
 MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP image has 2048)
+
+# -- texture conversion (hazy_gloss/convert.py, blender/convert.py, python -m hazy_gloss) -------
+#: Exit statuses of ``python -m hazy_gloss convert`` (docs/textures.md).
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2  # bad input or usage: one line "hazy_gloss convert: error: ..." on stderr
+EXIT_NO_BPY = 3  # the bpy module is not importable
+EXIT_INTERRUPTED = {2: 130, 15: 143}  # SIGINT, SIGTERM: 128 + signal number, run undone
+#: OpenEXR codecs that store 32-bit floats exactly (measured in 4.5, 5.2 and 5.3): maps written
+#: with them are read back and compared bit for bit; the others only for size and finiteness.
+LOSSLESS_EXR_CODECS = ("NONE", "ZIP", "ZIPS", "PIZ", "RLE", "HTJ2K")
+#: Files a conversion writes before it commits: ".<name>.<run>.tmp<ext>" (new maps) and
+#: ".<name>.<run>.bak<ext>" (the maps they replace, until the whole set is in place), <run>
+#: being CONVERT_RUN_ID_HEX lowercase hex digits.
+CONVERT_RUN_ID_HEX = 12

@@ -21,6 +21,7 @@ the bottom row); nothing here depends on the order.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -34,6 +35,7 @@ from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, s
 
 __all__ = (
     "ConversionError",
+    "ConversionOptionError",
     "InputSpec",
     "MapSpec",
     "MappedMaps",
@@ -82,7 +84,23 @@ DEFAULTS = dict(core_reflectivity=_API_DEFAULTS["core_reflectivity"][0],
 
 class ConversionError(ValueError):
     """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is
-    one line meant for the user."""
+    one line meant for the user (several lines given are joined with '; ')."""
+
+    def __init__(self, message=""):
+        text = str(message)
+        if "\n" in text or "\r" in text:
+            text = "; ".join(p.strip() for p in text.splitlines() if p.strip())
+        super().__init__(text)
+
+
+class ConversionOptionError(ConversionError, TypeError):
+    """An unknown keyword argument of a conversion (a ConversionError and a TypeError)."""
+
+
+def did_you_mean(word, choices):
+    """' (did you mean 'x'?)' for the closest of ``choices``, or ''."""
+    close = difflib.get_close_matches(str(word), list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 # --------------------------------------------------------------------------------------------
@@ -126,15 +144,24 @@ def _constant(label, range_key, role, value):
         if arr.size == 1:
             arr = np.repeat(arr, 3)
         if arr.size != 3:
-            raise ConversionError(f"{label}: a colour constant is a number or an RGB triple, got {value!r}")
+            hint = " (drop alpha)" if arr.size == 4 else ""
+            raise ConversionError(f"{label}: a colour constant is a number or an RGB triple, got "
+                                  f"{value!r}{hint}")
     elif arr.size != 1:
-        raise ConversionError(f"{label}: expected a number, got {value!r}")
+        hint = ""
+        if label == "haze_extent" and arr.size == 2:
+            hint = " (for one extent per axis give haze_extent_x and haze_extent_y)"
+        raise ConversionError(f"{label}: expected a number, got {value!r}{hint}")
     if not np.all(np.isfinite(arr)):
         raise ConversionError(f"{label}: constant must be finite, got {value!r}")
     lo, hi = _range(range_key)
     if np.any(arr < lo) or (hi is not None and np.any(arr > hi)):
         rng = f"[{lo:g}, {hi:g}]" if hi is not None and np.isfinite(hi) else f">= {lo:g}"
-        raise ConversionError(f"{label}: constant {value!r} is outside {rng}")
+        hint = ""
+        if role == "colour" and arr.min() >= 0 and arr.max() <= 255:
+            scaled = tuple(round(float(v) / 255, 4) for v in arr)
+            hint = f" (colours are 0-1, not 0-255: divide 8-bit values by 255, e.g. {scaled})"
+        raise ConversionError(f"{label}: constant {value!r} is outside {rng}{hint}")
     out = arr.astype(np.float32)
     return out if role == "colour" else out[0]
 
@@ -158,13 +185,16 @@ def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None
     oddities (an edge tint given to a non-conductor)."""
     kind = str(kind).upper()
     if kind not in K.KINDS:
-        raise ConversionError(f"kind must be one of {', '.join(K.KINDS)}; got {kind!r}")
+        raise ConversionError(f"kind must be one of {', '.join(K.KINDS)}; got {kind!r}"
+                              f"{did_you_mean(kind, K.KINDS)}")
     distribution = str(distribution).upper()
     if distribution not in K.NODE_DISTRIBUTIONS[kind]:
         raise ConversionError(f"{kind.lower()} maps support the distributions "
-                              f"{', '.join(K.NODE_DISTRIBUTIONS[kind])}; got {distribution!r}")
+                              f"{', '.join(K.NODE_DISTRIBUTIONS[kind])}; got {distribution!r}"
+                              f"{did_you_mean(distribution, K.NODE_DISTRIBUTIONS[kind])}")
     if str(file_format).upper() not in FILE_FORMATS:
-        raise ConversionError(f"file_format must be one of {', '.join(FILE_FORMATS)}; got {file_format!r}")
+        raise ConversionError(f"file_format must be one of {', '.join(FILE_FORMATS)}; got "
+                              f"{file_format!r}{did_you_mean(str(file_format).upper(), FILE_FORMATS)}")
     if smoothness is not None:
         try:
             w = float(smoothness)
@@ -175,9 +205,10 @@ def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None
     if not isinstance(inputs, dict):
         raise ConversionError("inputs must be a dict of parameter name -> image path, image or constant")
     allowed = set(PARAMETERS) | set(ALIASES)
-    unknown = sorted(set(inputs) - allowed)
+    unknown = sorted((k for k in inputs if k not in allowed), key=repr)
     if unknown:
-        raise ConversionError(f"unknown input(s) {', '.join(unknown)}; accepted: "
+        desc = ", ".join(f"{k!r}{did_you_mean(k, allowed)}" for k in unknown)
+        raise ConversionError(f"unknown input{'s' if len(unknown) > 1 else ''} {desc}; accepted: "
                               f"{', '.join(sorted(allowed))}")
     given = {k: v for k, v in inputs.items() if v is not None}
     if "alpha" in given and "roughness" in given:

@@ -6,10 +6,16 @@ encodings) is bpy-free in ``hazy_gloss/convert.py``; this module does what needs
 
 - reading images (files loaded privately with ``check_existing=False``, or datablocks read in
   place, packed and unsaved ones included) and decoding them: colour maps to linear, data maps
-  raw (Non-Color), as measured in Blender 4.5 / 5.0 (``Image.pixels`` of an 8-bit image holds the
-  file's encoded values whatever its colour space; float images are already scene-linear);
+  raw (Non-Color), as measured in Blender 4.5 / 5.x (``Image.pixels`` of an 8-bit image holds the
+  file's encoded values whatever its colour space; float images are already scene-linear).
+  Every file is checked (:func:`_check_readable`: exists, an image format, not cut off) before
+  Blender sees it: Blender 5.0.1 segfaults on a truncated EXR;
 - writing float OpenEXR (default, lossless ZIP) or 16-bit PNG through ``Image.save_render`` of a
-  Non-Color image with a private scene's format settings, atomically (temp file + os.replace);
+  Non-Color image with a private scene's format settings, **all or nothing**
+  (:class:`_Transaction`): every target is checked before anything is written, every map goes to
+  a temporary name in the output folder and is read back and compared pixel for pixel, then all
+  are renamed into place; on any failure or interruption (KeyboardInterrupt, the CLI's SIGTERM)
+  the run's files are removed and the maps it replaced restored;
 - wiring the written maps into a material's lean node tree (Image Texture nodes into the two
   lobes and the mix, via nodes.lobes.build_lobes).
 
@@ -17,9 +23,17 @@ The operator is ``convert_ops.HAZY_GLOSS_OT_convert_maps``.
 """
 from __future__ import annotations
 
+import array
 import glob
 import os
 import re
+import shutil
+import signal
+import stat
+import struct
+import sys
+import tempfile
+import threading
 import time
 import uuid
 
@@ -42,17 +56,398 @@ _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
 
 # --------------------------------------------------------------------------------------------
+# Checking files before Blender reads them
+# --------------------------------------------------------------------------------------------
+
+#: Leading bytes of the formats Blender reads (TGA has none: recognised by its extension).
+_MAGIC = (
+    (b"\x76\x2f\x31\x01", "OpenEXR"), (b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"),
+    (b"II*\x00", "TIFF"), (b"MM\x00*", "TIFF"), (b"II+\x00", "TIFF"), (b"MM\x00+", "TIFF"),
+    (b"#?", "Radiance HDR"), (b"BM", "BMP"), (b"SDPX", "DPX"), (b"XPDS", "DPX"),
+    (b"\x80\x2a\x5f\xd7", "Cineon"), (b"\xd7\x5f\x2a\x80", "Cineon"),
+    (b"\x00\x00\x00\x0cjP  \r\n\x87\n", "JPEG 2000"), (b"\xff\x4f\xff\x51", "JPEG 2000"),
+    (b"\x01\xda", "Iris"), (b"8BPS", "PSD"), (b"DDS ", "DDS"),
+)
+_FORMATS_READ = "PNG, JPEG, OpenEXR, TIFF, Radiance HDR, TGA, BMP, WebP, DPX, Cineon, JPEG 2000"
+#: Scanlines per chunk of each OpenEXR compression (NONE, RLE, ZIPS, ZIP, PIZ, PXR24, B44,
+#: B44A, DWAA, DWAB, HTJ2K256, HTJ2K32).
+_EXR_LINES = (1, 1, 1, 16, 32, 16, 32, 32, 32, 256, 256, 32)
+_EXR_HEADER_MAX = 16 << 20  # header bytes read at most (previews included)
+_EXR_MAX_CHUNKS = 1 << 24
+#: Texels per file byte beyond which a data window is not believed: a loose bound (a constant
+#: 32768-wide HTJ2K image packs ~4000 texels into a byte) that only stops tiny files whose
+#: header would make Blender allocate gigabytes.
+_EXR_MAX_TEXELS_PER_BYTE = 1 << 16
+
+
+class _Unreadable(Exception):
+    """Why a file cannot be handed to Blender (the end of a one-line message)."""
+
+
+def _check_readable(path, label):
+    """Cheap checks before ``bpy.data.images.load``: the file exists and is a non-empty regular
+    file, it starts like an image format Blender reads, and an OpenEXR, PNG or JPEG file is not
+    cut off (EXR: header, offset table and every chunk inside the file; PNG: the chunks up to
+    IEND; JPEG: the segments, then an end-of-image marker after the image data).
+    Raises ConversionError (one line naming ``label`` and ``path``); returns the format name."""
+    # TODO(issue 14): delegate to the shared bpy-free header checker (hazy_gloss.imagecheck / exr)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise ConversionError(f"{label}: file not found: {path}") from None
+    except (OSError, ValueError) as exc:
+        raise ConversionError(f"{label}: cannot read {path}: {_reason(exc)}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ConversionError(f"{label}: {path} is a folder, not an image file")
+    if not stat.S_ISREG(st.st_mode):
+        raise ConversionError(f"{label}: {path} is not a regular file")
+    if st.st_size == 0:
+        raise ConversionError(f"{label}: file is empty: {path}")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+            fmt = next((name for magic, name in _MAGIC if head.startswith(magic)), None)
+            if fmt is None and head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+                fmt = "WebP"
+            if fmt is None and os.path.splitext(path)[1].lower() in (".tga", ".tpic") and \
+                    len(head) >= 3 and head[1] in (0, 1) and head[2] in (1, 2, 3, 9, 10, 11):
+                fmt = "TGA"
+            if fmt is None and any(m.startswith(head) for m, _ in _MAGIC):
+                raise _Unreadable(f"is truncated (only {len(head)} bytes)")
+            if fmt is None:
+                raise _Unreadable(f"is not an image file Blender reads ({_FORMATS_READ}); "
+                                  f"it starts with {head[:8]!r}")
+            if fmt == "OpenEXR":
+                _check_exr(f, st.st_size)
+            elif fmt == "PNG":
+                _check_png(f, st.st_size)
+            elif fmt == "JPEG":
+                _check_jpeg(f, st.st_size)
+    except _Unreadable as exc:
+        raise ConversionError(f"{label}: {path} {exc}") from None
+    except OSError as exc:
+        raise ConversionError(f"{label}: cannot read {path}: {_reason(exc)}") from None
+    return fmt
+
+
+def _check_png(f, size):
+    """Walk the chunks (length, type, data, CRC) from the signature to IEND; the image data must
+    be able to hold the size IHDR claims (deflate packs at most ~1032 bytes into one)."""
+    pos, first, idat, raw = 8, True, 0, 0
+    while True:
+        if pos + 12 > size:
+            raise _Unreadable(f"is a truncated PNG (no IEND chunk: the file ends at byte {size})")
+        f.seek(pos)
+        length, ctype = struct.unpack(">I4s", f.read(8))
+        if length >= 1 << 31 or not ctype.isalpha():
+            raise _Unreadable(f"is a corrupt PNG (bad chunk at byte {pos})")
+        end = pos + 12 + length
+        if end > size:
+            raise _Unreadable(f"is a truncated PNG (chunk {ctype.decode()} at byte {pos} needs "
+                              f"{end} bytes, the file has {size})")
+        if first:
+            if ctype != b"IHDR" or length != 13:
+                raise _Unreadable("is a corrupt PNG (no IHDR chunk first)")
+            w, h, depth, colour = struct.unpack(">IIBB", f.read(10))
+            channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(colour)
+            if not (0 < w < 1 << 31 and 0 < h < 1 << 31) or channels is None or \
+                    depth not in (1, 2, 4, 8, 16):
+                raise _Unreadable(f"is a corrupt PNG (size {w}x{h}, colour type {colour}, "
+                                  f"depth {depth})")
+            raw = h * (1 + -(-w * channels * depth // 8))
+            first = False
+        if ctype == b"IEND":
+            if not idat:
+                raise _Unreadable("is a corrupt PNG (no image data)")
+            if raw > 1100 * idat + 4096:
+                raise _Unreadable(f"is a truncated or corrupt PNG ({idat} bytes of image data "
+                                  f"cannot hold {w}x{h})")
+            return
+        if ctype == b"IDAT":
+            idat += length
+        pos = end
+
+
+def _check_jpeg(f, size):
+    """Walk the marker segments to the first scan, then find the end-of-image marker after it
+    (Blender fills a cut-off JPEG with grey without an error)."""
+    pos = 2
+    while True:
+        f.seek(pos)
+        head = f.read(4)
+        if len(head) < 2 or head[0] != 0xFF:
+            raise _Unreadable(f"is a truncated or corrupt JPEG (no marker at byte {pos})")
+        m = head[1]
+        if m == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if m == 0x01 or 0xD0 <= m <= 0xD8:  # standalone markers
+            pos += 2
+            continue
+        if m == 0xD9:
+            raise _Unreadable("is a corrupt JPEG (it ends before its image data)")
+        if len(head) < 4:
+            raise _Unreadable("is a truncated JPEG (a marker segment is cut off)")
+        length, = struct.unpack(">H", head[2:4])
+        if length < 2 or pos + 2 + length > size:
+            raise _Unreadable(f"is a truncated JPEG (segment at byte {pos} needs "
+                              f"{pos + 2 + length} bytes, the file has {size})")
+        pos += 2 + length
+        if m == 0xDA:  # start of scan: entropy-coded data (0xFF is always escaped) follows
+            break
+    f.seek(pos)
+    prev = b""
+    while True:
+        block = f.read(1 << 20)
+        if not block:
+            raise _Unreadable("is a truncated JPEG (no end-of-image marker after its image data)")
+        if b"\xff\xd9" in prev[-1:] + block:
+            return
+        prev = block
+
+
+def _exr_header(buf, pos, long_names):
+    """Parse one header from ``pos``: ({name: (type, value bytes)}, position after it)."""
+    attrs = {}
+    limit = 256 if long_names else 32
+
+    def cstring(at):
+        end = buf.find(b"\x00", at, at + limit)
+        if end < 0:
+            raise _Unreadable("is a truncated or corrupt OpenEXR file (header)")
+        return buf[at:end], end + 1
+
+    while True:
+        if pos >= len(buf):
+            raise _Unreadable("is a truncated OpenEXR file (header incomplete)")
+        if buf[pos] == 0:
+            return attrs, pos + 1
+        name, pos = cstring(pos)
+        atype, pos = cstring(pos)
+        if pos + 4 > len(buf):
+            raise _Unreadable("is a truncated OpenEXR file (header incomplete)")
+        n, = struct.unpack_from("<i", buf, pos)
+        pos += 4
+        if n < 0 or pos + n > len(buf):
+            raise _Unreadable(f"is a truncated or corrupt OpenEXR file (attribute "
+                              f"{name.decode('latin-1')!r} of {n} bytes)")
+        attrs[name] = (atype, buf[pos:pos + n])
+        pos += n
+
+
+def _exr_chunks(attrs, tiled, size=None):
+    """Chunk count of one part (None: cannot tell, e.g. an unknown compression)."""
+    if b"chunkCount" in attrs:
+        t, v = attrs[b"chunkCount"]
+        return struct.unpack("<i", v)[0] if len(v) == 4 else -1
+    t, v = attrs.get(b"dataWindow", (b"", b""))
+    if t != b"box2i" or len(v) != 16:
+        raise _Unreadable("is a corrupt OpenEXR file (no data window)")
+    x0, y0, x1, y1 = struct.unpack("<4i", v)
+    w, h = x1 - x0 + 1, y1 - y0 + 1
+    if w < 1 or h < 1:
+        raise _Unreadable(f"is a corrupt OpenEXR file (data window {w}x{h})")
+    if size is not None and w * h > _EXR_MAX_TEXELS_PER_BYTE * size:
+        raise _Unreadable(f"is a truncated or corrupt OpenEXR file (data window {w}x{h} in "
+                          f"{size} bytes)")
+    t, v = attrs.get(b"channels", (b"", b""))
+    if t != b"chlist" or not v or v[0] == 0:
+        raise _Unreadable("is a corrupt OpenEXR file (no channels)")
+    t, v = attrs.get(b"compression", (b"", b""))
+    if t != b"compression" or len(v) != 1:
+        raise _Unreadable("is a corrupt OpenEXR file (no compression)")
+    if not tiled:
+        if v[0] >= len(_EXR_LINES):
+            return None
+        return -(-h // _EXR_LINES[v[0]])
+    t, v = attrs.get(b"tiles", (b"", b""))
+    if t != b"tiledesc" or len(v) != 9:
+        raise _Unreadable("is a corrupt OpenEXR file (no tile description)")
+    xs, ys, mode = struct.unpack("<IIB", v)
+    level_mode, round_up = mode & 0x0F, mode >> 4 == 1
+    if xs < 1 or ys < 1 or level_mode > 2:
+        raise _Unreadable("is a corrupt OpenEXR file (tile description)")
+
+    def n_levels(n):
+        lg = n.bit_length() - 1  # floor(log2 n)
+        return lg + (1 if round_up and n != 1 << lg else 0) + 1
+
+    def level(n, lv):
+        s = n >> lv
+        if round_up and s << lv < n:
+            s += 1
+        return max(s, 1)
+
+    if level_mode == 0:
+        return -(-w // xs) * -(-h // ys)
+    if level_mode == 1:
+        return sum(-(-level(w, lv) // xs) * -(-level(h, lv) // ys)
+                   for lv in range(n_levels(max(w, h))))
+    return (sum(-(-level(w, lv) // xs) for lv in range(n_levels(w)))
+            * sum(-(-level(h, lv) // ys) for lv in range(n_levels(h))))
+
+
+def _check_exr(f, size):
+    """The header(s), the offset table(s), and that every chunk lies inside the file."""
+    f.seek(0)
+    buf = f.read(min(size, _EXR_HEADER_MAX))
+    if len(buf) < 9:
+        raise _Unreadable("is a truncated OpenEXR file (no header)")
+    version, = struct.unpack_from("<I", buf, 4)
+    if version & 0xFF != 2:
+        raise _Unreadable(f"is an OpenEXR file of unsupported version {version & 0xFF}")
+    tiled, long_names = bool(version & 0x200), bool(version & 0x400)
+    deep, multi = bool(version & 0x800), bool(version & 0x1000)
+    pos, parts = 8, []
+    while True:
+        if multi and parts and pos < len(buf) and buf[pos] == 0:
+            pos += 1  # the empty header that ends a multi-part file's headers
+            break
+        attrs, pos = _exr_header(buf, pos, long_names)
+        parts.append(attrs)
+        if not multi:
+            break
+        if len(parts) > 4096:
+            raise _Unreadable("is a corrupt OpenEXR file (too many parts)")
+    counts = []
+    for attrs in parts:
+        ptype = attrs.get(b"type", (b"", b""))[1].rstrip(b"\x00")
+        part_tiled = ptype in (b"tiledimage", b"deeptile") if multi else tiled
+        part_deep = ptype.startswith(b"deep") or (deep and not multi)
+        if (multi or part_deep) and b"chunkCount" not in attrs:
+            raise _Unreadable("is a corrupt OpenEXR file (no chunk count)")
+        n = _exr_chunks(attrs, part_tiled, size)
+        if n is None:
+            return  # an unknown compression: only the header could be checked
+        if n < 1 or n > _EXR_MAX_CHUNKS:
+            raise _Unreadable(f"is a corrupt OpenEXR file ({n} chunks)")
+        counts.append((n, part_tiled, part_deep))
+    total = sum(n for n, _, _ in counts)
+    table_end = pos + 8 * total
+    if table_end > size:
+        raise _Unreadable(f"is a truncated OpenEXR file (offset table needs {table_end} bytes, "
+                          f"the file has {size})")
+    f.seek(pos)
+    offsets = array.array("Q")
+    offsets.frombytes(f.read(8 * total))
+    if sys.byteorder == "big":
+        offsets.byteswap()
+    i = 0
+    for part, (n, part_tiled, part_deep) in enumerate(counts):
+        head = (4 if multi else 0) + (16 if part_tiled else 4)
+        for k in range(n):
+            off = offsets[i]
+            i += 1
+            if off < table_end or off + head + 4 > size:
+                raise _Unreadable(f"is a truncated OpenEXR file (chunk {k + 1} of {n} at byte "
+                                  f"{off}, the file has {size} bytes)")
+            if part_deep:
+                continue
+            f.seek(off)
+            chunk = f.read(head + 4)
+            if multi and struct.unpack_from("<i", chunk, 0)[0] != part:
+                raise _Unreadable(f"is a corrupt OpenEXR file (chunk {k + 1} of part {part})")
+            length, = struct.unpack_from("<i", chunk, head)
+            if length < 0 or off + head + 4 + length > size:
+                raise _Unreadable(f"is a truncated OpenEXR file (chunk {k + 1} of {n} needs "
+                                  f"{off + head + 4 + length} bytes, the file has {size})")
+
+
+class _BlenderMessages:
+    """What Blender prints (on stdout and stderr: its log goes to stdout in 5.x) while it reads
+    or writes a file: passed on unchanged when the call succeeds, folded into the one-line
+    error (:meth:`suffix`) when it fails."""
+
+    _CLOG = re.compile(r"^\d+:\d+\.\d+\s+\S+\s+\|\s*(?:ERROR|WARNING|INFO)?\s*")
+
+    def __enter__(self):
+        self.raw, self._keep, self._saved = b"", False, []
+        try:
+            with _DeferredSignals():  # an interruption must not leave stdout/stderr redirected
+                for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
+                    try:
+                        if stream is not None:
+                            stream.flush()
+                        tmp = tempfile.TemporaryFile()
+                        saved = os.dup(fd)
+                    except (OSError, ValueError, AttributeError):  # no real fd: not captured
+                        continue
+                    os.dup2(tmp.fileno(), fd)
+                    self._saved.append((fd, stream, saved, tmp))
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def swallow(self):
+        """The call failed: the messages go into the error instead of the console."""
+        self._keep = True
+
+    def __exit__(self, exc_type, exc, tb):
+        texts = []
+        with _DeferredSignals():
+            while self._saved:
+                fd, stream, saved, tmp = self._saved.pop(0)
+                try:
+                    if stream is not None:
+                        stream.flush()
+                except (OSError, ValueError):
+                    pass
+                os.dup2(saved, fd)
+                os.close(saved)
+                tmp.seek(0)
+                raw = tmp.read()
+                tmp.close()
+                texts.append(raw)
+                if raw and not self._keep and exc_type is None:
+                    os.write(fd, raw)
+            self.raw = b"\n".join(texts)
+        return False
+
+    def suffix(self):
+        lines = []
+        for line in self.raw.decode("utf-8", "replace").splitlines():
+            line = self._CLOG.sub("", line).strip()
+            if line and line not in lines:
+                lines.append(line)
+        text = "; ".join(lines)
+        if len(text) > 300:
+            text = text[:297] + "..."
+        return f" (Blender: {text})" if text else ""
+
+
+def _one_line(text):
+    """A Blender exception's message (sometimes several lines) as one line."""
+    return "; ".join(p.strip() for p in str(text).splitlines() if p.strip())
+
+
+def _reason(exc):
+    """An OSError (or the ValueError of a NUL in a path) as a short reason."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return _one_line(exc) or type(exc).__name__
+
+
+# --------------------------------------------------------------------------------------------
 # Reading
 # --------------------------------------------------------------------------------------------
 
 
-def _abspath(path, library=None):
+def _abspath(path, library=None, what="path"):
     path = os.fspath(path)
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if "\x00" in path:
+        raise ConversionError(f"{what} {path!r} contains a NUL character")
     if path.startswith("//"):
         if not bpy.data.filepath and library is None:
             raise ConversionError(f"relative path {path!r} needs a saved .blend file")
         path = bpy.path.abspath(path, library=library)
-    return os.path.normpath(os.path.abspath(path))
+    try:
+        return os.path.normpath(os.path.abspath(path))
+    except OSError as exc:  # a relative path and the current folder was deleted
+        raise ConversionError(f"{what} {path!r} is relative and the current folder cannot be "
+                              f"read ({_reason(exc)}); give an absolute path") from None
 
 
 def _label(name, source):
@@ -61,10 +456,27 @@ def _label(name, source):
     if isinstance(source, np.ndarray):
         return f"{name} (array)"
     try:
-        return f"{name} ({os.path.basename(os.fspath(source))})"
+        return f"{name} ({os.path.basename(os.fsdecode(os.fspath(source)))})"
     except TypeError:
+        hint = ""
+        if isinstance(source, (list, tuple)):
+            hint = " (a constant is a number, or (r, g, b) for a colour)"
         raise ConversionError(f"{name}: expected an image path, an image datablock, a numpy "
-                              f"array or a constant, got {type(source).__name__}") from None
+                              f"array or a constant, got {type(source).__name__} "
+                              f"{_short(source)}{hint}") from None
+
+
+def _short(value, n=40):
+    text = repr(value)
+    return text if len(text) <= n else text[:n - 3] + "..."
+
+
+def _looks_like_constant(text):
+    """'0.5' or '0.9,0.6,0.3' (what the CLI accepts as a constant)."""
+    try:
+        return [float(p) for p in text.replace(" ", "").strip("()[]").split(",")]
+    except ValueError:
+        return None
 
 
 def _tile_paths(pattern):
@@ -93,8 +505,23 @@ class _Source:
         if isinstance(source, np.ndarray):  # in memory: linear colour (H, W, 3) or data (H, W)
             want = 3 if role == "colour" else 2
             if source.ndim != want or (role == "colour" and source.shape[-1] != 3):
+                hint = ""
+                if role == "colour" and source.ndim == 3 and source.shape[-1] == 4:
+                    hint = " (drop alpha: array[..., :3])"
+                elif role == "colour" and source.ndim == 2:
+                    hint = " (a grey map: np.repeat(array[..., None], 3, axis=-1))"
+                elif role == "data" and source.ndim == 3:
+                    hint = " (one channel: array[..., 0])"
                 raise ConversionError(f"{self.label}: expected shape "
-                                      f"{'(H, W, 3)' if role == 'colour' else '(H, W)'}, got {source.shape}")
+                                      f"{'(H, W, 3)' if role == 'colour' else '(H, W)'}, got "
+                                      f"{source.shape}{hint}")
+            if source.dtype.kind not in "biuf":
+                raise ConversionError(f"{self.label}: expected a float array, got dtype {source.dtype}")
+            if source.dtype.kind in "iu" and source.size and name in _UNIT_RANGE and \
+                    int(source.max()) > 1:
+                raise ConversionError(f"{self.label}: integer array ({source.dtype}) with values up "
+                                      f"to {int(source.max())}; {name} is in [0, 1]: pass floats "
+                                      "(for 8-bit values divide by 255)")
             self.array = np.asarray(source, dtype=np.float32)
         elif isinstance(source, bpy.types.Image):
             img = source
@@ -116,7 +543,14 @@ class _Source:
             else:
                 self.image = img
         else:
-            path = _abspath(source)
+            text = os.fsdecode(os.fspath(source))
+            path = _abspath(source, what=f"{name}:")
+            if not os.path.exists(path) and UDIM_TOKEN not in path and \
+                    _looks_like_constant(text) is not None:
+                nums = _looks_like_constant(text)
+                const = nums[0] if len(nums) == 1 else tuple(nums)
+                raise ConversionError(f"{name}: {text!r} is a string and no such file exists; give "
+                                      f"a constant as a number or a tuple, e.g. {name}={const!r}")
             if UDIM_TOKEN in path:
                 self.tiles = _tile_paths(path)
                 if not self.tiles:
@@ -124,6 +558,16 @@ class _Source:
                 self.colourspace = None
             else:
                 self.path = path
+
+    def check(self):
+        """Check every file of this input before anything is read or written."""
+        if self.path:
+            _check_readable(self.path, self.label)
+        elif self.tiles:
+            for n, p in self.tiles.items():
+                _check_readable(p, f"{self.label} tile {n}")
+        elif self.image is not None:
+            _check_datablock_file(self.image, self.label)
 
     def files(self):
         if self.array is not None:
@@ -141,6 +585,15 @@ class _Source:
         """(H, W[, 3]) float32 values: linear for colour maps, raw for data maps."""
         if self.array is not None:
             return self.array
+        with _BlenderMessages() as said:
+            try:
+                return self._read(tile, warnings)
+            except ConversionError as exc:
+                said.swallow()
+                error = exc
+        raise ConversionError(f"{error}{said.suffix()}") from None
+
+    def _read(self, tile, warnings):
         if self.image is not None:
             return _read_datablock(self.image, self.role, self.label, warnings)
         path = self.path if self.tiles is None else self.tiles.get(tile, None)
@@ -149,6 +602,16 @@ class _Source:
         label = self.label if self.tiles is None else f"{self.label} tile {tile}"
         colourspace = getattr(self, "colourspace", None)
         return _read_file(path, self.role, label, warnings, colourspace)
+
+
+#: Inputs whose valid range is [0, 1] (integer arrays above 1 there are 8-bit values).
+_UNIT_RANGE = ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "haziness")
+
+
+def _check_datablock_file(img, label):
+    """A datablock Blender has not loaded yet (or will reload) reads its file: check it first."""
+    if img.packed_file is None and img.source == "FILE" and img.filepath and not img.has_data:
+        _check_readable(_abspath(img.filepath, img.library), label)
 
 
 def _pixels(img, label):
@@ -189,15 +652,18 @@ def _decode_colour(values, img, label, warnings):
                           "supported; use sRGB, Linear Rec.709 or a float (EXR/16-bit) image")
 
 
-def _read_file(path, role, label, warnings, colourspace=None):
-    if not os.path.isfile(path):
-        raise ConversionError(f"{label}: file not found: {path}")
-    if os.path.getsize(path) == 0:
-        raise ConversionError(f"{label}: file is empty: {path}")
+def _load(path, label):
+    """A private datablock of a file that passed :func:`_check_readable` (the one place files
+    are handed to Blender)."""
+    _check_readable(path, label)
     try:
-        img = bpy.data.images.load(path, check_existing=False)
+        return bpy.data.images.load(path, check_existing=False)
     except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {str(exc).strip()}") from None
+        raise ConversionError(f"{label}: cannot read {path}: {_one_line(exc)}") from None
+
+
+def _read_file(path, role, label, warnings, colourspace=None):
+    img = _load(path, label)
     try:
         img.alpha_mode = "CHANNEL_PACKED"  # no premultiplication of colour by alpha
         if colourspace:
@@ -218,6 +684,7 @@ def _read_file(path, role, label, warnings, colourspace=None):
 def _read_datablock(img, role, label, warnings):
     """Read an image datablock in place (packed, generated and unsaved images included); the
     datablock is not modified."""
+    _check_datablock_file(img, label)
     px = _pixels(img, label)
     if px.shape[-1] == 4 and img.alpha_mode in ("STRAIGHT", "PREMUL") and np.any(px[..., 3] < 1):
         warnings.append(f"{label}: has transparent texels and Alpha {img.alpha_mode.title()}; "
@@ -240,6 +707,8 @@ def _read_datablock(img, role, label, warnings):
     reloadable = not img.is_dirty and (img.packed_file is not None or (
         img.filepath and os.path.isfile(_abspath(img.filepath, img.library))))
     if reloadable:
+        if img.packed_file is None:
+            _check_readable(_abspath(img.filepath, img.library), label)
         tmp = img.copy()
         try:
             tmp.colorspace_settings.name = "Non-Color"
@@ -267,27 +736,53 @@ def _read_datablock(img, role, label, warnings):
 class _Writer:
     """Writes float arrays as Non-Color images through a private scene's format settings
     (``Image.save_render`` honours codec and depth; a Non-Color image gets no view transform),
-    atomically: a temp file in the output folder, then os.replace."""
+    and reads every file back: it must load with the right size and exactly the pixels Blender
+    will read (lossless EXR: the floats; 16-bit PNG: the 16-bit codes of the values; a lossy
+    EXR codec: finite values).  Blender's PNG writer reports success on a file cut off by a full
+    disk; this is where that is caught."""
 
     def __init__(self, file_format, exr_codec="ZIP"):
         self.file_format = file_format
+        self.exact = True
         self.scene = bpy.data.scenes.new(".hazy_gloss_convert")
-        s = self.scene.render.image_settings
-        if hasattr(s, "media_type"):  # 5.0
-            s.media_type = "IMAGE"
-        s.file_format = file_format
-        s.color_mode = "RGB"
-        if file_format == "OPEN_EXR":
-            s.color_depth = "32"
-            try:
-                s.exr_codec = exr_codec
-            except TypeError:
-                raise ConversionError(f"unknown EXR codec {exr_codec!r}") from None
-        else:
-            s.color_depth = "16"
-        self._buf = None
+        self._buf = self._rbuf = None
+        try:
+            s = self.scene.render.image_settings
+            if hasattr(s, "media_type"):  # 5.0
+                s.media_type = "IMAGE"
+            s.file_format = file_format
+            s.color_mode = "RGB"
+            if file_format == "OPEN_EXR":
+                s.color_depth = "32"
+                codec = exr_codec.upper() if isinstance(exr_codec, str) else exr_codec
+                try:
+                    s.exr_codec = codec
+                except TypeError:  # the codecs of 32-bit float EXR (B44 is for half floats)
+                    codecs = []
+                    for item in s.bl_rna.properties["exr_codec"].enum_items:
+                        try:
+                            s.exr_codec = item.identifier
+                            codecs.append(item.identifier)
+                        except TypeError:
+                            pass
+                    lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
+                    raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
+                                          f"{', '.join(lossless)}); got {_short(exr_codec)}") from None
+                self.exact = codec in K.LOSSLESS_EXR_CODECS
+            else:
+                s.color_depth = "16"
+        except BaseException:
+            self.close()
+            raise
 
-    def write(self, values, path):
+    def _save(self, img, path):
+        """The one call that writes a file (a seam for the tests' full-disk simulation)."""
+        img.save_render(path, scene=self.scene)
+
+    def write(self, values, path, final=None):
+        """Write ``values`` ((H, W) or (H, W, 3) float32) to ``path`` and verify it; messages
+        name ``final`` (the map's final path) when given."""
+        final = final or path
         h, w = values.shape[:2]
         n = w * h * 4
         if self._buf is None or self._buf.size != n:
@@ -298,28 +793,290 @@ class _Writer:
         view[..., 3] = 1.0
         img = bpy.data.images.new(".hazy_gloss_out", w, h, alpha=False, float_buffer=True,
                                   is_data=True)
-        folder, base = os.path.split(path)
-        stem, ext = os.path.splitext(base)
-        tmp = os.path.join(folder, f".{stem}.{uuid.uuid4().hex[:12]}.tmp{ext}")
+        error = None
         try:
             img.pixels.foreach_set(self._buf)
-            try:
-                img.save_render(tmp, scene=self.scene)
-            except RuntimeError as exc:
-                raise ConversionError(f"could not write {path}: {str(exc).strip()}") from None
-            if not os.path.isfile(tmp) or os.path.getsize(tmp) == 0:
-                raise ConversionError(f"could not write {path}")
-            os.replace(tmp, path)
+            with _BlenderMessages() as said:
+                try:
+                    self._save(img, path)
+                except RuntimeError as exc:
+                    said.swallow()
+                    error = _one_line(exc)
         finally:
             bpy.data.images.remove(img)
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        if error is not None:
+            raise ConversionError(f"could not write {final}: {error}{said.suffix()}")
+        with _BlenderMessages() as said:
+            try:
+                self.verify(path, final, w, h)
+            except ConversionError as exc:
+                said.swallow()
+                error = exc
+        if error is not None:
+            raise ConversionError(f"{error}{said.suffix()}") from None
+
+    def verify(self, path, final, w, h):
+        """Read ``path`` back (after the file checks) and compare it with the written buffer."""
+        try:
+            _check_readable(path, "read back")
+        except ConversionError as exc:
+            raise ConversionError(f"could not write {final} (disk full?): {exc}") from None
+        try:
+            img = bpy.data.images.load(path, check_existing=False)
+        except RuntimeError as exc:
+            raise ConversionError(f"could not write {final}: it does not load back "
+                                  f"({_one_line(exc)})") from None
+        try:
+            img.colorspace_settings.name = "Non-Color"
+            img.alpha_mode = "CHANNEL_PACKED"
+            size, c = tuple(img.size), img.channels
+            if size != (w, h) or c < 3:
+                raise ConversionError(f"could not write {final} (disk full?): it loads back as "
+                                      f"{size[0]}x{size[1]} with {c} channels, not {w}x{h} RGB")
+            if self._rbuf is None or self._rbuf.size != w * h * c:
+                self._rbuf = None
+                self._rbuf = np.empty(w * h * c, dtype=np.float32)
+            img.pixels.foreach_get(self._rbuf)
+        finally:
+            bpy.data.images.remove(img)
+        got = self._rbuf.reshape(h, w, c)
+        want = self._buf.reshape(h, w, 4)
+        rows = max(1, (1 << 20) // max(w, 1))  # compare in blocks: bounded temporaries
+        bad = 0
+        for r0 in range(0, h, rows):
+            g, e = got[r0:r0 + rows, :, :3], want[r0:r0 + rows, :, :3]
+            if self.file_format == "PNG":  # Blender: code = floor(v * 65535 + 0.5), v = code / 65535
+                e = np.floor(np.clip(e, 0, 1) * np.float32(65535) + np.float32(0.5))
+                e = e.astype(np.float32) * np.float32(1 / 65535)
+            elif not self.exact:
+                bad += int(np.count_nonzero(~np.isfinite(g).all(axis=-1)))
+                continue
+            bad += int(np.count_nonzero((g != e).any(axis=-1)))
+        if bad:
+            raise ConversionError(f"could not write {final}: {bad} of {w * h} texels read back "
+                                  "differently from what was written (disk full or a failing "
+                                  "device?)")
 
     def close(self):
-        self._buf = None
+        self._buf = self._rbuf = None
         if self.scene is not None:
             bpy.data.scenes.remove(self.scene)
             self.scene = None
+
+
+# --------------------------------------------------------------------------------------------
+# All or nothing: temporaries, backups, commit, undo
+# --------------------------------------------------------------------------------------------
+
+
+class _DeferredSignals:
+    """Hold SIGINT and SIGTERM while files are renamed or restored.
+
+    Only signals with a Python handler are held (KeyboardInterrupt's, the CLI's SIGTERM
+    handler); :meth:`poll` runs a held handler at a safe point (between two renames, where an
+    exception can still be undone), ``__exit__`` after the block unless an interruption is
+    already on its way.  Outside the main thread nothing is held (Python runs handlers there
+    only)."""
+
+    SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM") if hasattr(signal, n))
+
+    def __enter__(self):
+        self.saved, self.pending = {}, []
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                handler = signal.getsignal(sig)
+                if callable(handler):
+                    try:
+                        signal.signal(sig, self._hold)
+                    except (ValueError, OSError):
+                        continue
+                    self.saved[sig] = handler
+        return self
+
+    def _hold(self, signum, frame):
+        self.pending.append(signum)
+
+    def poll(self):
+        while self.pending:
+            signum = self.pending.pop(0)
+            self.saved[signum](signum, None)
+
+    def __exit__(self, exc_type, exc, tb):
+        for sig, handler in self.saved.items():
+            signal.signal(sig, handler)
+        if exc_type is None or issubclass(exc_type, Exception):
+            self.poll()
+        return False
+
+
+def _remove(path):
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return False
+    return True
+
+
+class _Transaction:
+    """The files of one conversion, all or nothing.
+
+    Maps are written to temporaries ``.<name>.<run>.tmp<ext>`` in the output folder (same file
+    system: renames are atomic) and verified; :meth:`commit` then backs up every map it replaces
+    (a hard link ``.<name>.<run>.bak<ext>``, a copy where links are not supported), renames the
+    temporaries into place and deletes the backups only once every map is in place.  On any
+    failure or interruption :meth:`rollback` restores the replaced maps from their backups,
+    deletes the maps new in this run and every temporary, and removes the folders the run
+    created.  Temporaries and backups left by a killed earlier run are deleted by
+    :meth:`clean_stale` (only names of this pattern, older than this run)."""
+
+    def __init__(self, out_dir, started):
+        self.out_dir = out_dir
+        self.started = started
+        self.run = uuid.uuid4().hex[:K.CONVERT_RUN_ID_HEX]
+        self.created = []  # folders made by this run, parents first
+        self.temps = {}  # final path -> temporary path
+        self.backups = {}  # final path -> backup of the file it replaces
+        self.renamed = []  # finals renamed into place by this run
+        self.retired = {}  # stale file moved aside at commit -> its backup
+        self.committed = False
+        self.problems = []
+
+    def side(self, final, tag):
+        folder, base = os.path.split(final)
+        stem, ext = os.path.splitext(base)
+        return os.path.join(folder, f".{stem}.{self.run}.{tag}{ext}")
+
+    def temp(self, final):
+        """The temporary for ``final``, recorded before it exists (a failure while it is being
+        written still removes it)."""
+        return self.temps.setdefault(final, self.side(final, "tmp"))
+
+    def make_folder(self):
+        """Create the output folder and its missing parents (recorded for the rollback), then
+        check that files can be created in it."""
+        missing, p = [], self.out_dir
+        while not os.path.isdir(p):
+            if os.path.lexists(p):
+                raise ConversionError(f"output folder {self.out_dir}: {p} is not a folder")
+            missing.append(p)
+            parent = os.path.dirname(p)
+            if parent == p:
+                break
+            p = parent
+        for d in reversed(missing):
+            try:
+                os.mkdir(d)
+            except FileExistsError:
+                if not os.path.isdir(d):
+                    raise ConversionError(f"output folder {self.out_dir}: {d} is not a folder") from None
+                continue
+            except OSError as exc:
+                raise ConversionError(f"cannot create the output folder {self.out_dir}: "
+                                      f"{_reason(exc)}") from None
+            self.created.append(d)
+        probe = self.side(os.path.join(self.out_dir, "hazy_gloss_probe.png"), "tmp")
+        try:
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except OSError as exc:
+            raise ConversionError(f"the output folder {self.out_dir} is not writable: "
+                                  f"{_reason(exc)}") from None
+        os.close(fd)
+        _remove(probe)
+
+    def clean_stale(self, names):
+        """Delete temporaries and backups of earlier runs: ``.<prefix><map>[.<tile>].<hex>.(tmp|
+        bak).<ext>`` for a map name in ``names``, last modified before this run started."""
+        rx = re.compile(r"\.(?P<stem>.+)\.(?P<run>[0-9a-f]{%d})\.(?:tmp|bak)(?:%s)\Z" % (
+            K.CONVERT_RUN_ID_HEX, "|".join(re.escape(e) for e in _EXT.values())))
+        removed = []
+        try:
+            entries = list(os.scandir(self.out_dir))
+        except OSError:
+            return removed
+        for entry in entries:
+            m = rx.match(entry.name)
+            if m is None or m["run"] == self.run:
+                continue
+            stem = re.sub(r"\.\d{4}\Z", "", m["stem"])
+            if stem != "hazy_gloss_probe" and not any(stem.endswith(n) for n in names):
+                continue
+            try:
+                if not entry.is_file(follow_symlinks=False) or \
+                        entry.stat(follow_symlinks=False).st_mtime >= self.started:
+                    continue
+            except OSError:
+                continue
+            if _remove(entry.path):
+                removed.append(entry.name)
+        return removed
+
+    def commit(self, retire=()):
+        """Move ``retire`` (stale files of an earlier set) aside, rename every temporary into
+        place, then delete the backups.  Interruptions are handled between renames (undone)."""
+        with _DeferredSignals() as sig:
+            try:
+                for path in retire:
+                    bak = self.side(path, "bak")
+                    os.replace(path, bak)
+                    self.retired[path] = bak
+                    sig.poll()
+                for final, tmp in self.temps.items():
+                    if os.path.lexists(final):
+                        bak = self.side(final, "bak")
+                        try:
+                            os.link(final, bak, follow_symlinks=False)
+                        except OSError:  # no hard links here: a copy
+                            shutil.copy2(final, bak, follow_symlinks=False)
+                        self.backups[final] = bak
+                    os.replace(tmp, final)
+                    self.renamed.append(final)
+                    sig.poll()
+                sig.poll()  # the last point where the whole set can still be undone
+            except BaseException:
+                self._undo()
+                raise
+            self.committed = True
+            for bak in [*self.backups.values(), *self.retired.values()]:
+                _remove(bak)
+
+    def rollback(self):
+        """Undo everything this run did to the folder; returns what could not be undone."""
+        with _DeferredSignals():
+            self._undo()
+        return self.problems
+
+    def _undo(self):
+        for final in reversed(self.renamed):
+            bak = self.backups.pop(final, None)
+            try:
+                if bak is not None:
+                    os.replace(bak, final)
+                else:
+                    os.remove(final)
+            except OSError as exc:
+                self.problems.append(f"could not restore {final} ({_reason(exc)})"
+                                     + (f"; its previous version is {bak}" if bak else ""))
+        self.renamed.clear()
+        for path, bak in list(self.retired.items()):
+            try:
+                os.replace(bak, path)
+                del self.retired[path]
+            except OSError as exc:
+                self.problems.append(f"could not restore {path} ({_reason(exc)}); it is {bak}")
+        for tmp in self.temps.values():
+            _remove(tmp)
+        self.temps.clear()
+        for bak in self.backups.values():  # backups of finals that were not replaced yet
+            _remove(bak)
+        self.backups.clear()
+        for d in reversed(self.created):
+            try:
+                os.rmdir(d)
+            except OSError:
+                break
+        self.created.clear()
 
 
 # --------------------------------------------------------------------------------------------
@@ -327,28 +1084,112 @@ class _Writer:
 # --------------------------------------------------------------------------------------------
 
 
-def resolve_out_dir(out_dir):
-    """Absolute output folder ('//' is relative to the saved .blend), created if needed."""
-    if out_dir is None or not os.fspath(out_dir):
-        raise ConversionError("no output folder given")
-    path = _abspath(out_dir)
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise ConversionError(f"output folder is a file: {path}")
-    os.makedirs(path, exist_ok=True)
+def _out_path(out_dir):
+    """Absolute output folder ('//' is relative to the saved .blend); not created here."""
+    if out_dir is None:
+        raise ConversionError("out_dir: no output folder given")
+    if not isinstance(out_dir, (str, bytes, os.PathLike)):
+        raise ConversionError(f"out_dir must be a folder path, got {type(out_dir).__name__} "
+                              f"{_short(out_dir)}")
+    text = os.fspath(out_dir)
+    text = os.fsdecode(text) if isinstance(text, bytes) else text
+    if not text.strip():
+        raise ConversionError(f"out_dir must name a folder, got {text!r}")
+    path = _abspath(text, what="out_dir")
+    p = path
+    while not os.path.isdir(p):  # the first existing ancestor must be a folder
+        if os.path.lexists(p):
+            raise ConversionError(f"output folder is a file: {p}" if p == path else
+                                  f"output folder {path}: {p} is a file, not a folder")
+        parent = os.path.dirname(p)
+        if parent == p:
+            break
+        p = parent
     return path
+
+
+def _check_prefix(prefix):
+    if prefix is None:
+        return ""
+    if not isinstance(prefix, str):
+        raise ConversionError(f"prefix must be a string, got {type(prefix).__name__} {_short(prefix)}")
+    if any(c in "/\\" or ord(c) < 32 or ord(c) == 127 for c in prefix) or \
+            prefix.startswith(".") or ".." in prefix:
+        raise ConversionError(f"prefix must be a plain file-name prefix (no path separator, control "
+                              f"or NUL character, leading '.' or '..'), got {prefix!r}")
+    return prefix
+
+
+def _check_options(material, interpolation, progress, tile_texels, resample):
+    """The options that are used after the maps are written: checked before anything is."""
+    if material is not None:
+        if not isinstance(material, bpy.types.Material):
+            hint = (f" (use bpy.data.materials[{material!r}])" if isinstance(material, str) else "")
+            raise ConversionError(f"material must be a bpy.types.Material or None, got "
+                                  f"{type(material).__name__} {_short(material)}{hint}")
+        if material.library is not None:
+            raise ConversionError(f"material {material.name!r} is linked from a library and "
+                                  "cannot be edited")
+    items = [e.identifier for e in
+             bpy.types.ShaderNodeTexImage.bl_rna.properties["interpolation"].enum_items]
+    if interpolation not in items:
+        raise ConversionError(f"interpolation must be one of {', '.join(items)}; got "
+                              f"{_short(interpolation)}")
+    if progress is not None and not callable(progress):
+        raise ConversionError(f"progress must be None or a callable(done, total, message), got "
+                              f"{type(progress).__name__}")
+    if isinstance(tile_texels, bool) or not isinstance(tile_texels, (int, np.integer)) or \
+            tile_texels < 1:
+        raise ConversionError(f"tile_texels must be a positive integer, got {_short(tile_texels)}")
+    if not isinstance(resample, (bool, np.bool_)):
+        raise ConversionError(f"resample must be True or False, got {_short(resample)}")
+
+
+def _check_targets(targets, input_files, txn):
+    """Before anything is written: no target is an input (same path or same file), a folder, or
+    a name too long for the file system."""
+    input_ids = set()
+    for p in input_files:
+        try:
+            st = os.stat(p)
+            input_ids.add((st.st_dev, st.st_ino))
+        except OSError:
+            pass
+    for t in targets:
+        if len(os.fsencode(os.path.basename(txn.side(t, "tmp")))) > 255:
+            raise ConversionError(f"output file name {os.path.basename(t)!r} is too long; use a "
+                                  "shorter prefix")
+        try:
+            st = os.stat(t)
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            raise ConversionError(f"output {t}: {_reason(exc)}") from None
+        if os.path.realpath(t) in input_files or (st is not None and (st.st_dev, st.st_ino) in input_ids):
+            raise ConversionError(f"output {t} would overwrite an input; choose another folder "
+                                  "or prefix")
+        if st is not None and stat.S_ISDIR(st.st_mode):
+            raise ConversionError(f"output {t} is a folder; remove it or choose another folder "
+                                  "or prefix")
+
+
+def _all_map_names():
+    return sorted({s.name for k in K.KINDS for s in core.output_specs(k, True)},
+                  key=len, reverse=True)
 
 
 def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
                  file_format="OPEN_EXR", resample=False, prefix="", exr_codec="ZIP",
                  material=None, interpolation="Linear", progress=None, tile_texels=1 << 18):
-    """Convert perceptual maps to physical maps; see hazy_gloss.api.convert_maps."""
+    """Convert perceptual maps to physical maps, all or nothing; see hazy_gloss.api.convert_maps."""
     t0 = time.perf_counter()
+    started = time.time()
     file_format = str(file_format).upper()
     specs, notes = core.resolve_inputs(inputs, kind=kind, distribution=distribution,
                                        smoothness=smoothness, file_format=file_format)
     kind, distribution = str(kind).upper(), str(distribution).upper()
-    if prefix and (os.sep in prefix or "/" in prefix):
-        raise ConversionError(f"prefix must be a plain file-name prefix, got {prefix!r}")
+    prefix = _check_prefix(prefix)
+    _check_options(material, interpolation, progress, tile_texels, resample)
     sources = {n: _Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
     # a haze extent shared by both axes is read once
     shared_extent = (specs["haze_extent_x"].given_as == "haze_extent"
@@ -365,7 +1206,9 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
             raise ConversionError("UDIM inputs have different tiles: " + "; ".join(
                 f"{tiled[n].label} {', '.join(map(str, v))}" for n, v in sets.items()))
         tiles = first
-    out_dir = resolve_out_dir(out_dir)
+    for src in sources.values():  # every input file, before anything is written
+        src.check()
+    out_dir = _out_path(out_dir)
     input_files = {os.path.realpath(p) for s in sources.values() for p in s.files()}
 
     report = core.ConversionReport(kind=kind, distribution=distribution, file_format=file_format,
@@ -381,22 +1224,52 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
         if progress is not None:
             progress(min(done[0], total), total, message)
 
+    txn = _Transaction(out_dir, started)
+    _check_targets([_final_path(out_dir, prefix, s.name, tile, ext)
+                    for tile in jobs for s in core.output_specs(kind, True)], input_files, txn)
     writer = _Writer(file_format, exr_codec)
     try:
         try:
-            paths, out_specs = _run_jobs(jobs, specs, sources, shared_extent, resample, kind,
-                                         distribution, smoothness, tile_texels, file_format,
-                                         writer, out_dir, prefix, ext, input_files, report,
-                                         step, None)
-        except _AnisotropyChanged:
-            # a later UDIM tile is anisotropic: redo every tile with the anisotropic map set
-            report.texels, report.clamped = 0, {}
-            paths, out_specs = _run_jobs(jobs, specs, sources, shared_extent, resample, kind,
-                                         distribution, smoothness, tile_texels, file_format,
-                                         writer, out_dir, prefix, ext, input_files, report,
-                                         step, True)
-    finally:
-        writer.close()
+            txn.make_folder()
+            stale = txn.clean_stale(_all_map_names())
+            if stale:
+                report.warnings.append(f"removed {len(stale)} temporary file(s) left in "
+                                       f"{out_dir} by an interrupted earlier conversion")
+            args = (jobs, specs, sources, shared_extent, resample, kind, distribution, smoothness,
+                    tile_texels, file_format, writer, txn, out_dir, prefix, ext, report, step)
+            try:
+                paths, out_specs = _run_jobs(*args, None)
+            except _AnisotropyChanged:
+                # a later UDIM tile is anisotropic: redo every tile with the anisotropic map set
+                report.texels, report.clamped = 0, {}
+                paths, out_specs = _run_jobs(*args, True)
+        finally:
+            writer.close()
+        retire = []
+        if tiles:  # tiles of an earlier, larger set would join this one in a tiled image
+            for s in out_specs:
+                on_disk = _tile_paths(_final_path(out_dir, prefix, s.name, UDIM_TOKEN, ext))
+                retire += [p for t, p in sorted(on_disk.items()) if t not in tiles]
+            if retire:
+                report.warnings.append("removed UDIM tiles of an earlier conversion that are not "
+                                       "in this set: " + ", ".join(os.path.basename(p) for p in retire))
+        txn.commit(retire)
+    except BaseException as exc:
+        if txn.committed:  # a signal held during the last clean-up: the set is complete
+            exc.committed = True
+            raise
+        problems = txn.rollback()
+        extra = ("; " + "; ".join(problems)) if problems else ""
+        if isinstance(exc, OSError):
+            where = getattr(exc, "filename2", None) or exc.filename
+            where = f"{where}: " if where else ""
+            raise ConversionError(f"could not write the maps ({where}{_reason(exc)}); "
+                                  + (extra[2:] if extra else "the output folder is unchanged")) from None
+        if isinstance(exc, ConversionError) and extra:
+            raise ConversionError(f"{exc}{extra}") from None
+        if extra and hasattr(exc, "add_note"):
+            exc.add_note(extra[2:])
+        raise
     report.warnings = list(dict.fromkeys(report.warnings))
     report.seconds = time.perf_counter() - t0
     result = core.ConversionResult(paths, report, out_specs)
@@ -405,12 +1278,16 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     return result
 
 
+def _final_path(out_dir, prefix, name, tile, ext):
+    return os.path.join(out_dir, f"{prefix}{name}{'.' + str(tile) if tile else ''}{ext}")
+
+
 class _AnisotropyChanged(Exception):
     pass
 
 
 def _run_jobs(jobs, specs, sources, shared_extent, resample, kind, distribution, smoothness,
-              tile_texels, file_format, writer, out_dir, prefix, ext, input_files, report, step,
+              tile_texels, file_format, writer, txn, out_dir, prefix, ext, report, step,
               anisotropic):
     paths = {}
     out_specs = None
@@ -452,18 +1329,13 @@ def _run_jobs(jobs, specs, sources, shared_extent, resample, kind, distribution,
         for k, v in mapped.clamped.items():
             report.clamped[k] = report.clamped.get(k, 0) + v
         for spec in mapped.specs:
-            suffix = f".{tile}" if tile else ""
-            path = os.path.join(out_dir, f"{prefix}{spec.name}{suffix}{ext}")
-            if os.path.realpath(path) in input_files:
-                raise ConversionError(f"output {path} would overwrite an input; choose "
-                                      "another folder or prefix")
+            path = _final_path(out_dir, prefix, spec.name, tile, ext)
             values = mapped.maps.pop(spec.name)
             if file_format == "PNG":
                 values = core.encode_png(spec, values)
-            writer.write(values, path)
+            writer.write(values, txn.temp(path), path)
             del values
-            paths[spec.name] = os.path.join(
-                out_dir, f"{prefix}{spec.name}{'.' + UDIM_TOKEN if tile else ''}{ext}")
+            paths[spec.name] = _final_path(out_dir, prefix, spec.name, UDIM_TOKEN if tile else None, ext)
             step(f"wrote {spec.name}")
         del mapped
     return paths, out_specs

@@ -37,8 +37,11 @@ _DIST_ITEMS = [("GGX", "GGX", ""), ("BECKMANN", "Beckmann", ""),
 
 
 def _fallback_dir(mat_name):
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", mat_name or "maps")
-    return os.path.join(tempfile.gettempdir(), "hazy_gloss_maps", safe)
+    """<temp>/hazy_gloss_maps/<material name as one safe folder name> (never '.', '..' or a
+    hidden name: leading dots are dropped)."""
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", mat_name or "").lstrip(".") or "maps"
+    base = os.path.join(tempfile.gettempdir(), "hazy_gloss_maps")
+    return os.path.join(base, safe)
 
 
 class HAZY_GLOSS_OT_convert_maps(bpy.types.Operator):
