@@ -57,6 +57,14 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     return mat
 
 
+def create_look(look, name=None, **haze):
+    """A new Principled material for one of the looks (``hazy_gloss.utils.looks.LOOKS``: CAR_PAINT,
+    LACQUERED_WOOD, SATIN_VARNISH, BRUSHED_ALUMINIUM, WORN_PLASTIC) with its haze layer;
+    ``haze`` overrides the look's haze parameters (haziness=0, coat_haziness=0: the original)."""
+    from .blender import looks as _looks
+    return _looks.create_look(look, name, **haze)
+
+
 def remove_haze(mat):
     """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
     the layer's nodes go.  Returns whether there was a layer."""
@@ -124,6 +132,6 @@ _CONVERT_OPTIONS = ("resample", "prefix", "exr_codec", "material", "interpolatio
                     "tile_texels")
 
 
-__all__ = ("create_material", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
+__all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
            "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")

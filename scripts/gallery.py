@@ -1,10 +1,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The demo gallery: the paper's Figure 3 layout (a dielectric row and a conductor row of spheres
-with increasing haziness, α_n = 0.01, λ_h = 7) plus the Table 3 materials, rendered with Cycles.
+with increasing haziness, α_n = 0.01, λ_h = 7), the Table 3 materials and the looks (Principled
+materials without and with their haze layer), rendered with Cycles.
 
     .venv/bin/python scripts/gallery.py [--out out/gallery.png] [--samples 48] [--scale 1.0]
     .venv/bin/python scripts/gallery.py --rows haziness --out docs/img/sweep_haziness.png
     .venv/bin/python scripts/gallery.py --rows extent --out docs/img/sweep_extent.png
+    .venv/bin/python scripts/gallery.py --rows looks --out docs/img/looks.png
 
 Runs on the bpy module; loads the add-on the way scripts do (repo root on sys.path).
 """
@@ -161,7 +163,18 @@ def gallery_rows(api):
     table = [api.create_material(name, **params) for name, params in TABLE3.items()]
     return [([f"haziness {h:g}" for h in FIG3_HAZINESS_DIELECTRIC], dielectric),
             ([f"haziness {h:g}" for h in FIG3_HAZINESS_CONDUCTOR], conductor),
-            (list(TABLE3), table)]
+            (list(TABLE3), table)] + looks_rows(api)
+
+
+def looks_rows(api):
+    """The looks (utils.looks): Principled materials as an artist builds them, without haze
+    (top) and with the haze layer Make Hazy puts on them (bottom)."""
+    from hazy_gloss.utils.looks import LOOKS
+    plain = [api.create_look(k, f"{look.name} (no haze)", haziness=0.0, coat_haziness=0.0)
+             for k, look in LOOKS.items()]
+    hazy = [api.create_look(k) for k in LOOKS]
+    return [([f"{look.name}, no haze" for look in LOOKS.values()], plain),
+            ([f"{look.name}, hazy" for look in LOOKS.values()], hazy)]
 
 
 def sweep_rows(api, which):
@@ -211,7 +224,8 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     studio(scene)
-    spheres = gallery_rows(api) if rows == "gallery" else sweep_rows(api, rows)
+    spheres = (gallery_rows(api) if rows == "gallery" else looks_rows(api) if rows == "looks"
+               else sweep_rows(api, rows))
     sphere_rows(scene, spheres)
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
@@ -223,7 +237,7 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
     except TypeError:
         scene.cycles.use_denoising = False
     scene.render.resolution_x = int(1040 * scale)
-    scene.render.resolution_y = int((680 if len(spheres) == 3 else 460) * scale)
+    scene.render.resolution_y = int((140 + 230 * len(spheres)) * scale)
     scene.view_settings.view_transform = "AgX" if "AgX" in [
         i.identifier for i in scene.view_settings.bl_rna.properties["view_transform"].enum_items] else "Filmic"
     scene.render.image_settings.file_format = "PNG"
@@ -239,7 +253,7 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(REPO, "out", "gallery.png"))
     ap.add_argument("--samples", type=int, default=48)
     ap.add_argument("--scale", type=float, default=1.0)
-    ap.add_argument("--rows", choices=("gallery", "haziness", "extent"), default="gallery",
+    ap.add_argument("--rows", choices=("gallery", "looks", "haziness", "extent"), default="gallery",
                     help="the gallery, or a parameter sweep for the docs")
     args = ap.parse_args(argv)
     seconds = render(args.out, args.samples, args.scale, args.rows)

@@ -50,16 +50,17 @@ def _worn_roughness(tree, bsdf):
     noise.location, rng.location = (-700, -200), (-450, -200)
 
 
-def _uv_tangent(tree, bsdf):
+def _radial_tangent(tree, bsdf):
+    """Brushed around the object's Z axis (works without a UV map)."""
     t = tree.nodes.new("ShaderNodeTangent")
-    t.direction_type = "UV_MAP"
+    t.direction_type, t.axis = "RADIAL", "Z"
     tree.links.new(t.outputs["Tangent"], bsdf.inputs["Tangent"])
     t.location = (-450, -500)
 
 
 #: Procedural set-ups a look can name (utils.looks.Look.textures).
 TEXTURES = {"wood": _wood, "flakes": _flakes, "worn_roughness": _worn_roughness,
-            "uv_tangent": _uv_tangent}
+            "radial_tangent": _radial_tangent}
 
 
 def create_look(look_id, name=None, **haze):

@@ -20,7 +20,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import constants as K
 from ..core.lobes import check_kind
-from ..utils import presets
+from ..utils import looks, presets
 from . import compat
 from .context import PRESET_SUBDIR
 from .nodes.groups import all_configurations, ensure_group, group_label, group_name
@@ -351,6 +351,10 @@ class HAZY_GLOSS_MT_presets(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
+        layout.label(text="Looks (their haze)")
+        for pid, name, _desc in looks.enum_items():
+            layout.operator("hazy_gloss.apply_preset", text=name).preset = pid
+        layout.separator()
         layout.label(text="From the paper")
         for pid, name, _desc in presets.enum_items():
             layout.operator("hazy_gloss.apply_preset", text=name).preset = pid

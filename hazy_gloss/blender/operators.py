@@ -23,9 +23,10 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 
 from .. import constants as K
 from ..core.parameters import HAZE_PARAMETERS
-from ..utils import presets
+from ..utils import looks, presets
 from . import layer, material, plots, preferences, properties
 from .context import PRESET_SUBDIR, plain_message, target_material
+from .looks import create_look
 from .make_hazy import CORE_NODES, import_two_lobe_mix, make_hazy, remove_haze
 
 #: (level, message) of every report, newest last (kept short).
@@ -127,7 +128,7 @@ class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
 
 _KIND_ITEMS = [("DEFAULT", "Default", "The kind set in the add-on preferences")] + [
     (k, n, d) for k, n, d, _ in properties.KIND_ITEMS]
-_PRESET_ITEMS = [("NONE", "None", "Default parameters")] + presets.enum_items()
+_PRESET_ITEMS = [("NONE", "None", "Default parameters")] + looks.enum_items() + presets.enum_items()
 
 
 def assign_to_object(obj, mat):
@@ -156,6 +157,17 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
 
     def execute(self, context):
         prefs = preferences.get(context)
+        if self.preset in looks.LOOKS:  # a Principled material with its haze layer
+            try:
+                mat = create_look(self.preset, self.name if self.name != "Hazy Gloss" else None)
+            except ValueError as exc:
+                _report(self, "ERROR", plain_message(exc))
+                return {"CANCELLED"}
+            obj = getattr(context, "object", None)
+            if self.assign and obj is not None and obj.library is None:
+                assign_to_object(obj, mat)
+            _report(self, "INFO", f"New “{mat.name}”: a Principled BSDF with a haze layer")
+            return {"FINISHED"}
         if self.preset != "NONE":
             p = presets.parameters(self.preset)
         else:
@@ -190,13 +202,14 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
     bl_label = "Apply Hazy Preset"
     bl_options = {"REGISTER", "UNDO"}
 
-    preset: EnumProperty(name="Preset", items=presets.enum_items())
+    preset: EnumProperty(name="Preset", items=looks.enum_items() + presets.enum_items())
     material: StringProperty(**_MATERIAL_PROP)
 
     @classmethod
     def description(cls, context, properties_):
         try:
-            return presets.PRESETS[properties_.preset].description
+            pid = properties_.preset
+            return (looks.LOOKS[pid] if pid in looks.LOOKS else presets.PRESETS[pid]).description
         except (KeyError, AttributeError):
             return cls.__doc__
 
@@ -206,16 +219,24 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
             _report(self, "ERROR", "The material is not hazy: use Make Hazy or New Hazy "
                     "Material first")
             return {"CANCELLED"}
-        p = presets.parameters(self.preset)
+        if self.preset in looks.LOOKS:
+            if not layer.is_layered(mat):
+                _report(self, "ERROR", f"A look's haze goes on a haze layer: use Make Hazy on "
+                        f"“{mat.name}” first, or New Hazy Material with the look")
+                return {"CANCELLED"}
+            p = dict(looks.LOOKS[self.preset].haze)
+            p = dict(layer.HAZE, **{k: v for k, v in p.items()})  # every haze parameter set
+        else:
+            p = presets.parameters(self.preset)
         if layer.is_layered(mat):  # a layer takes the preset's haze; its core is the user's
             p = {k: v for k, v in p.items() if k in HAZE_PARAMETERS}
         _, msg = properties.edit_material(mat, **p)
         if msg:
             _report(self, "ERROR", msg)
             return {"CANCELLED"}
-        pre = presets.PRESETS[self.preset]
+        pre = looks.LOOKS.get(self.preset) or presets.PRESETS[self.preset]
         _report(self, "INFO", f"Applied “{pre.name}” to “{mat.name}”")
-        if pre.notes:
+        if getattr(pre, "notes", ""):
             _report(self, "INFO", pre.notes)
         return {"FINISHED"}
 

@@ -51,7 +51,7 @@ _LIST = (
          {"Metallic": 1.0, "Base Color": (0.91, 0.92, 0.92, 1.0), "Roughness": 0.22,
           "Anisotropic": 0.6, "Specular Tint": (0.98, 0.98, 1.0, 1.0)},
          dict(haziness=0.7, haze_extent=(10.0, 2.0)),
-         textures=("uv_tangent",)),
+         textures=("radial_tangent",)),
     Look("WORN_PLASTIC", "Worn Plastic",
          "Blue plastic, polished in places and dulled in others; a little haze, body colour kept",
          {"Base Color": (0.05, 0.16, 0.5, 1.0), "Roughness": 0.3},
