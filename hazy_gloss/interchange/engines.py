@@ -176,7 +176,7 @@ def unity_stacklit(lobes, max_dielectric_f0=K.UNITY_MAX_DIELECTRIC_F0):
     rc_u = _rgb(inv.core_reflectivity)
     bh_u = _f(inv.haziness)
     lx, ly = (_f(v) for v in inv.haze_extent)
-    metallic = 1.0 if lobes.kind == "CONDUCTOR" else 0.0
+    metallic = 0.0 if lobes.kind == "DIELECTRIC" else 1.0  # legacy: no dielectric F0 cap
     cap = max_dielectric_f0 + (1.0 - max_dielectric_f0) * metallic
     # Unity: alpha_n = ClampRoughnessForAnalyticalLights(α) = max(α, 1/1024)
     a_lo = 1.0 / 1024.0

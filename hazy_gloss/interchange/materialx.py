@@ -613,6 +613,7 @@ class ImportedMaterial:
     deviation: float = 0.0  #: max relative difference of the re-mapped physical values
     maps: dict = None  #: {map name: absolute path} of a map-driven material (hazy_gloss only)
     map_info: dict = None
+    material: object = None  #: the Blender material made from it (set by the importer in Blender)
 
     @property
     def ok(self):

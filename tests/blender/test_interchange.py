@@ -340,3 +340,40 @@ def test_fallback_does_not_change_renders(api, engine):
     after = scenes.render_exr()
     assert float(before[..., :3].max()) > 0.01  # something was rendered
     assert np.array_equal(before, after), float(np.abs(before - after).max())
+
+
+def test_recomposite_mode_takes_the_fallback_out(api, ix, hg):
+    composite = importlib.import_module(hg.__name__ + ".blender.composite")
+    m = api.create_material("m", **CONDUCTOR)
+    api.add_export_fallback(m)
+    notes = composite.convert_material(m)
+    assert not ix.has_export_fallback(m)
+    assert any("export fallback was removed" in n for n in notes)
+    with pytest.raises(ValueError, match="recomposite"):
+        api.add_export_fallback(m)
+    composite.restore_material(m)
+
+
+def _json_tail(text):
+    """The JSON the CLI printed (Blender prints "Read blend: ..." before it)."""
+    return json.loads(text[text.index("\n{") + 1:] if not text.startswith("{") else text)
+
+
+def test_cli_exports_a_blend_and_reports_engines(api, hg, tmp_path, capsys):
+    cli = importlib.import_module(hg.__name__ + ".__main__")
+    _cubes(_make(api))  # used materials: a saved file drops ones without users
+    blend = str(tmp_path / "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    out = str(tmp_path / "cli.mtlx")
+    assert cli.main(["export-materialx", blend, out, "--json"]) == 0
+    rep = _json_tail(capsys.readouterr().out)
+    assert rep["validated"] is True and len(rep["materials"]) == len(MATERIALS)
+    assert _validate(out)[1][0]
+    assert cli.main(["export-materialx", blend, str(tmp_path / "cli.usda"), "--usd"]) == 0
+    assert Usd.Stage.Open(str(tmp_path / "cli.usda")) is not None
+    capsys.readouterr()
+    assert cli.main(["engines", blend, "--json"]) == 0
+    fits = _json_tail(capsys.readouterr().out)
+    assert set(fits) == set(MATERIALS)
+    assert all(set(f) == {"unity_stacklit", "ue_substrate", "filament", "openpbr_1_2"}
+               for f in fits.values())
