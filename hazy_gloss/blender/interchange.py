@@ -466,8 +466,19 @@ def add_export_fallback(mat):
         fb = _new(tree, _PRINCIPLED, K.FALLBACK_ROLE, "Export fallback (core lobe)",
                   (loc.x - 300.0, loc.y - 900.0))
     _set_fallback_values(fb, c, p["kind"])
-    narrow = material.ours(tree).get("Narrow lobe")
+    mine = material.ours(tree)
+    narrow = mine.get("Narrow lobe")
     _link_like(tree, fb, narrow, ("Normal", "Tangent"))
+    tangent = mine.get("Tangent")
+    if narrow is None and tangent is not None and c["anisotropy"] is not None:  # in-shader group
+        for link in list(fb.inputs["Tangent"].links):
+            tree.links.remove(link)
+        tree.links.new(tangent.outputs[0], fb.inputs["Tangent"])
+    if p["shader_mapping"]:
+        textured = material.UserLinks(tree).textured_inputs
+        if textured:
+            notes.append(f"textures linked into {', '.join(textured)} are not in the fallback "
+                         f"(it uses the stamped constants)")
     fb, more = _make_first_bsdf(tree, fb)
     notes += more
     if x_out is None:
@@ -664,17 +675,33 @@ class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     material: StringProperty(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"})
+    all_materials: BoolProperty(name="All Hazy Materials", default=False, options={"SKIP_SAVE"},
+                                description="Every hazy material of the file, not only this one")
 
     def execute(self, context):
-        mat = target_material(context, self.material)
-        try:
-            notes = add_export_fallback(mat)
-        except ValueError as exc:
-            _say(self, "ERROR", plain_message(exc))
+        if self.all_materials:
+            mats = [m for m in bpy.data.materials if material.is_hazy(m) and m.library is None
+                    and K.RECOMPOSITE_STAMP not in m]
+        else:
+            mats = [target_material(context, self.material)]
+        done, notes = [], []
+        for mat in mats:
+            try:
+                notes += add_export_fallback(mat)
+            except ValueError as exc:
+                if not self.all_materials:
+                    _say(self, "ERROR", plain_message(exc))
+                    return {"CANCELLED"}
+                notes.append(plain_message(exc))
+                continue
+            done.append(mat.name)
+        if not done:
+            _say(self, "ERROR", "No hazy material to give an export fallback")
             return {"CANCELLED"}
-        _say(self, "INFO", f"“{mat.name}”: glTF and USD export now get its core lobe")
+        _say(self, "INFO", (f"“{done[0]}”" if len(done) == 1 else f"{len(done)} materials")
+             + ": glTF and USD export now get the core lobe")
         if notes:
-            _say(self, "WARNING", "; ".join(notes))
+            _say(self, "WARNING", "; ".join(sorted(set(notes))))
         return {"FINISHED"}
 
 
@@ -714,6 +741,8 @@ def draw_material_menu(self, context):
     layout = self.layout
     layout.separator()
     layout.operator("hazy_gloss.add_export_fallback")
+    layout.operator("hazy_gloss.add_export_fallback",
+                    text="Add Export Fallback to All Hazy Materials").all_materials = True
     layout.operator("hazy_gloss.remove_export_fallback")
     op = layout.operator("hazy_gloss.export_materialx", text="Export Hazy Material (MaterialX)")
     op.selection = "ACTIVE"

@@ -387,6 +387,8 @@ def engine_parameters(lobes, engines=ENGINES, *, measure=True, **quadrature):
         if name not in _BUILDERS:
             raise ValueError(f"unknown engine {name!r}; known: {', '.join(ENGINES)}")
         fit = _BUILDERS[name](lobes)
+        if lobes.distribution == "ASHIKHMIN_SHIRLEY":
+            fit.notes.append("Ashikhmin-Shirley lobes are compared as GGX lobes of the same α")
         if measure:
             fit.error = compare(ref, fit.model, amin, **quadrature)
             fit.exact = fit.error["max"] < 1e-6

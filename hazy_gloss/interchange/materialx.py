@@ -677,6 +677,10 @@ class _Eval:
                 s = math.sqrt(1.0 - min(max(a, 0.0), 0.98))
                 return (min(alpha / s, 1.0), alpha * s)
             return (alpha, alpha)
+        if c == "roughness_dual":  # (r_x², r_y²); r_y < 0 means r_y = r_x
+            r = tuple(float(x) for x in self.value(n, g, "roughness", textured) or (0.0, -1.0))
+            rx, ry = r[0], (r[1] if r[1] >= 0 else r[0])
+            return (min(max(rx * rx, 1.1920929e-07), 1.0), min(max(ry * ry, 1.1920929e-07), 1.0))
         if c in ("add", "subtract", "multiply", "divide") and n.type in ("float", "color3", "vector2", "vector3"):
             a = np.asarray(self.value(n, g, "in1", textured), dtype=np.float64)
             b = np.asarray(self.value(n, g, "in2", textured), dtype=np.float64)

@@ -377,3 +377,34 @@ def test_cli_exports_a_blend_and_reports_engines(api, hg, tmp_path, capsys):
     assert set(fits) == set(MATERIALS)
     assert all(set(f) == {"unity_stacklit", "ue_substrate", "filament", "openpbr_1_2"}
                for f in fits.values())
+
+
+def test_fallback_of_in_shader_materials(api, tmp_path):
+    """In-shader mapping (one group node holding the lobes): the exporters still get the core."""
+    mats = {"varnish": api.create_material("varnish", shader_mapping=True, **DIELECTRIC),
+            "brushed": api.create_material("brushed", shader_mapping=True, **ANISO)}
+    _cubes(mats)
+    for m in mats.values():
+        api.add_export_fallback(m)
+    glb = str(tmp_path / "g.glb")
+    usda = str(tmp_path / "g.usda")
+    bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB")
+    bpy.ops.wm.usd_export(filepath=usda, generate_preview_surface=True)
+    gl, us = _gltf(glb), _usd_previews(usda)
+    for name, p in (("varnish", DIELECTRIC), ("brushed", ANISO)):
+        metallic, colour, rough = _core_look(p)
+        pbr = gl[name].pbrMetallicRoughness
+        assert pbr.roughnessFactor == pytest.approx(rough, abs=1e-6), name
+        assert np.allclose(pbr.baseColorFactor[:3], colour, atol=1e-6), name
+        assert us[name]["roughness"] == pytest.approx(rough, abs=1e-6), name
+        assert np.allclose(us[name]["diffuseColor"], colour, atol=1e-6), name
+
+
+def test_operator_adds_the_fallback_to_every_hazy_material(api, ix):
+    mats = _make(api)
+    bpy.data.materials.new("plain")  # not hazy: left alone
+    assert bpy.ops.hazy_gloss.add_export_fallback(all_materials=True) == {"FINISHED"}
+    assert all(ix.has_export_fallback(m) for m in mats.values())
+    assert not ix.has_export_fallback(bpy.data.materials["plain"])
+    assert bpy.ops.hazy_gloss.remove_export_fallback(material="copper") == {"FINISHED"}
+    assert not ix.has_export_fallback(mats["copper"])
