@@ -83,8 +83,9 @@ __all__ = ("create_material", "update_material", "update_material_links", "read_
 # --------------------------------------------------------------------------------------------
 
 
-def export_materialx(materials=None, path="", *, flavour="eq1", validate=True):
-    """Write hazy materials (bpy materials or names; None: every hazy material of the file) to
+def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
+    """Write hazy materials (a bpy material, a list of materials or names; None: every hazy
+    material of the file) to
     one MaterialX 1.39 document at ``path``.  ``flavour`` "eq1" (default): each material an
     exact Eq. 1 graph of the standard pbr library; "openpbr_1.2": open_pbr_surface 1.2 with
     specular_haze (approximate; the error is in the notes).  Needs no extra package; with the

@@ -141,7 +141,7 @@ def round_trips(mats, n_random=300, seed=7):
 
 def round_trip_text(rt):
     lines = [
-        f"- {rt['n']} materials (the {len(materials())} above and {rt['n'] - len(materials())} random "
+        f"- {rt['n']} materials (the {len(materials())} of the engine table in §4 and {rt['n'] - len(materials())} random "
         f"ones of every kind, anisotropic half of them) in one document: `validate()` "
         f"{'passes' if rt['validated'] else 'FAILS'}; written in {rt['write_s']:.2f} s, read in "
         f"{rt['read_s']:.2f} s.",

@@ -102,6 +102,8 @@ def source_of(mat):
 def _materials(materials):
     if materials is None:
         return [m for m in bpy.data.materials if material.is_hazy(m) or K.MAPS_STAMP in m]
+    if isinstance(materials, (bpy.types.Material, str)):
+        materials = [materials]
     out = []
     for m in materials:
         if isinstance(m, str):
@@ -128,7 +130,10 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     srcs, skipped = sources(materials)
     if not srcs:
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
-    rep = materialx.write(srcs, bpy.path.abspath(path), flavour, validate_with_package=validate)
+    if not os.fspath(path):
+        raise ValueError("no file path given")
+    rep = materialx.write(srcs, bpy.path.abspath(os.fspath(path)), flavour,
+                          validate_with_package=validate)
     rep.skipped = skipped
     return rep
 
@@ -139,7 +144,9 @@ def export_usd(materials=None, path="", *, preview=True):
     srcs, skipped = sources(materials)
     if not srcs:
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
-    path, done = usd.write(srcs, bpy.path.abspath(path), preview=preview)
+    if not os.fspath(path):
+        raise ValueError("no file path given")
+    path, done = usd.write(srcs, bpy.path.abspath(os.fspath(path)), preview=preview)
     return path, done, skipped
 
 

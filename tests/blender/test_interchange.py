@@ -86,8 +86,20 @@ def test_export_validates_and_comes_back_with_the_same_parameters(api, tmp_path)
     doc, (ok, msg) = _validate(rep.path)
     assert ok, msg
     assert rep.validated is True
-    # every material is a surfacematerial -> surface -> BSDF mix with its β
+    # every material is a surfacematerial -> surface -> BSDF mix whose weight is the β the
+    # material renders with (Blender's Mix Shader factor)
     assert sorted(m.getName() for m in doc.getMaterialNodes()) == sorted(mats)
+    for m in doc.getMaterialNodes():
+        mixes = [e.getUpstreamElement() for e in m.traverseGraph()
+                 if e.getUpstreamElement().getCategory() == "mix"
+                 and e.getUpstreamElement().getType() == "BSDF"]
+        assert len({x.getName() for x in mixes}) == 1
+        beta = float(mixes[0].getInput("mix").getValueString())
+        fac = mats[m.getName()].node_tree.nodes.get("HG Lobe mix")
+        want = fac.inputs["Fac"].default_value if fac is not None else 0.0  # legacy: Add Shader
+        if fac is not None:
+            assert beta == pytest.approx(want, rel=1e-6)  # the socket is float32
+        assert beta == pytest.approx(float(api.map_parameters(api.read_parameters(mats[m.getName()])).beta), rel=1e-12)
     res = api.import_materialx(rep.path)
     assert len(res) == len(mats)
     for im in res.report:
@@ -408,3 +420,11 @@ def test_operator_adds_the_fallback_to_every_hazy_material(api, ix):
     assert not ix.has_export_fallback(bpy.data.materials["plain"])
     assert bpy.ops.hazy_gloss.remove_export_fallback(material="copper") == {"FINISHED"}
     assert not ix.has_export_fallback(mats["copper"])
+
+
+def test_export_takes_one_material_and_a_path_object(api, tmp_path):
+    m = api.create_material("one", **CONDUCTOR)
+    rep = api.export_materialx(m, tmp_path / "one.mtlx")
+    assert rep.validated and [x[0] for x in rep.materials] == ["one"]
+    with pytest.raises(ValueError, match="not a hazy material"):
+        api.export_materialx(bpy.data.materials.new("plain"), tmp_path / "none.mtlx")
