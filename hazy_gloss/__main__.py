@@ -3,6 +3,10 @@
 ``blender -b --python-expr "import sys; from bl_ext.user_default.hazy_gloss.__main__ import main;
 sys.exit(main(['convert', ...]))"``.  See docs/textures.md.
 
+Interchange (docs/interchange.md): ``export-materialx BLEND OUT.mtlx [--flavour openpbr_1.2]
+[--usd]`` (bpy), ``import-materialx FILE [--blend OUT.blend]`` (bpy only with --blend) and
+``engines FILE`` (the closest parameters of other engines with their BRDF error).
+
 Exit status (constants.EXIT_*; tested in tests/blender/test_convert.py and tests/pure):
 
 - 0: success;
@@ -85,6 +89,7 @@ def build_parser():
     conv.add_argument("--out", required=True, help="output folder (created if needed)")
     conv.add_argument("--json", action="store_true", help="print the report as JSON")
     conv.add_argument("--quiet", action="store_true", help="print nothing on success")
+    _add_interchange(sub)
     return parser
 
 
@@ -218,10 +223,181 @@ def _run_convert(args, signals):
     return K.EXIT_OK
 
 
+def _add_interchange(sub):
+    ex = sub.add_parser(
+        "export-materialx", help="write a .blend's hazy materials to MaterialX (or USD)",
+        description="Write the hazy materials of a .blend file to one MaterialX document (each "
+                    "an exact Eq. 1 graph of the standard pbr library), or with --usd to USD "
+                    "(UsdShade MaterialX networks, needs usd-core).  Runs on the bpy module.")
+    ex.add_argument("blend", help="the .blend file")
+    ex.add_argument("out", help="output .mtlx (or .usda/.usdc with --usd)")
+    ex.add_argument("--flavour", default="eq1", choices=("eq1", "openpbr_1.2"),
+                    help="eq1 (default, exact) or openpbr_1.2 (approximate, unreleased 1.2)")
+    ex.add_argument("--materials", default=None, help="comma-separated names (default: all hazy)")
+    ex.add_argument("--usd", action="store_true", help="write USD instead of .mtlx")
+    ex.add_argument("--json", action="store_true", help="print the report as JSON")
+    im = sub.add_parser(
+        "import-materialx", help="recognise hazy materials in a MaterialX or USD file",
+        description="Recognise hazy materials in a .mtlx (or USD, needs usd-core) file: prints "
+                    "their perceptual parameters and what is not exact.  With --blend, creates "
+                    "them in a new .blend (needs bpy).")
+    im.add_argument("path")
+    im.add_argument("--blend", default=None, help="save the imported materials to this .blend")
+    im.add_argument("--json", action="store_true")
+    en = sub.add_parser(
+        "engines", help="closest Unity / Unreal / Filament / OpenPBR 1.2 parameters",
+        description="For each hazy material of a .mtlx/.usd file or a .blend, the closest "
+                    "parameters of Unity HDRP StackLit, Unreal Substrate, Filament and OpenPBR "
+                    "1.2 with their BRDF error against Eq. 1 (max, mean, peak).")
+    en.add_argument("path", help=".mtlx, .usd(a/c) or .blend")
+    en.add_argument("--json", action="store_true")
+
+
+def _fail(prog, msg, code=2):
+    print(f"hazy_gloss {prog}: error: {msg}", file=sys.stderr)
+    return code
+
+
+def _need_bpy(prog):
+    try:
+        import bpy  # noqa: F401
+    except ImportError as exc:
+        return _fail(prog, f"bpy is not importable ({exc}); install the bpy module or run "
+                           f"inside Blender", 3)
+    return None
+
+
+def _open_blend(path):
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+
+
+def _export(args):
+    prog = "export-materialx"
+    rc = _need_bpy(prog)
+    if rc is not None:
+        return rc
+    if not os.path.isfile(args.blend):
+        return _fail(prog, f"no file {args.blend!r}")
+    _open_blend(args.blend)
+    from . import api
+    names = [n.strip() for n in args.materials.split(",")] if args.materials else None
+    try:
+        if args.usd:
+            path, done, skipped = api.export_usd(names, os.path.abspath(args.out))
+            out = {"path": path, "materials": [{"name": n, "prim": p, "notes": no} for n, p, no in done],
+                   "skipped": skipped}
+        else:
+            rep = api.export_materialx(names, os.path.abspath(args.out), flavour=args.flavour)
+            out = {"path": rep.path, "flavour": rep.flavour, "validated": rep.validated,
+                   "validation": rep.validation,
+                   "materials": [{"name": n, "materialx": m, "notes": no} for n, m, no in rep.materials],
+                   "skipped": rep.skipped}
+    except (ValueError, RuntimeError, OSError) as exc:
+        return _fail(prog, str(exc))
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        print(f"wrote {len(out['materials'])} materials to {out['path']}")
+        if out.get("validated") is not None:
+            print(f"MaterialX validate(): {'ok' if out['validated'] else out['validation']}")
+        for m in out["materials"]:
+            for note in m["notes"]:
+                print(f"note: {m['name']}: {note}")
+    return 0 if out.get("validated") is not False else 1
+
+
+def _read_any(path):
+    from .interchange import materialx, usd
+    if os.path.splitext(path)[1].lower() in (".usd", ".usda", ".usdc", ".usdz"):
+        return usd.read(path)
+    return materialx.read(path)
+
+
+def _import(args):
+    prog = "import-materialx"
+    if not os.path.isfile(args.path):
+        return _fail(prog, f"no file {args.path!r}")
+    if args.blend:
+        rc = _need_bpy(prog)
+        if rc is not None:
+            return rc
+        import bpy
+        from . import api
+        bpy.ops.wm.read_homefile(use_empty=True)
+        try:
+            res = api.import_materialx(os.path.abspath(args.path))
+        except (ValueError, RuntimeError, OSError) as exc:
+            return _fail(prog, str(exc))
+        found = res.report
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.blend))
+    else:
+        try:
+            found = _read_any(args.path)
+        except (ValueError, RuntimeError, OSError) as exc:
+            return _fail(prog, str(exc))
+    out = [{"name": im.name, "exact": im.exact, "source": im.source, "parameters": im.parameters,
+            "notes": im.notes, "maps": im.maps} for im in found]
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        for m in out:
+            state = "exact" if m["exact"] else ("approximate" if m["parameters"] or m["maps"] else "not hazy")
+            print(f"{m['name']}: {state} ({m['source'] or '-'})")
+            for note in m["notes"]:
+                print(f"  - {note}")
+    return 0
+
+
+def _engines(args):
+    prog = "engines"
+    from .interchange import engines
+    from .interchange.materialx import lobes_of
+    from .core.parameters import normalise
+    if not os.path.isfile(args.path):
+        return _fail(prog, f"no file {args.path!r}")
+    params = {}
+    if args.path.lower().endswith(".blend"):
+        rc = _need_bpy(prog)
+        if rc is not None:
+            return rc
+        _open_blend(args.path)
+        import bpy
+        from .blender import material
+        for m in bpy.data.materials:
+            p = material.read_parameters(m)
+            if p is not None:
+                params[m.name] = p
+    else:
+        for im in _read_any(args.path):
+            if im.parameters is not None:
+                params[im.name] = normalise(im.parameters)
+    out = {}
+    for name, p in params.items():
+        fits = engines.engine_parameters(lobes_of(p))
+        out[name] = fits
+        if not args.json:
+            print(f"== {name}")
+            print(engines.table(fits))
+    if args.json:
+        def j(fit):
+            return {"parameters": fit.parameters, "error": fit.error, "notes": fit.notes,
+                    "alternatives": {k: j(a) for k, a in fit.alternatives.items()}}
+        print(json.dumps({n: {e: j(f) for e, f in fits.items()} for n, fits in out.items()},
+                         indent=1, default=float))
+    return 0
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
     if args.command == "convert":
         return _convert(args)
+    if args.command == "export-materialx":
+        return _export(args)
+    if args.command == "import-materialx":
+        return _import(args)
+    if args.command == "engines":
+        return _engines(args)
     return 2  # pragma: no cover (argparse requires a command)
 
 

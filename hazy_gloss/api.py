@@ -135,3 +135,73 @@ _CONVERT_OPTIONS = ("resample", "prefix", "exr_codec", "material", "interpolatio
 __all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
            "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
+
+
+# --------------------------------------------------------------------------------------------
+# Interchange: MaterialX, USD, glTF/USD fallbacks, other engines (docs/interchange.md)
+# --------------------------------------------------------------------------------------------
+
+
+def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
+    """Write hazy materials (a bpy material, a list of materials or names; None: every hazy
+    material of the file) to
+    one MaterialX 1.39 document at ``path``.  ``flavour`` "eq1" (default): each material an
+    exact Eq. 1 graph of the standard pbr library; "openpbr_1.2": open_pbr_surface 1.2 with
+    specular_haze (approximate; the error is in the notes).  Needs no extra package; with the
+    ``materialx`` package installed the file is validated (``report.validated``).
+    Returns a report: ``.path``, ``.materials`` [(name, MaterialX name, notes)], ``.validated``
+    (True/False, None without the package), ``.validation``, ``.notes``, ``.skipped``."""
+    from .blender import interchange as _ix
+    return _ix.export_materialx(materials, path, flavour, validate=validate)
+
+
+def import_materialx(path):
+    """Hazy materials from a MaterialX document, or a USD file with MaterialX networks (needs
+    usd-core).  Our own exports come back with their perceptual parameters; a mix of two
+    conductor_bsdf / dielectric_bsdf / generalized_schlick_bsdf lobes, or an OpenPBR 1.2
+    surface with specular_haze, goes through core.inverse_haze_mapping.  Returns the list of
+    new materials with ``.report`` (one entry per material found: ``exact``, ``source``,
+    ``notes``, ``parameters``, ``material``)."""
+    from .blender import interchange as _ix
+    return _ix.import_materialx(path)
+
+
+def export_usd(materials=None, path="", *, preview=True):
+    """Write hazy materials to USD (UsdShade with MaterialX node ids, plus a UsdPreviewSurface
+    of the core lobe) with usd-core; RuntimeError when ``pxr`` is missing.
+    Returns (path, [(name, prim path, notes)], skipped)."""
+    from .blender import interchange as _ix
+    return _ix.export_usd(materials, path, preview=preview)
+
+
+def add_export_fallback(mat):
+    """Make Blender's own glTF and USD exporters write this hazy material's core lobe (its
+    look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes."""
+    from .blender import interchange as _ix
+    return _ix.add_export_fallback(mat)
+
+
+def remove_export_fallback(mat):
+    """Undo :func:`add_export_fallback`; returns True when something was removed."""
+    from .blender import interchange as _ix
+    return _ix.remove_export_fallback(mat)
+
+
+def engine_parameters(mat, engines=None, *, measure=True):
+    """The closest Unity HDRP StackLit, Unreal Substrate, Filament and OpenPBR 1.2 parameters
+    of a hazy material (a bpy material or a dict of perceptual parameters), each with its
+    BRDF error against Eq. 1 (``fit.error``: max, mean, peak) when ``measure``.
+    Returns {engine: EngineFit(parameters, notes, error, alternatives)}."""
+    from .interchange import engines as _engines
+    from .interchange.materialx import lobes_of
+    if isinstance(mat, dict):
+        p = normalise_parameters(mat)
+    else:
+        p = read_parameters(mat)
+        if p is None:
+            raise ValueError(f"{getattr(mat, 'name', mat)!r} is not a hazy material")
+    return _engines.engine_parameters(lobes_of(p), engines or _engines.ENGINES, measure=measure)
+
+
+__all__ += ("export_materialx", "import_materialx", "export_usd", "add_export_fallback",
+            "remove_export_fallback", "engine_parameters")

@@ -78,3 +78,39 @@ LOSSLESS_EXR_CODECS = ("NONE", "ZIP", "ZIPS", "PIZ", "RLE", "HTJ2K")
 #: ".<name>.<run>.bak<ext>" (the maps they replace, until the whole set is in place), <run>
 #: being CONVERT_RUN_ID_HEX lowercase hex digits.
 CONVERT_RUN_ID_HEX = 12
+
+# --------------------------------------------------------------------------------------------
+# Interchange (hazy_gloss/interchange, docs/interchange.md)
+# --------------------------------------------------------------------------------------------
+
+#: MaterialX document version written (the released 1.39 standard libraries).
+MATERIALX_VERSION = "1.39"
+#: Working colour space of the documents (linear Rec.709, Blender's scene-linear default).
+MATERIALX_COLORSPACE = "lin_rec709"
+#: Colour space of data (Non-Color) textures: no colour transform.
+MATERIALX_DATA_COLORSPACE = "raw"
+#: Colour space of sRGB-encoded colour textures.
+MATERIALX_SRGB_COLORSPACE = "srgb_texture"
+#: Prefix of the custom attributes the add-on writes into MaterialX (and USD customData).
+MATERIALX_ATTR = "hazygloss"
+#: Version of the perceptual-parameter record stored with an exported material.
+INTERCHANGE_VERSION = 1
+#: Relative tolerance within which a graph's physical values count as "the same" as the
+#: forward mapping of the stored perceptual parameters (17 significant digits are written).
+INTERCHANGE_RTOL = 1e-6
+#: Nodedef of the OpenPBR 1.2 surface subset embedded in the OpenPBR flavour (1.2 is on the
+#: dev_1.2 branch, not in the released libraries).
+OPENPBR_12_NODEDEF = "ND_open_pbr_surface_surfaceshader_v1_2_hazygloss"
+OPENPBR_12_VERSION = "1.2"
+OPENPBR_RELEASED_VERSION = "1.1.1"
+#: OpenPBR's metal F82-tint reference angle μ̄ = cos θ̄ = 1/7 (Kutz et al. 2021).
+F82_MU = 1.0 / 7.0
+#: Unity HDRP StackLit hazy gloss: Bézier weight w and the default dielectric F0 cap.
+UNITY_HAZE_BEZIER_W = 10.0
+UNITY_MAX_DIELECTRIC_F0 = 0.25
+#: Filament clear coat: fixed IOR 1.5, F0 = 0.04 (Schlick).
+FILAMENT_CLEARCOAT_F0 = 0.04
+#: Role names of the export fallback's nodes (blender/interchange.py add_export_fallback).
+FALLBACK_ROLE = "Export fallback"
+FALLBACK_OUTPUT_ROLE = "Export output"
+RENDER_OUTPUT_ROLE = "Render output"

@@ -182,11 +182,15 @@ def convert_material(mat):
         raise Unsupported(f"{mat.name!r} is linked from a library")
     _schlick_distribution(p["distribution"])
     restore_material(mat)
+    notes = []
+    from .interchange import remove_export_fallback
+    if remove_export_fallback(mat):  # its outputs would hide the recomposite tree from Cycles
+        notes.append("the glTF/USD export fallback was removed (add it again after leaving "
+                     "recomposite mode)")
     tree = mat.node_tree
     out = material.output_node(tree)
     original = _surface_link(tree, out)
     tb = TreeBuilder(tree, prefix=RC_PREFIX, x0=600.0, y0=-900.0, roles=False)
-    notes = []
     if p["kind"] == "DIELECTRIC" and p["transmission"] > 0.0:
         notes.append("transmission is not handled in recomposite mode (rendered opaque)")
     if p["distribution"] == "MULTI_GGX":

@@ -21,7 +21,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from .. import constants as K
 from ..core.lobes import check_kind
 from ..utils import looks, presets
-from . import compat
+from . import compat, interchange
 from .context import PRESET_SUBDIR
 from .nodes.groups import all_configurations, ensure_group, group_label, group_name
 
@@ -410,7 +410,10 @@ def draw_render_menu(self, context):
 #: (Blender menu, draw function) entries appended by add_entries (each menu exists in 4.5-5.3);
 #: the Shader Editor's Add menu comes from compat.shader_add_menu().
 ENTRIES = (("NODE_MT_node", draw_menu_entry), ("MATERIAL_MT_context_menu", draw_menu_entry),
-           ("NODE_MT_node", draw_convert_entry), ("TOPBAR_MT_render", draw_render_menu))
+           ("NODE_MT_node", draw_convert_entry), ("TOPBAR_MT_render", draw_render_menu),
+           ("TOPBAR_MT_file_export", interchange.draw_export_menu),
+           ("TOPBAR_MT_file_import", interchange.draw_import_menu),
+           ("MATERIAL_MT_context_menu", interchange.draw_material_menu))
 
 
 classes = (HAZY_GLOSS_OT_add_node, *KIND_MENUS, HAZY_GLOSS_MT_add, HAZY_GLOSS_MT_presets,

@@ -1,0 +1,762 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Hazy materials in and out of Blender: MaterialX / USD export and import, and the export
+fallback that makes Blender's own glTF and USD exporters write the core lobe.
+
+The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
+``materialx.Source`` objects, creates materials from what is imported, and holds the operators
+(File > Export / Import, the material context menu).
+
+**Export fallback** (:func:`add_export_fallback`).  Blender's glTF exporter takes the first
+Principled BSDF linked to the *active* Material Output (a Mix of two Metallic BSDFs gives it
+nothing, a Mix of two Principled its slot 2: the halo); its USD exporter takes the first
+Principled / Diffuse BSDF of the tree's node list for the UsdPreviewSurface and the active
+"All" output for its MaterialX network.  Cycles and EEVEE, however, render the output whose
+target is their own (Cycles / EEVEE) before any "All" output (ntreeShaderOutputNode).  So the
+fallback adds, with built-in nodes only:
+
+- "HG Export fallback": a Principled BSDF with the core lobe's look (the material at haziness 0:
+  engines.core_surface — metallic, base colour r_c, roughness, anisotropy, IOR, tint);
+- "HG Export output": a Material Output (target All), made the active output, fed by it;
+- "HG Render output Cycles" / "HG Render output EEVEE": Material Outputs with those targets,
+  fed by whatever the renderers used before (the hazy mix) — unless the tree already has a
+  dedicated output for that renderer, which keeps winning;
+- and, for dielectrics, recreates the add-on's two Principled lobes after the fallback so the
+  fallback is the first Principled in the node list (the USD preview's choice).
+
+Renders are unchanged (tests/blender/test_interchange.py compares Cycles and EEVEE pixels);
+:func:`remove_export_fallback` restores the previous active output.  The nodes carry the add-on's
+roles, so a rebuild of the material (blender/material.apply) removes them: call
+:func:`add_export_fallback` again after creating or updating a material (it is idempotent and
+refreshes the values).
+"""
+import os
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, StringProperty
+from bpy_extras.io_utils import ExportHelper, ImportHelper
+
+from .. import constants as K
+from ..convert import ConversionReport, ConversionResult, output_specs
+from ..interchange import engines, materialx, usd
+from . import compat, material
+from .context import plain_message, target_material
+
+FALLBACK_STAMP = "hazy_gloss_export_fallback"
+IMPORT_STAMP = "hazy_gloss_import"
+_PRINCIPLED = "ShaderNodeBsdfPrincipled"
+_OUTPUT = "ShaderNodeOutputMaterial"
+_USD_FIRST = (_PRINCIPLED, "ShaderNodeBsdfDiffuse")  # what the USD exporter's preview looks for
+_RENDER_TARGETS = ("CYCLES", "EEVEE")
+
+# --------------------------------------------------------------------------------------------
+# Blender materials -> materialx.Source
+# --------------------------------------------------------------------------------------------
+
+
+def _stamp_dict(value):
+    return value.to_dict() if hasattr(value, "to_dict") else dict(value)
+
+
+def _tangent_kind(tree):
+    t = material.ours(tree).get("Tangent")
+    if t is None or t.bl_idname != "ShaderNodeTangent" or t.direction_type == "UV_MAP":
+        return "UV_MAP"
+    return f"RADIAL_{t.axis}"
+
+
+def source_of(mat):
+    """(materialx.Source or None, reason) for one Blender material."""
+    p = material.read_parameters(mat)
+    if p is not None:
+        src = materialx.Source(mat.name, parameters=p)
+        if p["shader_mapping"] and mat.node_tree is not None:
+            textured = material.UserLinks(mat.node_tree).textured_inputs
+            if textured:
+                src.notes.append(f"textures linked into {', '.join(textured)} are not exported "
+                                 f"(the stamped constants are)")
+        return src, ""
+    if K.MAPS_STAMP in mat and mat.node_tree is not None:
+        d = _stamp_dict(mat[K.MAPS_STAMP])
+        maps = {k: os.path.normpath(bpy.path.abspath(v)) for k, v in _stamp_dict(d["maps"]).items()}
+        src = materialx.Source(mat.name, maps=maps, kind=str(d["kind"]),
+                               distribution=str(d["distribution"]),
+                               anisotropic=bool(d.get("anisotropic")))
+        tree = mat.node_tree
+        narrow = material.ours(tree).get("Narrow lobe")
+        if src.kind == "DIELECTRIC" and narrow is not None:
+            bc = narrow.inputs.get("Base Color")
+            tr = narrow.inputs.get("Transmission Weight")
+            if bc is not None and not bc.is_linked:
+                src.base_color = tuple(bc.default_value)[:3]
+            if tr is not None and not tr.is_linked:
+                src.transmission = float(tr.default_value)
+        src.tangent = _tangent_kind(tree)
+        for n in tree.nodes:
+            if n.bl_idname == "ShaderNodeTexImage" and material.is_ours(n):
+                src.filtertype = {"Closest": "closest", "Cubic": "cubic"}.get(n.interpolation, "linear")
+                break
+        return src, ""
+    return None, f"“{mat.name}” is not a hazy material"
+
+
+def _materials(materials):
+    if materials is None:
+        return [m for m in bpy.data.materials if material.is_hazy(m) or K.MAPS_STAMP in m]
+    if isinstance(materials, (bpy.types.Material, str)):
+        materials = [materials]
+    out = []
+    for m in materials:
+        if isinstance(m, str):
+            found = bpy.data.materials.get(m)
+            if found is None:
+                raise ValueError(f"no material named {m!r}")
+            m = found
+        out.append(m)
+    return out
+
+
+def sources(materials=None):
+    """([Source], [skipped reasons]) for Blender materials (None: every hazy material)."""
+    srcs, skipped = [], []
+    for m in _materials(materials):
+        s, why = source_of(m)
+        (srcs.append(s) if s is not None else skipped.append(why))
+    return srcs, skipped
+
+
+def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
+    """Write hazy materials to one MaterialX document; returns a materialx.ExportReport (its
+    ``skipped`` lists materials that are not hazy)."""
+    srcs, skipped = sources(materials)
+    if not srcs:
+        raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
+    if not os.fspath(path):
+        raise ValueError("no file path given")
+    rep = materialx.write(srcs, bpy.path.abspath(os.fspath(path)), flavour,
+                          validate_with_package=validate)
+    rep.skipped = skipped
+    return rep
+
+
+def export_usd(materials=None, path="", *, preview=True):
+    """Write hazy materials as UsdShade MaterialX networks (+ UsdPreviewSurface of the core)
+    with usd-core; raises RuntimeError when ``pxr`` is not installed."""
+    srcs, skipped = sources(materials)
+    if not srcs:
+        raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
+    if not os.fspath(path):
+        raise ValueError("no file path given")
+    path, done = usd.write(srcs, bpy.path.abspath(os.fspath(path)), preview=preview)
+    return path, done, skipped
+
+
+# --------------------------------------------------------------------------------------------
+# Import
+# --------------------------------------------------------------------------------------------
+
+
+class ImportResult(list):
+    """The created materials, with ``.report``: one materialx.ImportedMaterial per material
+    found in the file (``.material`` is the Blender material, or None when it could not be
+    made)."""
+
+    def __init__(self, mats, report):
+        super().__init__(mats)
+        self.report = report
+
+
+def _map_material(im):
+    info = im.map_info
+    kind = str(info["kind"]).upper()
+    aniso = bool(info.get("anisotropic"))
+    specs = output_specs(kind, aniso)
+    missing = [s.name for s in specs if s.name not in im.maps]
+    if missing:
+        raise ValueError(f"the document lacks the maps {', '.join(missing)}")
+    rep = ConversionReport(kind=kind, distribution=str(info["distribution"]).upper(),
+                           file_format="", anisotropic=aniso)
+    result = ConversionResult({s.name: im.maps[s.name] for s in specs}, rep, specs)
+    from .convert import wire_material
+    mat = compat.new_material(im.name)
+    tree = mat.node_tree
+    for n in [n for n in tree.nodes if n.bl_idname != _OUTPUT]:
+        tree.nodes.remove(n)
+    wire_material(mat, result, base_color=tuple(info.get("base_color", (0, 0, 0))),
+                  transmission=float(info.get("transmission", 0.0)),
+                  tangent=info.get("tangent", "UV_MAP"))
+    return mat
+
+
+def import_materialx(path):
+    """Hazy materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
+    (.usd/.usda/.usdc, needs usd-core).  Returns an ImportResult (a list of the new
+    materials, with ``.report``).  Each material carries ``mat["hazy_gloss_import"]``:
+    exact, source and the notes of what was not exact."""
+    path = bpy.path.abspath(os.fspath(path))
+    if not os.path.isfile(path):
+        raise ValueError(f"no file {path!r}")
+    if os.path.splitext(path)[1].lower() in (".usd", ".usda", ".usdc", ".usdz"):
+        found = usd.read(path)
+    else:
+        found = materialx.read(path)
+    mats = []
+    for im in found:
+        im.material = None
+        try:
+            if im.maps is not None:
+                mat = _map_material(im)
+            elif im.parameters is not None:
+                mat = material.create_material(im.name, **im.parameters)
+            else:
+                continue
+        except (ValueError, OSError) as exc:
+            im.notes.append(f"not created: {plain_message(exc)}")
+            continue
+        mat[IMPORT_STAMP] = {"file": path, "exact": int(bool(im.exact)), "source": im.source,
+                             "notes": "\n".join(im.notes)}
+        im.material = mat
+        mats.append(mat)
+    return ImportResult(mats, found)
+
+
+# --------------------------------------------------------------------------------------------
+# Export fallback for Blender's glTF and USD exporters
+# --------------------------------------------------------------------------------------------
+
+
+def _outputs(tree):
+    return [n for n in tree.nodes if n.bl_idname == _OUTPUT]
+
+
+def _engine_output(outputs, target, active=None):
+    """The Material Output a renderer with ``target`` uses (Blender's ntreeShaderOutputNode:
+    an exact target beats "All"; among equals the active one, else the first).  ``active``:
+    the node to treat as the active output (default: the flagged one)."""
+    def is_active(n):
+        return n == active if active is not None else n.is_active_output
+
+    best = None
+    for n in outputs:
+        if n.target == "ALL":
+            if best is None or (best.target == "ALL" and is_active(n) and not is_active(best)):
+                best = n
+        elif n.target == target:
+            if best is None or best.target == "ALL" or (is_active(n) and not is_active(best)):
+                best = n
+    return best
+
+
+def _role_node(tree, role):
+    return material.ours(tree).get(role)
+
+
+def _new(tree, bl_idname, role, label, location):
+    n = tree.nodes.new(bl_idname)
+    n.name = f"{K.NODE_PREFIX} {role}"
+    n[K.ROLE] = role
+    n.label = label
+    n.location = location
+    return n
+
+
+def _copy_output_links(tree, src, dst):
+    for s in src.inputs:
+        d = next((x for x in dst.inputs if x.identifier == s.identifier), None)
+        if d is None:
+            continue
+        if hasattr(s, "default_value") and hasattr(d, "default_value"):
+            try:
+                d.default_value = s.default_value
+            except (TypeError, AttributeError):
+                pass
+        for link in list(d.links):
+            tree.links.remove(link)
+        for link in s.links:
+            tree.links.new(link.from_socket, d)
+
+
+def _set(sock, value):
+    if sock is None or sock.is_linked or value is None:
+        return
+    v = value
+    if hasattr(sock.default_value, "__len__"):
+        v = tuple(value) + (1.0,) * (len(sock.default_value) - len(tuple(value)))
+    sock.default_value = v
+
+
+def _set_fallback_values(node, c, kind):
+    ins = node.inputs
+    node.distribution = "GGX"
+    _set(ins.get("Base Color"), c["base_color"] if kind == "DIELECTRIC" else c["f0"])
+    _set(ins.get("Metallic"), c["metallic"])
+    _set(ins.get("Roughness"), c["roughness"])
+    _set(ins.get("IOR"), c["ior"])
+    _set(ins.get("Specular IOR Level"), 0.5)
+    _set(ins.get("Specular Tint"), c["specular_tint"])
+    _set(ins.get("Transmission Weight"), c["transmission"] if kind == "DIELECTRIC" else 0.0)
+    _set(ins.get("Anisotropic"), c["anisotropy"] if c["anisotropy"] is not None else 0.0)
+    _set(ins.get("Anisotropic Rotation"), c["rotation"] if c["rotation"] is not None else 0.0)
+
+
+def _link_like(tree, node, narrow, names):
+    """Link ``node``'s inputs from what feeds the same-named inputs of the core lobe."""
+    if narrow is None:
+        return
+    for name in names:
+        src = narrow.inputs.get(name)
+        dst = node.inputs.get(name)
+        if src is None or dst is None:
+            continue
+        for link in list(dst.links):
+            tree.links.remove(link)
+        if src.is_linked:
+            tree.links.new(src.links[0].from_socket, dst)
+
+
+def _snapshot(tree, node):
+    """Everything needed to recreate one node: settings, socket values, links, custom props."""
+    skip = {"name", "label", "location", "width", "height", "parent", "select", "hide", "mute",
+            "color", "use_custom_color", "show_options", "show_preview", "show_texture",
+            "location_absolute", "warning_propagation", "width_hidden", "is_active_output"}
+    props = {}
+    for p in node.bl_rna.properties:
+        if p.is_readonly or p.identifier in skip or p.identifier.startswith("bl_"):
+            continue
+        if p.type in ("BOOLEAN", "INT", "FLOAT", "STRING", "ENUM") and getattr(p, "array_length", 0) == 0:
+            props[p.identifier] = getattr(node, p.identifier)
+    values = []
+    for s in node.inputs:
+        v = getattr(s, "default_value", None)
+        values.append((s.identifier, tuple(v) if hasattr(v, "__len__") else v, s.hide, s.hide_value))
+    return dict(
+        bl_idname=node.bl_idname, name=node.name, label=node.label, location=tuple(node.location),
+        width=node.width, hide=node.hide, mute=node.mute, parent=node.parent,
+        use_custom_color=node.use_custom_color, color=tuple(node.color), props=props,
+        custom={k: node[k] for k in node.keys()}, values=values,
+        links_in=[(l.from_node.name, l.from_socket.identifier, l.to_socket.identifier)
+                  for l in tree.links if l.to_node == node],
+        links_out=[(l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
+                   for l in tree.links if l.from_node == node])
+
+
+def _restore_node(tree, s):
+    n = tree.nodes.new(s["bl_idname"])
+    n.name = s["name"]
+    n.label = s["label"]
+    n.location = s["location"]
+    n.width = s["width"]
+    n.hide = s["hide"]
+    n.mute = s["mute"]
+    if s["parent"] is not None:
+        n.parent = s["parent"]
+    n.use_custom_color = s["use_custom_color"]
+    n.color = s["color"]
+    for k, v in s["props"].items():
+        try:
+            setattr(n, k, v)
+        except (AttributeError, TypeError, ValueError):
+            pass
+    for k, v in s["custom"].items():
+        n[k] = v
+    by_id = {x.identifier: x for x in n.inputs}
+    for ident, v, hide, hide_value in s["values"]:
+        sock = by_id.get(ident)
+        if sock is None:
+            continue
+        if v is not None and hasattr(sock, "default_value"):
+            sock.default_value = v
+        sock.hide = hide
+        sock.hide_value = hide_value
+    return n
+
+
+def _relink(tree, s):
+    n = tree.nodes[s["name"]]
+    for from_name, from_id, to_id in s["links_in"]:
+        src = tree.nodes.get(from_name)
+        a = next((x for x in src.outputs if x.identifier == from_id), None) if src else None
+        b = next((x for x in n.inputs if x.identifier == to_id), None)
+        if a is not None and b is not None:
+            tree.links.new(a, b)
+    for from_id, to_name, to_id in s["links_out"]:
+        dst = tree.nodes.get(to_name)
+        a = next((x for x in n.outputs if x.identifier == from_id), None)
+        b = next((x for x in dst.inputs if x.identifier == to_id), None) if dst else None
+        if a is not None and b is not None:
+            tree.links.new(a, b)
+
+
+def _make_first_bsdf(tree, fallback):
+    """Make ``fallback`` the first Principled/Diffuse BSDF of the node list by recreating the
+    add-on's BSDF nodes that precede it (remove all, then create the fallback, then them).
+    Returns (fallback node, notes)."""
+    nodes = list(tree.nodes)
+    idx = nodes.index(fallback)
+    before = [n for n in nodes[:idx] if n.bl_idname in _USD_FIRST]
+    if not before:
+        return fallback, []
+    theirs = [n for n in before if not material.is_ours(n)]
+    if theirs:
+        return fallback, [f"the tree's own {theirs[0].bl_idname[10:]} “{theirs[0].name}” comes "
+                          f"first in the node list: Blender's USD exporter will use it for the "
+                          f"preview surface"]
+    moved = [n for n in nodes if n.bl_idname in _USD_FIRST and n != fallback and material.is_ours(n)]
+    snaps = [_snapshot(tree, n) for n in [fallback] + moved]
+    for n in [fallback] + moved:
+        tree.nodes.remove(n)
+    for s in snaps:
+        _restore_node(tree, s)
+    for s in snaps:
+        _relink(tree, s)
+    return tree.nodes[snaps[0]["name"]], []
+
+
+def has_export_fallback(mat):
+    tree = getattr(mat, "node_tree", None)
+    return tree is not None and _role_node(tree, K.FALLBACK_ROLE) is not None
+
+
+def add_export_fallback(mat):
+    """Give a hazy material a single-surface fallback that Blender's glTF and USD exporters
+    pick up (the core lobe: the material at haziness 0), without changing what Cycles and
+    EEVEE render.  Idempotent (a second call refreshes the values); undone by
+    :func:`remove_export_fallback`.  Returns a list of notes.  Raises ValueError for a
+    material that is not hazy (or is driven by converted maps: not supported yet)."""
+    if mat is None or getattr(mat, "node_tree", None) is None:
+        raise ValueError("no material with a node tree")
+    if mat.library is not None:
+        raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
+    if K.RECOMPOSITE_STAMP in mat:
+        raise ValueError(f"{mat.name!r} is in recomposite mode: leave it first")
+    p = material.read_parameters(mat)
+    if p is None:
+        if K.MAPS_STAMP in mat:
+            raise ValueError(f"{mat.name!r} is driven by converted maps: the export fallback "
+                             f"needs a hazy material with constant parameters")
+        raise ValueError(f"{mat.name!r} is not a hazy material")
+    tree = mat.node_tree
+    notes = []
+    c = engines.core_surface(p, materialx.lobes_of)
+    mine = material.ours(tree)
+    user_outs = [n for n in _outputs(tree) if not material.is_ours(n)]
+    if not user_outs:
+        raise ValueError(f"{mat.name!r} has no Material Output")
+    x_out = mine.get(K.FALLBACK_OUTPUT_ROLE)
+    fresh = x_out is None
+    if fresh:
+        previous = next((n for n in user_outs if n.is_active_output), user_outs[0])
+        mat[FALLBACK_STAMP] = {"version": 1, "active": previous.name}
+    ref = tree.nodes.get(_stamp_dict(mat[FALLBACK_STAMP]).get("active", "")) if FALLBACK_STAMP in mat else None
+    if ref is None or material.is_ours(ref):
+        ref = user_outs[0]
+    loc = ref.location
+    # 1. the renderers keep what they used: a dedicated output per target
+    for i, target in enumerate(_RENDER_TARGETS):
+        role = f"{K.RENDER_OUTPUT_ROLE} {target.capitalize()}"
+        ours_t = mine.get(role)
+        theirs = [n for n in user_outs if n.target == target]
+        if theirs:  # the tree has its own output for this renderer: it keeps winning
+            if ours_t is not None:
+                tree.nodes.remove(ours_t)
+            continue
+        used = _engine_output(user_outs, target, ref)
+        if ours_t is None:
+            ours_t = _new(tree, _OUTPUT, role, f"Render ({target.capitalize()})",
+                          (loc.x, loc.y - 300.0 * (i + 1)))
+            ours_t.target = target
+        _copy_output_links(tree, used, ours_t)
+    # 2. the fallback surface and the active "All" output the exporters read
+    fb = mine.get(K.FALLBACK_ROLE)
+    if fb is None or fb.bl_idname != _PRINCIPLED:
+        if fb is not None:
+            tree.nodes.remove(fb)
+        fb = _new(tree, _PRINCIPLED, K.FALLBACK_ROLE, "Export fallback (core lobe)",
+                  (loc.x - 300.0, loc.y - 900.0))
+    _set_fallback_values(fb, c, p["kind"])
+    mine = material.ours(tree)
+    narrow = mine.get("Narrow lobe")
+    _link_like(tree, fb, narrow, ("Normal", "Tangent"))
+    tangent = mine.get("Tangent")
+    if narrow is None and tangent is not None and c["anisotropy"] is not None:  # in-shader group
+        for link in list(fb.inputs["Tangent"].links):
+            tree.links.remove(link)
+        tree.links.new(tangent.outputs[0], fb.inputs["Tangent"])
+    if p["shader_mapping"]:
+        textured = material.UserLinks(tree).textured_inputs
+        if textured:
+            notes.append(f"textures linked into {', '.join(textured)} are not in the fallback "
+                         f"(it uses the stamped constants)")
+    fb, more = _make_first_bsdf(tree, fb)
+    notes += more
+    if x_out is None:
+        x_out = _new(tree, _OUTPUT, K.FALLBACK_OUTPUT_ROLE, "Export (glTF / USD)",
+                     (loc.x, loc.y - 900.0))
+    x_out.target = "ALL"
+    for link in list(x_out.inputs["Surface"].links):
+        tree.links.remove(link)
+    tree.links.new(fb.outputs[0], x_out.inputs["Surface"])
+    used_all = _engine_output(user_outs, "ALL", ref)
+    if used_all is not None:  # displacement / volume of the exported surface as before
+        for ident in ("Volume", "Displacement"):
+            s = used_all.inputs.get(ident)
+            d = x_out.inputs.get(ident)
+            if s is not None and d is not None:
+                for link in list(d.links):
+                    tree.links.remove(link)
+                if s.is_linked:
+                    tree.links.new(s.links[0].from_socket, d)
+    x_out.is_active_output = True
+    if p["kind"] == "CONDUCTOR":
+        notes.append("glTF and USD preview get the core lobe as a metal with F0 = r_c (the "
+                     "edge tint survives only as the Principled Specular Tint)")
+    return notes
+
+
+def remove_export_fallback(mat):
+    """Remove what :func:`add_export_fallback` added and make the previous output active
+    again.  Returns True when something was removed."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return False
+    mine = material.ours(tree)
+    roles = [K.FALLBACK_ROLE, K.FALLBACK_OUTPUT_ROLE] + [
+        f"{K.RENDER_OUTPUT_ROLE} {t.capitalize()}" for t in _RENDER_TARGETS]
+    removed = False
+    for r in roles:
+        n = mine.get(r)
+        if n is not None:
+            tree.nodes.remove(n)
+            removed = True
+    if FALLBACK_STAMP in mat:
+        name = _stamp_dict(mat[FALLBACK_STAMP]).get("active", "")
+        del mat[FALLBACK_STAMP]
+        prev = tree.nodes.get(name)
+        if prev is None:
+            prev = next(iter(_outputs(tree)), None)
+        if prev is not None:
+            prev.is_active_output = True
+        removed = True
+    return removed
+
+
+def refresh_export_fallback(mat):
+    """Refresh the fallback's values if the material has one (no-op otherwise)."""
+    if has_export_fallback(mat) or FALLBACK_STAMP in mat:
+        return add_export_fallback(mat)
+    return []
+
+
+# --------------------------------------------------------------------------------------------
+# Operators (thin: the work is above)
+# --------------------------------------------------------------------------------------------
+
+_SELECTION = [("ALL", "All Hazy Materials", "Every hazy material in the file"),
+              ("SELECTED", "Selected Objects", "Hazy materials of the selected objects"),
+              ("ACTIVE", "Active Material", "The active object's active material")]
+_FLAVOURS = [("eq1", "Eq. 1 (MaterialX 1.39 pbr)", "Exact: a mix of two lobes with one Fresnel, "
+              "standard library nodes only"),
+             ("openpbr_1.2", "OpenPBR 1.2 (unreleased)", "open_pbr_surface 1.2 with specular_haze: "
+              "approximate (its error is reported); the 1.2 nodedef is embedded")]
+
+
+def _selected_materials(context, selection):
+    if selection == "ALL":
+        return None
+    if selection == "ACTIVE":
+        m = target_material(context)
+        return [m] if m is not None else []
+    mats = []
+    for obj in getattr(context, "selected_objects", []) or []:
+        for slot in getattr(obj, "material_slots", []):
+            if slot.material is not None and slot.material not in mats:
+                mats.append(slot.material)
+    return mats
+
+
+def _say(op, level, text):
+    from .operators import _report
+    _report(op, level, text)
+
+
+class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
+    """Write hazy materials to a MaterialX document: each one an exact Eq. 1 graph (a mix of two
+    microfacet lobes sharing one Fresnel) from the standard library"""
+
+    bl_idname = "hazy_gloss.export_materialx"
+    bl_label = "Export Hazy Gloss MaterialX"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".mtlx"
+    filter_glob: StringProperty(default="*.mtlx", options={"HIDDEN"})
+    selection: EnumProperty(name="Materials", items=_SELECTION, default="ALL")
+    flavour: EnumProperty(name="Flavour", items=_FLAVOURS, default="eq1")
+    validate: BoolProperty(name="Validate", default=True,
+                           description="Validate with the materialx package when it is installed")
+
+    def execute(self, context):
+        mats = _selected_materials(context, self.selection)
+        try:
+            rep = export_materialx(mats, self.filepath, self.flavour, validate=self.validate)
+        except (ValueError, OSError) as exc:
+            _say(self, "ERROR", plain_message(exc))
+            return {"CANCELLED"}
+        _say(self, "INFO", f"Wrote {len(rep.materials)} hazy material"
+             f"{'s' if len(rep.materials) != 1 else ''} to {bpy.path.basename(rep.path)}")
+        if rep.validated is None and self.validate:
+            _say(self, "WARNING", "Not validated: the materialx package is not installed "
+                 "(pip install materialx); the file itself does not need it")
+        elif rep.validated is False:
+            _say(self, "ERROR", f"MaterialX validation failed: {rep.validation}")
+        notes = rep.notes + list(getattr(rep, "skipped", []))
+        if notes:
+            _say(self, "WARNING", "; ".join(notes[:6]))
+        return {"FINISHED"}
+
+
+class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
+    """Write hazy materials to USD as MaterialX networks (UsdShade), with a UsdPreviewSurface of
+    the core lobe (needs the pxr module: pip install usd-core)"""
+
+    bl_idname = "hazy_gloss.export_usd"
+    bl_label = "Export Hazy Gloss USD"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".usda"
+    filter_glob: StringProperty(default="*.usd;*.usda;*.usdc", options={"HIDDEN"})
+    selection: EnumProperty(name="Materials", items=_SELECTION, default="ALL")
+    preview: BoolProperty(name="Preview Surface", default=True,
+                          description="Add a UsdPreviewSurface of the core lobe")
+
+    def execute(self, context):
+        if not usd.available():
+            _say(self, "ERROR", usd.USD_MISSING)
+            return {"CANCELLED"}
+        mats = _selected_materials(context, self.selection)
+        try:
+            path, done, skipped = export_usd(mats, self.filepath, preview=self.preview)
+        except (ValueError, OSError, RuntimeError) as exc:
+            _say(self, "ERROR", plain_message(exc))
+            return {"CANCELLED"}
+        _say(self, "INFO", f"Wrote {len(done)} hazy material{'s' if len(done) != 1 else ''} "
+             f"to {bpy.path.basename(path)}")
+        if skipped:
+            _say(self, "WARNING", "; ".join(skipped[:6]))
+        return {"FINISHED"}
+
+
+class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
+    """Read hazy materials from MaterialX (.mtlx) or USD: two-lobe mixes and OpenPBR 1.2 surfaces
+    with specular haze become hazy materials (inverse haze mapping), with a report of what is
+    not exact"""
+
+    bl_idname = "hazy_gloss.import_materialx"
+    bl_label = "Import Hazy Gloss MaterialX"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(default="*.mtlx;*.usd;*.usda;*.usdc", options={"HIDDEN"})
+
+    def execute(self, context):
+        if os.path.splitext(self.filepath)[1].lower() in (".usd", ".usda", ".usdc") and not usd.available():
+            _say(self, "ERROR", usd.USD_MISSING)
+            return {"CANCELLED"}
+        try:
+            res = import_materialx(self.filepath)
+        except (ValueError, OSError, RuntimeError) as exc:
+            _say(self, "ERROR", plain_message(exc))
+            return {"CANCELLED"}
+        exact = sum(1 for im in res.report if im.material is not None and im.exact)
+        _say(self, "INFO", f"Imported {len(res)} hazy material{'s' if len(res) != 1 else ''} "
+             f"({exact} exact) of {len(res.report)} found")
+        for im in res.report:
+            if im.notes or im.material is None:
+                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not a hazy material"))
+        return {"FINISHED"} if res else {"CANCELLED"}
+
+
+class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
+    """Make Blender's glTF and USD exporters write the core lobe of this hazy material (its look
+    at haziness 0) instead of nothing or the halo; renders are unchanged"""
+
+    bl_idname = "hazy_gloss.add_export_fallback"
+    bl_label = "Add Export Fallback (glTF / USD)"
+    bl_options = {"REGISTER", "UNDO"}
+
+    material: StringProperty(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"})
+    all_materials: BoolProperty(name="All Hazy Materials", default=False, options={"SKIP_SAVE"},
+                                description="Every hazy material of the file, not only this one")
+
+    def execute(self, context):
+        if self.all_materials:
+            mats = [m for m in bpy.data.materials if material.is_hazy(m) and m.library is None
+                    and K.RECOMPOSITE_STAMP not in m]
+        else:
+            mats = [target_material(context, self.material)]
+        done, notes = [], []
+        for mat in mats:
+            try:
+                notes += add_export_fallback(mat)
+            except ValueError as exc:
+                if not self.all_materials:
+                    _say(self, "ERROR", plain_message(exc))
+                    return {"CANCELLED"}
+                notes.append(plain_message(exc))
+                continue
+            done.append(mat.name)
+        if not done:
+            _say(self, "ERROR", "No hazy material to give an export fallback")
+            return {"CANCELLED"}
+        _say(self, "INFO", (f"“{done[0]}”" if len(done) == 1 else f"{len(done)} materials")
+             + ": glTF and USD export now get the core lobe")
+        if notes:
+            _say(self, "WARNING", "; ".join(sorted(set(notes))))
+        return {"FINISHED"}
+
+
+class HAZY_GLOSS_OT_remove_export_fallback(bpy.types.Operator):
+    """Remove the export fallback nodes and make the previous output active again"""
+
+    bl_idname = "hazy_gloss.remove_export_fallback"
+    bl_label = "Remove Export Fallback"
+    bl_options = {"REGISTER", "UNDO"}
+
+    material: StringProperty(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"})
+
+    def execute(self, context):
+        mat = target_material(context, self.material)
+        if mat is None or not remove_export_fallback(mat):
+            _say(self, "ERROR", "No export fallback to remove")
+            return {"CANCELLED"}
+        _say(self, "INFO", f"“{mat.name}”: export fallback removed")
+        return {"FINISHED"}
+
+
+# --------------------------------------------------------------------------------------------
+# Menu entries (appended by menus.add_entries through menus.ENTRIES)
+# --------------------------------------------------------------------------------------------
+
+
+def draw_export_menu(self, context):
+    self.layout.operator("hazy_gloss.export_materialx", text="Hazy Gloss MaterialX (.mtlx)")
+    self.layout.operator("hazy_gloss.export_usd", text="Hazy Gloss USD (.usda)")
+
+
+def draw_import_menu(self, context):
+    self.layout.operator("hazy_gloss.import_materialx", text="Hazy Gloss MaterialX (.mtlx, .usd)")
+
+
+def draw_material_menu(self, context):
+    layout = self.layout
+    layout.separator()
+    layout.operator("hazy_gloss.add_export_fallback")
+    layout.operator("hazy_gloss.add_export_fallback",
+                    text="Add Export Fallback to All Hazy Materials").all_materials = True
+    layout.operator("hazy_gloss.remove_export_fallback")
+    op = layout.operator("hazy_gloss.export_materialx", text="Export Hazy Material (MaterialX)")
+    op.selection = "ACTIVE"
+
+
+classes = (HAZY_GLOSS_OT_export_materialx, HAZY_GLOSS_OT_export_usd,
+           HAZY_GLOSS_OT_import_materialx, HAZY_GLOSS_OT_add_export_fallback,
+           HAZY_GLOSS_OT_remove_export_fallback)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,13 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Hazy materials in and out of Blender: MaterialX, USD and other engines (bpy-free).
+
+- :mod:`.materialx` writes each hazy material as an exact Eq. 1 graph of the MaterialX 1.39
+  standard ``pbr`` library (xml.etree: the ``materialx`` package is not needed) and reads such
+  graphs back, also foreign two-lobe mixes and OpenPBR 1.2 surfaces with specular_haze;
+- :mod:`.usd` writes the same network as UsdShade (usd-core's ``pxr``, only when installed) with
+  a UsdPreviewSurface of the core lobe, and reads it back;
+- :mod:`.engines` gives the closest Unity StackLit / Unreal Substrate / Filament / OpenPBR 1.2
+  parameters with their BRDF error against Eq. 1 (:mod:`.brdf`, numpy).
+
+Every path starts from :func:`hazy_gloss.core.lobes.describe`; see docs/interchange.md.
+"""

@@ -1,0 +1,401 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A small in-memory MaterialX document (nodes, node graphs, connections) with its XML form,
+bpy-free and without the ``materialx`` package (xml.etree).
+
+The exporters build a :class:`Document`, the XML writer and the USD writer (interchange/usd.py)
+serialise the same object, and both readers produce one, so recognising a hazy material
+(interchange/materialx.py) works on one representation whatever the file was.
+
+:data:`NODEDEFS` lists the standard-library nodedefs the add-on writes or reads (MaterialX 1.39,
+checked against the installed library by tests/pure/test_interchange.py): their category,
+output type, input types and the defaults the reader needs (the package is not required).
+"""
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+from .. import constants as K
+
+__all__ = ("Input", "Node", "NodeGraph", "Document", "NODEDEFS", "nodedef_for", "format_value",
+           "parse_value", "valid_name", "read_xml", "write_xml", "to_xml_string")
+
+# --------------------------------------------------------------------------------------------
+# The nodedefs used (name -> category, output type, {input: (type, default)})
+# --------------------------------------------------------------------------------------------
+
+_N3 = "Nworld"
+_T3 = "Tworld"
+NODEDEFS = {
+    "ND_conductor_bsdf": ("conductor_bsdf", "BSDF", {
+        "weight": ("float", 1.0), "ior": ("color3", (0.183, 0.421, 1.373)),
+        "extinction": ("color3", (3.424, 2.346, 1.77)), "roughness": ("vector2", (0.05, 0.05)),
+        "retroreflective": ("boolean", False), "thinfilm_thickness": ("float", 0.0),
+        "thinfilm_ior": ("float", 1.5), "normal": ("vector3", _N3), "tangent": ("vector3", _T3),
+        "distribution": ("string", "ggx")}),
+    "ND_dielectric_bsdf": ("dielectric_bsdf", "BSDF", {
+        "weight": ("float", 1.0), "tint": ("color3", (1.0, 1.0, 1.0)), "ior": ("float", 1.5),
+        "roughness": ("vector2", (0.05, 0.05)), "retroreflective": ("boolean", False),
+        "thinfilm_thickness": ("float", 0.0), "thinfilm_ior": ("float", 1.5),
+        "normal": ("vector3", _N3), "tangent": ("vector3", _T3), "distribution": ("string", "ggx"),
+        "scatter_mode": ("string", "R")}),
+    "ND_generalized_schlick_bsdf": ("generalized_schlick_bsdf", "BSDF", {
+        "weight": ("float", 1.0), "color0": ("color3", (1.0, 1.0, 1.0)),
+        "color82": ("color3", (1.0, 1.0, 1.0)), "color90": ("color3", (1.0, 1.0, 1.0)),
+        "exponent": ("float", 5.0), "roughness": ("vector2", (0.05, 0.05)),
+        "retroreflective": ("boolean", False), "thinfilm_thickness": ("float", 0.0),
+        "thinfilm_ior": ("float", 1.5), "normal": ("vector3", _N3), "tangent": ("vector3", _T3),
+        "distribution": ("string", "ggx"), "scatter_mode": ("string", "R")}),
+    "ND_oren_nayar_diffuse_bsdf": ("oren_nayar_diffuse_bsdf", "BSDF", {
+        "weight": ("float", 1.0), "color": ("color3", (0.18, 0.18, 0.18)),
+        "roughness": ("float", 0.0), "normal": ("vector3", _N3),
+        "energy_compensation": ("boolean", False)}),
+    "ND_mix_bsdf": ("mix", "BSDF", {"fg": ("BSDF", None), "bg": ("BSDF", None), "mix": ("float", 0.0)}),
+    "ND_layer_bsdf": ("layer", "BSDF", {"top": ("BSDF", None), "base": ("BSDF", None)}),
+    "ND_add_bsdf": ("add", "BSDF", {"in1": ("BSDF", None), "in2": ("BSDF", None)}),
+    "ND_surface": ("surface", "surfaceshader", {
+        "bsdf": ("BSDF", None), "edf": ("EDF", None), "opacity": ("float", 1.0),
+        "thin_walled": ("boolean", False)}),
+    "ND_surfacematerial": ("surfacematerial", "material", {
+        "surfaceshader": ("surfaceshader", None), "backsurfaceshader": ("surfaceshader", None),
+        "displacementshader": ("displacementshader", None)}),
+    "ND_image_float": ("image", "float", {"file": ("filename", ""), "default": ("float", 0.0),
+                                           "filtertype": ("string", "linear")}),
+    "ND_image_color3": ("image", "color3", {"file": ("filename", ""),
+                                             "default": ("color3", (0.0, 0.0, 0.0)),
+                                             "filtertype": ("string", "linear")}),
+    "ND_tangent_vector3": ("tangent", "vector3", {"space": ("string", "object"), "index": ("integer", 0)}),
+    "ND_normal_vector3": ("normal", "vector3", {"space": ("string", "object")}),
+    "ND_position_vector3": ("position", "vector3", {"space": ("string", "object")}),
+    "ND_rotate3d_vector3": ("rotate3d", "vector3", {
+        "in": ("vector3", (0.0, 0.0, 0.0)), "amount": ("float", 0.0), "axis": ("vector3", (0.0, 1.0, 0.0))}),
+    "ND_crossproduct_vector3": ("crossproduct", "vector3", {
+        "in1": ("vector3", (0.0, 0.0, 0.0)), "in2": ("vector3", (0.0, 0.0, 0.0))}),
+    "ND_normalize_vector3": ("normalize", "vector3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
+    "ND_transformvector_vector3": ("transformvector", "vector3", {
+        "in": ("vector3", (0.0, 0.0, 0.0)), "fromspace": ("string", ""), "tospace": ("string", "")}),
+    "ND_roughness_anisotropy": ("roughness_anisotropy", "vector2", {
+        "roughness": ("float", 0.0), "anisotropy": ("float", 0.0)}),
+    "ND_add_float": ("add", "float", {"in1": ("float", 0.0), "in2": ("float", 0.0)}),
+    "ND_add_color3": ("add", "color3", {"in1": ("color3", (0.0, 0.0, 0.0)), "in2": ("color3", (0.0, 0.0, 0.0))}),
+    "ND_subtract_float": ("subtract", "float", {"in1": ("float", 0.0), "in2": ("float", 0.0)}),
+    "ND_subtract_color3": ("subtract", "color3", {"in1": ("color3", (0.0, 0.0, 0.0)), "in2": ("color3", (0.0, 0.0, 0.0))}),
+    "ND_multiply_float": ("multiply", "float", {"in1": ("float", 0.0), "in2": ("float", 1.0)}),
+    "ND_divide_float": ("divide", "float", {"in1": ("float", 0.0), "in2": ("float", 1.0)}),
+    "ND_divide_color3": ("divide", "color3", {"in1": ("color3", (0.0, 0.0, 0.0)), "in2": ("color3", (1.0, 1.0, 1.0))}),
+    "ND_mix_float": ("mix", "float", {"fg": ("float", 0.0), "bg": ("float", 0.0), "mix": ("float", 0.0)}),
+    "ND_mix_surfaceshader": ("mix", "surfaceshader", {
+        "fg": ("surfaceshader", None), "bg": ("surfaceshader", None), "mix": ("float", 0.0)}),
+}
+
+#: OpenPBR surface inputs the add-on writes or reads, with the spec's defaults (OpenPBR 1.1/1.2).
+OPENPBR_INPUTS = {
+    "base_weight": ("float", 1.0), "base_color": ("color3", (0.8, 0.8, 0.8)),
+    "base_metalness": ("float", 0.0), "specular_weight": ("float", 1.0),
+    "specular_color": ("color3", (1.0, 1.0, 1.0)), "specular_roughness": ("float", 0.3),
+    "specular_ior": ("float", 1.5), "specular_roughness_anisotropy": ("float", 0.0),
+    "transmission_weight": ("float", 0.0), "geometry_normal": ("vector3", _N3),
+    "geometry_tangent": ("vector3", _T3),
+}
+#: OpenPBR 1.2 additions (dev_1.2 spec §"Specular haze").
+OPENPBR_12_INPUTS = {"specular_haze": ("float", 0.0), "specular_haze_spread": ("float", 0.3)}
+#: OpenPBR inputs that change the look when not at their default and that a hazy material
+#: cannot hold (the importer reports them).
+OPENPBR_UNSUPPORTED = {"coat_weight": 0.0, "fuzz_weight": 0.0, "thin_film_weight": 0.0,
+                       "subsurface_weight": 0.0, "emission_luminance": 0.0}
+
+
+def nodedef_for(category, out_type):
+    """The first nodedef name of NODEDEFS with this category and output type, or None."""
+    for name, (cat, typ, _) in NODEDEFS.items():
+        if cat == category and typ == out_type:
+            return name
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Values
+# --------------------------------------------------------------------------------------------
+
+_VECTOR = {"color3": 3, "color4": 4, "vector2": 2, "vector3": 3, "vector4": 4}
+
+
+def _num(x):
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"MaterialX values must be finite, got {x!r}")
+    r = repr(x)  # shortest string that reads back as the same float64
+    return "0" if r in ("0.0", "-0.0") else r
+
+
+def format_value(value, type_):
+    """A value as MaterialX writes it: floats with 17 significant digits at most (repr)."""
+    if type_ in _VECTOR:
+        vals = list(value) if hasattr(value, "__len__") else [value] * _VECTOR[type_]
+        if len(vals) != _VECTOR[type_]:
+            raise ValueError(f"a {type_} needs {_VECTOR[type_]} values, got {len(vals)}")
+        return ", ".join(_num(v) for v in vals)
+    if type_ == "float":
+        return _num(value)
+    if type_ == "integer":
+        return str(int(value))
+    if type_ == "boolean":
+        return "true" if value else "false"
+    return str(value)
+
+
+def parse_value(text, type_):
+    if text is None:
+        return None
+    if type_ in _VECTOR:
+        return tuple(float(p) for p in text.replace(",", " ").split())
+    if type_ == "float":
+        return float(text)
+    if type_ == "integer":
+        return int(text)
+    if type_ == "boolean":
+        return text.strip().lower() == "true"
+    return text
+
+
+_NAME_RX = re.compile(r"[^A-Za-z0-9_]")
+
+
+def valid_name(text, taken=None):
+    """A MaterialX element name from any text ([A-Za-z_][A-Za-z0-9_]*), unique within ``taken``."""
+    name = _NAME_RX.sub("_", str(text)) or "material"
+    if not (name[0].isalpha() or name[0] == "_"):
+        name = "M_" + name
+    if taken is not None:
+        base, i = name, 1
+        while name in taken:
+            i += 1
+            name = f"{base}_{i}"
+        taken.add(name)
+    return name
+
+
+# --------------------------------------------------------------------------------------------
+# Elements
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Input:
+    name: str
+    type: str
+    value: object = None
+    nodename: str = None
+    nodegraph: str = None
+    output: str = None
+    interfacename: str = None
+    colorspace: str = None
+
+    @property
+    def connected(self):
+        return bool(self.nodename or self.nodegraph or self.interfacename)
+
+
+@dataclass
+class Node:
+    name: str
+    category: str
+    type: str
+    inputs: dict = field(default_factory=dict)
+    attrs: dict = field(default_factory=dict)  #: other XML attributes (version, hazygloss_...)
+
+    def set(self, name, type_, value=None, *, node=None, output=None, nodegraph=None,
+            interface=None, colorspace=None):
+        """Add an input: a value, or a connection to ``node`` (a Node or its name)."""
+        nodename = node.name if isinstance(node, Node) else node
+        self.inputs[name] = Input(name, type_, value, nodename, nodegraph, output, interface,
+                                  colorspace)
+        return self.inputs[name]
+
+    def value(self, name, default=None):
+        i = self.inputs.get(name)
+        return default if i is None or i.value is None else i.value
+
+
+@dataclass
+class NodeGraph:
+    name: str
+    nodes: dict = field(default_factory=dict)  #: name -> Node, in writing order
+    outputs: dict = field(default_factory=dict)  #: name -> Input (type, nodename, output)
+    inputs: dict = field(default_factory=dict)  #: interface inputs: name -> Input
+    attrs: dict = field(default_factory=dict)
+
+    def add(self, node):
+        if node.name in self.nodes:
+            raise ValueError(f"duplicate node name {node.name!r} in {self.name}")
+        self.nodes[node.name] = node
+        return node
+
+
+@dataclass
+class Document:
+    """Top-level nodes (surface shaders, materials), node graphs and raw extra elements
+    (nodedefs and their implementations) of one MaterialX document."""
+
+    nodes: dict = field(default_factory=dict)
+    graphs: dict = field(default_factory=dict)
+    attrs: dict = field(default_factory=dict)
+    extra: list = field(default_factory=list)  #: xml.etree Elements written before the rest
+    comments: list = field(default_factory=list)
+    source: str = ""  #: file path it was read from (resolves relative texture paths)
+
+    def materials(self):
+        return [n for n in self.nodes.values() if n.category == "surfacematerial"]
+
+    def resolve(self, inp, graph=None):
+        """Follow one input to what feeds it: ("value", value, type) or ("node", Node, graph).
+
+        ``graph``: the NodeGraph the input belongs to (None: top level).  Connections to a node
+        graph's output and interface inputs are followed; an unconnected input gives its value
+        (None when not authored)."""
+        seen = 0
+        while True:
+            seen += 1
+            if seen > 64:
+                raise ValueError("MaterialX connection cycle")
+            if inp is None:
+                return ("value", None, None)
+            if inp.interfacename and graph is not None:
+                inp = graph.inputs.get(inp.interfacename)
+                graph = None  # interface inputs are set from outside; we only read their value
+                continue
+            if inp.nodegraph:
+                g = self.graphs.get(inp.nodegraph)
+                if g is None:
+                    return ("value", None, inp.type)
+                out = g.outputs.get(inp.output) if inp.output else next(iter(g.outputs.values()), None)
+                if out is None:
+                    return ("value", None, inp.type)
+                inp, graph = out, g
+                continue
+            if inp.nodename:
+                scope = graph.nodes if graph is not None else self.nodes
+                node = scope.get(inp.nodename)
+                if node is None:
+                    return ("value", None, inp.type)
+                return ("node", node, graph)
+            return ("value", inp.value, inp.type)
+
+
+# --------------------------------------------------------------------------------------------
+# XML
+# --------------------------------------------------------------------------------------------
+
+_INPUT_ATTRS = ("nodename", "nodegraph", "output", "interfacename", "colorspace")
+
+
+def _input_element(parent, inp, tag="input"):
+    e = ET.SubElement(parent, tag, name=inp.name, type=inp.type)
+    for a in _INPUT_ATTRS:
+        v = getattr(inp, a)
+        if v:
+            e.set(a, v)
+    if inp.value is not None and not inp.connected:
+        e.set("value", format_value(inp.value, inp.type))
+    return e
+
+
+def _node_element(parent, node):
+    e = ET.SubElement(parent, node.category, name=node.name, type=node.type)
+    for k, v in node.attrs.items():
+        e.set(k, str(v))
+    for inp in node.inputs.values():
+        _input_element(e, inp)
+    return e
+
+
+def to_xml_string(doc):
+    root = ET.Element("materialx", version=K.MATERIALX_VERSION)
+    root.set("colorspace", doc.attrs.get("colorspace", K.MATERIALX_COLORSPACE))
+    for k, v in doc.attrs.items():
+        if k != "colorspace":
+            root.set(k, str(v))
+    for c in doc.comments:
+        root.append(ET.Comment(f" {c} "))
+    for e in doc.extra:
+        root.append(e)
+    for g in doc.graphs.values():
+        ge = ET.SubElement(root, "nodegraph", name=g.name)
+        for k, v in g.attrs.items():
+            ge.set(k, str(v))
+        for inp in g.inputs.values():
+            _input_element(ge, inp)
+        for n in g.nodes.values():
+            _node_element(ge, n)
+        for out in g.outputs.values():
+            _input_element(ge, out, tag="output")
+    for n in doc.nodes.values():
+        _node_element(root, n)
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def write_xml(doc, path):
+    """Write ``doc`` to ``path`` atomically (temp file + rename)."""
+    import os
+    text = to_xml_string(doc)
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+    os.replace(tmp, path)
+    return path
+
+
+def _read_input(e):
+    t = e.get("type", "")
+    return Input(e.get("name", ""), t, parse_value(e.get("value"), t), e.get("nodename"),
+                 e.get("nodegraph"), e.get("output"), e.get("interfacename"), e.get("colorspace"))
+
+
+def _read_node(e):
+    attrs = {k: v for k, v in e.attrib.items() if k not in ("name", "type")}
+    n = Node(e.get("name", ""), e.tag, e.get("type", ""), attrs=attrs)
+    for c in e:
+        if c.tag == "input":
+            i = _read_input(c)
+            n.inputs[i.name] = i
+    return n
+
+
+_SKIP = ("nodedef", "implementation", "typedef", "look", "collection", "geominfo", "propertyset",
+         "variantset", "backdrop", "token", "unit", "unittypedef", "attributedef", "targetdef")
+
+
+def read_xml(path_or_text, *, text=False):
+    """Parse a MaterialX document (file path, or the XML itself with ``text=True``).  Includes
+    (xi:include) are not followed; nodedefs and implementations are skipped."""
+    root = ET.fromstring(path_or_text) if text else ET.parse(path_or_text).getroot()
+    if root.tag != "materialx":
+        raise ValueError(f"not a MaterialX document (root element <{root.tag}>)")
+    doc = Document(attrs=dict(root.attrib), source="" if text else str(path_or_text))
+    for e in root:
+        if not isinstance(e.tag, str) or e.tag in _SKIP:
+            continue
+        if e.tag == "nodegraph":
+            if e.get("nodedef"):  # an implementation graph
+                continue
+            g = NodeGraph(e.get("name", ""), attrs={k: v for k, v in e.attrib.items() if k != "name"})
+            for c in e:
+                if not isinstance(c.tag, str):
+                    continue
+                if c.tag == "input":
+                    i = _read_input(c)
+                    g.inputs[i.name] = i
+                elif c.tag == "output":
+                    i = _read_input(c)
+                    g.outputs[i.name] = i
+                else:
+                    n = _read_node(c)
+                    g.nodes[n.name] = n
+            doc.graphs[g.name] = g
+        else:
+            n = _read_node(e)
+            doc.nodes[n.name] = n
+    return doc
