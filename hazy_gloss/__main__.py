@@ -41,6 +41,15 @@ INPUT_FLAGS = (
     ("haze_extent", "--haze-extent"),
     ("haze_extent_x", "--haze-extent-x"),
     ("haze_extent_y", "--haze-extent-y"),
+    # a PBR texture set (api.convert_maps' PBR form): a Principled material with a baked layer
+    ("base_color", "--base-color"),
+    ("metallic", "--metallic"),
+    ("normal", "--normal"),
+    ("coat", "--coat"),
+    ("coat_roughness", "--coat-roughness"),
+    ("opacity", "--opacity"),
+    ("coat_haziness", "--coat-haziness"),
+    ("coat_haze_extent", "--coat-haze-extent"),
 )
 PROG = "hazy_gloss convert"
 
@@ -87,6 +96,10 @@ def build_parser():
     conv.add_argument("--resample", action="store_true",
                       help="resample inputs of other sizes to the largest (bilinear)")
     conv.add_argument("--out", required=True, help="output folder (created if needed)")
+    conv.add_argument("--blend", default=None,
+                      help="PBR sets: save the material into this .blend (added to it if it "
+                           "exists; Blender keeps the previous version as .blend1)")
+    conv.add_argument("--name", default=None, help="PBR sets: the material's name")
     conv.add_argument("--json", action="store_true", help="print the report as JSON")
     conv.add_argument("--quiet", action="store_true", help="print nothing on success")
     _add_interchange(sub)
@@ -187,6 +200,17 @@ def _run_convert(args, signals):
         return _error(f"--out must name a folder, got {args.out!r}")
     inputs = {name: parse_value(getattr(args, name)) for name, _ in INPUT_FLAGS
               if getattr(args, name) is not None}
+    pbr = any(k in inputs for k in ("base_color", "metallic", "normal", "coat", "coat_roughness",
+                                    "opacity", "coat_haziness", "coat_haze_extent"))
+    if "opacity" in inputs:
+        if "alpha" in inputs:
+            return _error("--alpha is the core roughness α of perceptual maps; a PBR set's "
+                          "opacity is --opacity: give one of them")
+        inputs["alpha"] = inputs.pop("opacity")
+    if (args.blend or args.name) and not pbr:
+        return _error("--blend and --name are for PBR sets (--base-color, --metallic, ...)")
+    if args.blend and os.path.exists(args.blend) and not os.path.isfile(args.blend):
+        return _error(f"--blend {args.blend}: not a file")
     try:
         import bpy  # noqa: F401  (the conversion reads and writes images through Blender)
     except ImportError as exc:
@@ -197,10 +221,22 @@ def _run_convert(args, signals):
     from .convert import ConversionError
     signals.arm()
     try:
-        result = api.convert_maps(inputs, args.out, kind=args.kind,
-                                  smoothness=args.smoothness, distribution=args.distribution,
-                                  file_format=args.file_format, resample=args.resample,
-                                  prefix=args.prefix, exr_codec=args.exr_codec)
+        if pbr:
+            if args.blend and os.path.isfile(args.blend):
+                import bpy
+                bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+            result = api.convert_maps(inputs, args.out, smoothness=args.smoothness,
+                                      distribution=args.distribution, prefix=args.prefix,
+                                      exr_codec=args.exr_codec, name=args.name)
+            if args.blend:
+                import bpy
+                result.material.use_fake_user = True
+                bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.blend))
+        else:
+            result = api.convert_maps(inputs, args.out, kind=args.kind,
+                                      smoothness=args.smoothness, distribution=args.distribution,
+                                      file_format=args.file_format, resample=args.resample,
+                                      prefix=args.prefix, exr_codec=args.exr_codec)
     except ConversionError as exc:
         return _error(exc)
     except OSError as exc:  # not expected (the conversion turns them into ConversionError)

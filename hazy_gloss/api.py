@@ -101,6 +101,14 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
                  file_format="OPEN_EXR", **options):
     """Batch-convert perceptual maps into physical maps (paper §2.4); docs/textures.md.
 
+    A PBR texture set: ``inputs`` with base_color, metallic, roughness, normal, coat,
+    coat_roughness and alpha or opacity (the opacity: the perceptual form's alpha is the core
+    roughness α) maps beside the haze maps (haziness, haze_extent[_x/_y],
+    coat_haziness, coat_haze_extent) gives a Principled material (``material``: the user's own,
+    whose empty inputs take the maps; else a new one, ``name``) with its haze layer baked into
+    maps in ``out_dir`` (the raised IOR / base colour, wide roughness and β of each part, the
+    coat's), metallic per texel; the result's ``.material`` is the material.
+
     ``inputs`` maps parameter names (core_reflectivity, edge_tint, roughness or alpha, anisotropy,
     rotation, haziness, haze_extent or haze_extent_x + haze_extent_y) to an image path (``<UDIM>``
     token for tile sets), a ``bpy.types.Image``, or a constant; missing ones take the defaults of
@@ -117,6 +125,16 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     with a one-line message naming the parameter or file (an unknown option:
     ConversionOptionError, also a TypeError)."""
     from .convert import ConversionOptionError, did_you_mean
+    from .blender import convert_pbr as _pbr
+    if _pbr.is_pbr(inputs):
+        unknown = [k for k in options if k not in _PBR_OPTIONS]
+        if unknown or kind != "CONDUCTOR":
+            k = unknown[0] if unknown else "kind"
+            raise ConversionOptionError(f"convert_maps: {k!r} does not apply to a PBR set (its "
+                                        f"Principled BSDF is metal or dielectric per texel); "
+                                        f"options: {', '.join(_PBR_OPTIONS)}")
+        return _pbr.convert_pbr(inputs, out_dir, smoothness=smoothness, file_format=file_format,
+                                distribution=distribution, **options)
     unknown = [k for k in options if k not in _CONVERT_OPTIONS]
     if unknown:
         k = unknown[0]
@@ -128,6 +146,8 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
                                  distribution=distribution, file_format=file_format, **options)
 
 
+_PBR_OPTIONS = ("material", "name", "prefix", "exr_codec", "interpolation", "progress",
+                "keep_body_colour")
 _CONVERT_OPTIONS = ("resample", "prefix", "exr_codec", "material", "interpolation", "progress",
                     "tile_texels")
 

@@ -228,6 +228,156 @@ class HAZY_GLOSS_OT_convert_maps(bpy.types.Operator):
         return {"FINISHED"}
 
 
-classes = (HAZY_GLOSS_OT_convert_maps,)
+
+
+# --------------------------------------------------------------------------------------------
+# PBR texture sets
+# --------------------------------------------------------------------------------------------
+
+#: (map, label) of the PBR set operator's file inputs.
+_PBR_FILES = (("base_color", "Base Color"), ("metallic", "Metallic"), ("roughness", "Roughness"),
+              ("normal", "Normal (OpenGL)"), ("coat", "Coat"), ("alpha", "Opacity"),
+              ("haziness", "Haziness"))
+
+
+def convert_set_folder(folder, out_dir, *, haze, material=None, name=None, overrides=None,
+                       interpolation="Linear"):
+    """Convert the PBR set in ``folder`` (maps found by their names, core.detect_pbr_set;
+    ``overrides`` {map: path} win) into a Principled material with a baked haze layer."""
+    from ..convert import detect_pbr_set
+    from .convert_pbr import convert_pbr
+    try:
+        found = detect_pbr_set(os.listdir(folder)) if folder else {}
+    except ConversionError:
+        if not overrides:
+            raise
+        found = {}
+    except OSError as exc:
+        raise ConversionError(f"set folder {folder}: {exc.strerror or exc}") from None
+    inputs = {k: os.path.join(folder, f) for k, f in found.items()}
+    inputs.update(overrides or {})
+    for k, v in haze.items():
+        if k not in inputs:
+            inputs[k] = v
+    return convert_pbr(inputs, out_dir, material=material, name=name, interpolation=interpolation)
+
+
+class HAZY_GLOSS_OT_convert_pbr_set(bpy.types.Operator):
+    """Turn a PBR texture set (base colour, metallic, roughness, normal, ... as texture
+    libraries ship them) into a Principled material with a haze layer baked into maps; with
+    Batch, every subfolder of the folder is a set and becomes a material"""
+
+    bl_idname = "hazy_gloss.convert_pbr_set"
+    bl_label = "Convert PBR Texture Set"
+    bl_options = {"REGISTER", "UNDO"}
+
+    folder: StringProperty(name="Set Folder", subtype="DIR_PATH",
+                           description="The folder of the set: its maps are found by their names "
+                                       "(BaseColor / Albedo / diff, Metallic, Roughness, NormalGL...)")
+    batch: BoolProperty(name="Batch: One Set per Subfolder", default=False)
+    base_color_path: StringProperty(name="Base Color", subtype="FILE_PATH")
+    metallic_path: StringProperty(name="Metallic", subtype="FILE_PATH")
+    roughness_path: StringProperty(name="Roughness", subtype="FILE_PATH")
+    normal_path: StringProperty(name="Normal", subtype="FILE_PATH")
+    coat_path: StringProperty(name="Coat", subtype="FILE_PATH")
+    alpha_path: StringProperty(name="Opacity", subtype="FILE_PATH")
+    haziness_path: StringProperty(name="Haziness Map", subtype="FILE_PATH")
+    haziness: FloatProperty(name="Haziness", min=0.0, max=K.MAX_HAZINESS, default=0.1,
+                            subtype="FACTOR")
+    haze_extent: FloatProperty(name="Haze Extent", min=0.0, default=5.0)
+    coat_haziness: FloatProperty(name="Coat Haziness", min=0.0, max=K.MAX_HAZINESS, default=0.0,
+                                 subtype="FACTOR")
+    coat_haze_extent: FloatProperty(name="Coat Haze Extent", min=0.0, default=5.0)
+    into_active: BoolProperty(name="Into the Active Material", default=False,
+                              description="Put the set into the active material's Principled BSDF "
+                                          "(its empty inputs) instead of a new material")
+    directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="//hazy_maps/")
+    interpolation: EnumProperty(name="Interpolation", default="Linear", items=[
+        ("Linear", "Linear", ""), ("Closest", "Closest", ""), ("Cubic", "Cubic", "")])
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=420)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "folder")
+        layout.prop(self, "batch")
+        if not self.batch:
+            box = layout.box()
+            box.label(text="Maps (override what the folder gives)")
+            for stem, label in _PBR_FILES:
+                box.prop(self, stem + "_path", text=label)
+            layout.prop(self, "into_active")
+        layout.prop(self, "haziness")
+        layout.prop(self, "haze_extent")
+        layout.prop(self, "coat_haziness")
+        layout.prop(self, "coat_haze_extent")
+        layout.prop(self, "directory")
+        layout.prop(self, "interpolation")
+
+    def _haze(self):
+        return dict(haziness=self.haziness, haze_extent=self.haze_extent,
+                    coat_haziness=self.coat_haziness, coat_haze_extent=self.coat_haze_extent)
+
+    def execute(self, context):
+        folder = bpy.path.abspath(self.folder) if self.folder else ""
+        directory = self.directory or "//hazy_maps/"
+        if directory.startswith("//") and not bpy.data.filepath:
+            directory = _fallback_dir(os.path.basename(os.path.normpath(folder)) or "pbr")
+            self.report({"WARNING"}, f"the .blend is not saved: maps go to {directory}")
+        out_dir = bpy.path.abspath(directory)
+        obj = getattr(context, "object", None)
+        if self.batch:
+            if not folder or not os.path.isdir(folder):
+                self.report({"ERROR"}, "Batch needs a folder whose subfolders are the sets")
+                return {"CANCELLED"}
+            done, failed = [], []
+            for sub in sorted(os.listdir(folder)):
+                path = os.path.join(folder, sub)
+                if not os.path.isdir(path):
+                    continue
+                try:
+                    res = convert_set_folder(path, os.path.join(out_dir, sub), haze=self._haze(),
+                                             name=sub, interpolation=self.interpolation)
+                    res.material.use_fake_user = True  # kept in the file without an object
+                    done.append(res.material.name)
+                except ConversionError as exc:
+                    failed.append(f"{sub}: {exc}")
+            for f in failed:
+                self.report({"WARNING"}, f)
+            self.report({"INFO"}, f"Converted {len(done)} set(s): {', '.join(done) or 'none'}"
+                        + (f"; {len(failed)} refused (see above)" if failed else ""))
+            return {"FINISHED"} if done else {"CANCELLED"}
+        overrides = {stem: bpy.path.abspath(getattr(self, stem + "_path"))
+                     for stem, _ in _PBR_FILES if getattr(self, stem + "_path")}
+        target = obj.active_material if (self.into_active and obj is not None) else None
+        if self.into_active and target is None:
+            self.report({"ERROR"}, "Into the Active Material: the active object has no material")
+            return {"CANCELLED"}
+        try:
+            if not folder and not overrides:
+                raise ConversionError("give the set's folder or its maps")
+            res = convert_set_folder(folder, out_dir, haze=self._haze(), material=target,
+                                     name=os.path.basename(os.path.normpath(folder)) or None,
+                                     overrides=overrides, interpolation=self.interpolation)
+        except ConversionError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        mat = res.material
+        if target is None and obj is not None and hasattr(obj.data, "materials") \
+                and obj.library is None:
+            if obj.material_slots:
+                obj.active_material = mat
+            else:
+                obj.data.materials.append(mat)
+        for w in res.report.warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"“{mat.name}”: a Principled BSDF with the set and a baked haze "
+                              f"layer ({len(res)} maps in {out_dir})")
+        return {"FINISHED"}
+
+
+classes = (HAZY_GLOSS_OT_convert_maps, HAZY_GLOSS_OT_convert_pbr_set)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

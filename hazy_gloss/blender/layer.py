@@ -54,6 +54,11 @@ _ANISO = {PRINCIPLED: ("Anisotropic", "Anisotropic Rotation"), METALLIC: ("Aniso
           "ShaderNodeBsdfAnisotropic": ("Anisotropy", "Rotation"),
           "ShaderNodeBsdfGlossy": ("Anisotropy", "Rotation")}
 HAZE = HAZE_DEFAULTS
+#: A haze value given per texel (a map baked by texture conversion): the haze dict holds this
+#: string instead of a number, and the graph reads the input "haze:<name>".
+TEXTURE = "texture"
+#: Haze values that can be maps, with their graph input names.
+HAZE_MAPS = ("haziness", "haze_extent_x", "haze_extent_y", "coat_haziness", "coat_haze_extent")
 #: material session_uid -> fingerprint of its core when the layer last wrote it (blender.sync).
 FINGERPRINTS = {}
 
@@ -168,14 +173,14 @@ class Plan:
         self.haze = haze
         self.base = base  # owned input -> {"value": ...} / {"link": [node, socket]}
         self.inp = lambda name: Input(core, name, base.get(name))  # noqa: E731
-        on = haze["haziness"] > 0.0
+        on = _positive(haze["haziness"])
         coat = False
         if self.type == "PRINCIPLED":
             m = self.inp("Metallic")
             parts = (("DIELECTRIC", "METAL") if m.linked or 0.0 < m.value < 1.0 else
                      ("METAL",) if m.value >= 1.0 else ("DIELECTRIC",))
             cw = self.inp("Coat Weight")
-            coat = haze["coat_haziness"] > 0.0 and (cw.linked or cw.value > 0.0)
+            coat = _positive(haze["coat_haziness"]) and (cw.linked or cw.value > 0.0)
         elif self.type == "METALLIC":
             parts = ("PHYSICAL",) if core.fresnel_type == "PHYSICAL_CONDUCTOR" else ("METAL",)
         else:
@@ -187,6 +192,7 @@ class Plan:
         a = self.inp(a_name)
         lx, ly = haze["haze_extent"]
         self.anisotropic = on and (a.linked or a.value != 0.0 or lx != ly)
+        self.maps = tuple(n for n in HAZE_MAPS if _haze_value(haze, n) == TEXTURE)
 
     @property
     def active(self):
@@ -216,8 +222,18 @@ class Plan:
         linked = tuple(sorted(s.name for s in self.core.inputs if _source(s) is not None
                               and not ownership.is_ours(_source(s).node)))
         return repr((self.type, self.parts, self.coat, self.anisotropic,
-                     self.haze["smoothness"] is not None, linked,
+                     self.haze["smoothness"] is not None, linked, self.maps,
                      tuple(sorted(k for k, v in self.base.items() if "link" in v))))
+
+
+def _positive(v):
+    return v == TEXTURE or float(v) > 0.0
+
+
+def _haze_value(haze, name):
+    if name.startswith("haze_extent_"):
+        return haze["haze_extent"]["xy".index(name[-1])]
+    return haze[name]
 
 
 def _slot_role(part, wide, coat_wide):
@@ -248,7 +264,8 @@ def _mapping(plan, g, x, kind, rc, edge_tint, rough, aniso, rot, haziness, exten
     constant, else core.node_math on the graph.  ``lobe``, ``tint``: the Multiscatter GGX lobe
     type when the part's node is not the kind's own (core.multiscatter.correct_mapping).
     Returns Exprs."""
-    consts = [e for e in (rc, edge_tint, rough, aniso, rot, tint) if hasattr(e, "is_const")]
+    consts = [e for e in (rc, edge_tint, rough, aniso, rot, tint, haziness) + tuple(extent)
+              if hasattr(e, "is_const")]
     dist = dist if dist in K.NODE_DISTRIBUTIONS[kind] else "GGX"
     if all(e.is_const for e in consts):
         val = lambda e: np.asarray(e.value, np.float64) if hasattr(e, "value") else e  # noqa: E731
@@ -297,6 +314,10 @@ def values(plan):
             return g.input(key, vector=vector)
         return g.const(i.value)
 
+    def hz(name):  # a haze value: a number, or the graph input of its map
+        v = _haze_value(haze, name)
+        return g.input(f"haze:{name}") if v == TEXTURE else v
+
     writes, mixes, maps = {}, {}, {}
     a_name, r_name = _ANISO[core.bl_idname]
     rough, aniso, rot = x("Roughness"), x(a_name), x(r_name)
@@ -318,8 +339,9 @@ def values(plan):
             rc, kind = x("Color", True), "LEGACY"
         tint_name = "Specular Tint" if t == "PRINCIPLED" else "Edge Tint"
         lobe = dict(lobe="F82_TINT", tint=x(tint_name, True)) if part == "METAL" else {}
-        m, mp = _mapping(plan, g, x, kind, rc, edge, rough, aniso, rot, haze["haziness"],
-                         haze["haze_extent"], haze["smoothness"], dist, plan.anisotropic, **lobe)
+        m, mp = _mapping(plan, g, x, kind, rc, edge, rough, aniso, rot, hz("haziness"),
+                         (hz("haze_extent_x"), hz("haze_extent_y")), haze["smoothness"], dist,
+                         plan.anisotropic, **lobe)
         if mp is not None:
             maps[part] = mp
         own = {}
@@ -348,8 +370,8 @@ def values(plan):
     if plan.coat:
         f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
         mc, mp = _mapping(plan, g, x, "DIELECTRIC", f0c, g.const(0.0), x("Coat Roughness"),
-                          g.const(0.0), g.const(0.0), haze["coat_haziness"],
-                          (haze["coat_haze_extent"],) * 2, None, "GGX", False)
+                          g.const(0.0), g.const(0.0), hz("coat_haziness"),
+                          (hz("coat_haze_extent"),) * 2, None, "GGX", False)
         if mp is not None:
             maps["COAT"] = mp
         gain = g.div(mc["reflectivity_max"], g.maximum(mc["core_max"], 1e-30))
@@ -519,18 +541,50 @@ def _restore(core, name, base):
         sock.default_value = socket_value(sock, base["value"])
 
 
-def apply(mat, haze, *, core=None):
+def apply(mat, haze, *, core=None, baked=None):
     """Make ``mat``'s layer render ``haze`` (a dict like HAZE) on its core node: values set in
-    place when the structure is unchanged, else the layer's nodes rebuilt.  Returns the
-    constant parts' HazeMappings by part."""
+    place when the structure is unchanged, else the layer's nodes rebuilt.  ``baked``: outputs
+    read from maps instead of node math (texture conversion): {"maps": {output key: Image},
+    "vector": the coordinates socket or None, "interpolation": ...}; kept in the stamp, so
+    later updates keep them.  Returns the constant parts' HazeMappings by part."""
     _Links.tree, _Links.into = mat.node_tree.as_pointer(), None
     try:
-        return _apply(mat, haze, core)
+        return _apply(mat, haze, core, baked)
     finally:
         _Links.tree = _Links.into = None
 
 
-def _apply(mat, haze, core):
+def output_keys(plan):
+    """The layer's outputs for ``plan``: {key: Expr} with keys ("w", (part, wide) | "coat" |
+    "coat wide", input name) for values written on BSDFs and ("m", mix role) for mix factors,
+    and the graph, its sources and the constant parts' mappings."""
+    g, writes, mixes, sources, maps = values(plan)
+    flat = {("w",) + k: e for k, e in writes.items()}
+    flat.update({("m", r): e for r, e in mixes.items()})
+    return flat, g, sources, maps
+
+
+def is_baked(mat):
+    return bool((layer_state(mat) or {}).get("baked"))
+
+
+def _baked_from_state(tree, state):
+    import ast
+
+    import bpy
+    b = state.get("baked")
+    if not b:
+        return None
+    maps = {}
+    for k, name in b.get("maps", {}).items():
+        img = bpy.data.images.get(name)
+        if img is not None:
+            maps[ast.literal_eval(k)] = img
+    vec = _resolve(tree, b["vector"]) if b.get("vector") else None
+    return dict(maps=maps, vector=vec, interpolation=b.get("interpolation", "Linear"))
+
+
+def _apply(mat, haze, core, baked):
     tree = mat.node_tree
     state = layer_state(mat) or {}
     core = core or find_core(tree, state.get("core"))
@@ -552,15 +606,19 @@ def _apply(mat, haze, core):
     for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back
         _restore(core, name, base.pop(name))
     key = plan.key()
-    g, writes, mixes, sources, maps = values(plan)
-    flat = {("w",) + k: e for k, e in writes.items()}
-    flat.update({("m", r): e for r, e in mixes.items()})
-    signature = str((g.signature(flat), sorted((k, _socket_ref(v)) for k, v in sources.items())))
+    flat, g, sources, maps = output_keys(plan)
+    if baked is None:
+        baked = _baked_from_state(tree, state)
+    baked_maps = dict(baked["maps"]) if baked else {}
+    live = {k: e for k, e in flat.items() if k not in baked_maps}
+    signature = str((g.signature(live), sorted((k, _socket_ref(v)) for k, v in sources.items()
+                                               if not k.startswith("haze:")),
+                     sorted(repr(k) for k in baked_maps)))
     layer_nodes = _layer_nodes(tree)
     old_math = [tree.nodes.get(n) for n in state.get("math", [])]
     same = (plan.active and state.get("structure") == key and bool(layer_nodes)
             and all(_ROLE + _slot_role(*s) in layer_nodes for s in plan.slots()[1:]))
-    reuse = old_math if same and state.get("signature") == signature and \
+    reuse = old_math if same and state.get("signature") == signature and not baked_maps and \
         all(n is not None for n in old_math) else None
     destinations = _destinations(tree, core)
     if not same:
@@ -572,7 +630,18 @@ def _apply(mat, haze, core):
                 tree.nodes.remove(n)
     _Links.changed()
     tb = TreeBuilder(tree, x0=core.location.x - 180.0 * 10, y0=core.location.y - 480.0, roles=True)
-    out = emit(tb, g, flat, sources, reuse=reuse)
+    out = emit(tb, g, live, sources, reuse=reuse)
+    texs = {}  # one Image Texture per map (the lobes share the IOR map)
+    for k, img in sorted(baked_maps.items(), key=lambda kv: repr(kv[0])):
+        tex = texs.get(img.name)
+        if tex is None:
+            tex = texs[img.name] = tb.node("ShaderNodeTexImage", label=f"Hazy Gloss map {img.name}")
+            tex.image, tex.interpolation = img, baked.get("interpolation", "Linear")
+            tex.location = (core.location.x - 520.0, core.location.y - 300.0 - 60.0 * len(texs))
+            tex.hide = True
+            if baked.get("vector") is not None:
+                tb.link(baked["vector"], tex.inputs["Vector"])
+        out[k] = tex.outputs["Color"]
     math_nodes = list(tb.created)
     for i, n in enumerate(math_nodes):
         n[K.ROLE] = f"{_ROLE}math {i}"
@@ -610,6 +679,12 @@ def _apply(mat, haze, core):
                   "written": written,
                   "haze": {k: (list(v) if isinstance(v, tuple) else v) for k, v in haze.items()
                            if v is not None}}
+    if baked_maps:  # (ID properties hold no None)
+        b = {"maps": {repr(k): img.name for k, img in baked_maps.items()},
+             "interpolation": baked.get("interpolation", "Linear")}
+        if baked.get("vector") is not None:
+            b["vector"] = _socket_ref(baked["vector"])
+        d["layer"]["baked"] = b
     d["version"] = STAMP_VERSION
     mat[K.STAMP] = d
     FINGERPRINTS[mat.session_uid] = fingerprint(core)

@@ -390,6 +390,10 @@ def update_material(mat, **changes):
     if mat.library is not None:
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
     if layer.is_layered(mat):
+        if layer.is_baked(mat):
+            raise ValueError(f"the haze of {mat.name!r} comes from converted maps: convert the "
+                             f"maps again to change it (or Remove Haze, then Make Hazy for "
+                             f"haze set here)")
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
         return next(iter(maps.values()), None), []

@@ -372,8 +372,10 @@ class HAZY_GLOSS_MT_material(bpy.types.Menu):
     def draw(self, context):
         layout = self.layout
         layout.operator("hazy_gloss.make_hazy")
+        layout.operator("hazy_gloss.remove_haze")
         layout.operator("hazy_gloss.new_material")
         layout.operator("hazy_gloss.import_two_lobe_mix")
+        layout.operator("hazy_gloss.convert_pbr_set", icon="TEXTURE")
         layout.menu("HAZY_GLOSS_MT_presets", text="Apply Hazy Preset")
 
 
@@ -383,6 +385,7 @@ def draw_menu_entry(self, context):
 
 def draw_convert_entry(self, context):
     self.layout.operator("hazy_gloss.convert_maps", icon="IMAGE_DATA")
+    self.layout.operator("hazy_gloss.convert_pbr_set", icon="TEXTURE")
 
 
 def draw_recomposite_operators(layout):

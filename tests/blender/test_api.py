@@ -73,5 +73,6 @@ def test_material_operators_are_in_menus(hg):
             listed.append(idname)
 
     ops.HAZY_GLOSS_MT_material.draw(type("M", (), {"layout": Layout()})(), None)
-    assert listed == ["hazy_gloss.make_hazy", "hazy_gloss.new_material",
-                      "hazy_gloss.import_two_lobe_mix", "HAZY_GLOSS_MT_presets"]
+    assert listed == ["hazy_gloss.make_hazy", "hazy_gloss.remove_haze", "hazy_gloss.new_material",
+                      "hazy_gloss.import_two_lobe_mix", "hazy_gloss.convert_pbr_set",
+                      "HAZY_GLOSS_MT_presets"]
