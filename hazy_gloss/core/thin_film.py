@@ -408,7 +408,8 @@ def _dielectric_flat(ior, level, tint, d, film, gen, working_space):
     ior, level, d, film = (a[..., None] for a in (ior, level, d, film))
     (ior, level, tint, d, film), ch = _channel_grid(ior, level, tint, d, film)
     eta, f0 = _dielectric_eta(ior, level)
-    plain = f0 * tint  # generalized_schlick_fresnel, exponent < 0 branch at cos = 1: s = 0
+    f0_tint = np.clip(f0 * tint, 0.0, 1.0)  # bsdf_microfacet_setup_fresnel_generalized_schlick
+    plain = f0_tint  # generalized_schlick_fresnel, exponent < 0 branch at cos = 1: s = 0
     on = d > THICKNESS_CUTOFF
     if gen == "LUT":
         f = _iridescence_lut(ch, d, film, ("dielectric", eta), _table(working_space, "LUT"))
@@ -420,7 +421,7 @@ def _dielectric_flat(ior, level, tint, d, film, gen, working_space):
     ok = (f0_real > 1e-5) & ~np.all(f == 1.0, axis=-1, keepdims=True)
     safe = np.where(ok & (f0_real != 1.0), f0_real, 0.5)
     s = np.clip((f - 1.0) / (safe - 1.0), 0.0, 1.0)
-    scaled = np.where(ok, f * (1.0 + s * (f0 * tint / safe - 1.0)), f)
+    scaled = np.where(ok, f * (1.0 + s * (f0_tint / safe - 1.0)), f)
     return np.where(on, scaled, np.where(eta == 1.0, 0.0, plain))
 
 
@@ -429,7 +430,7 @@ def dielectric_reflectance(ior=1.5, specular_ior_level=0.5, specular_tint=1.0, t
     """Normal-incidence reflectance R(0) of Principled's dielectric specular lobe, (..., 3).
 
     ``ior``, ``specular_ior_level``, ``thickness`` (nm), ``film_ior``: (...);
-    ``specular_tint``: (..., 3) or scalar.  Without a film R(0) = F0(IOR) 2 level · tint
+    ``specular_tint``: (..., 3) or scalar.  Without a film R(0) = min(F0(IOR) 2 level · tint, 1)
     (0 when the adjusted IOR is 1: Cycles then makes no specular lobe)."""
     gen = generation(version)
     if gen == "GAUSS" and working_space != "Linear Rec.709":
@@ -631,20 +632,25 @@ def dielectric_tint_for_reflectance(target, ior, specular_ior_level=0.5, thickne
     """Specular Tint (per channel, >= 0) that makes the filmed dielectric R(0) equal
     ``target`` (..., 3) at the given IOR.  Returns (tint, reachable), (..., 3).
 
-    R_c is affine in tint_c (Cycles' F0 scaling F_c (1 + s_c (tint_c f0/F0_real - 1)); without
-    a film f0 tint_c), so tint_c = (target_c - R_c(0)) / (R_c(1) - R_c(0)).  Where R_c does
-    not depend on the tint (s_c = 0) the tint is 1, reachable iff R_c already is the target.
-    Unreachable (a negative tint needed) -> the nearest tint in [0, LIMITS max], reachable
-    False."""
+    Cycles saturates f0 · tint (f0 = F0(IOR) 2 level), and R_c is affine in f0 · tint_c below 1
+    (the F0 scaling F_c (1 + s_c (f0 tint_c / F0_real - 1)); without a film f0 tint_c), so
+    tint_c = t_sat (target_c - R_c(0)) / (R_c(t_sat) - R_c(0)) with t_sat = 1/f0.  Where R_c
+    does not depend on the tint (s_c = 0) the tint is 1, reachable iff R_c already is the
+    target.  Unreachable (a negative tint, or one past t_sat, needed) -> the nearest tint in
+    [0, t_sat], reachable False."""
     tgt = _colour(target, "base_color", 0.0)
-    r0, r1 = (dielectric_reflectance(ior, specular_ior_level, t, thickness, film_ior,
-                                     version=version, working_space=working_space)
-              for t in (0.0, 1.0))
-    tgt, r0, r1 = np.broadcast_arrays(tgt, r0, r1)
+    _, f0 = _dielectric_eta(_clean(ior, "ior", 1.5), _clean(specular_ior_level,
+                                                            "specular_ior_level", 0.5))
+    t_sat = np.minimum(1.0 / np.maximum(f0, 1e-300), LIMITS["specular_tint"][1])[..., None]
+    r0 = dielectric_reflectance(ior, specular_ior_level, 0.0, thickness, film_ior,
+                                version=version, working_space=working_space)
+    r1 = dielectric_reflectance(ior, specular_ior_level, t_sat, thickness, film_ior,
+                                version=version, working_space=working_space)
+    tgt, r0, r1, t_sat = np.broadcast_arrays(tgt, r0, r1, t_sat)
     slope = r1 - r0
     live = np.abs(slope) > 1e-12
-    tint = np.where(live, (tgt - r0) / np.where(live, slope, 1.0), 1.0)
-    lo, hi = LIMITS["specular_tint"]
-    ok = np.where(live, (tint >= lo) & (tint <= hi),
+    u = np.where(live, (tgt - r0) / np.where(live, slope, 1.0), 0.0)
+    tint = np.where(live, np.clip(u, 0.0, 1.0) * t_sat, np.minimum(1.0, t_sat))
+    ok = np.where(live, (u >= 0.0) & (u <= 1.0),
                   np.abs(r0 - tgt) <= 1e-12 * (1.0 + np.abs(tgt)))  # tint has no effect
-    return np.clip(tint, lo, hi), ok
+    return tint, ok

@@ -352,7 +352,7 @@ def plane_grid_scene(materials, *, strength=1.0):
     ``bounces=0``.  Pixel [row, col] of :func:`render_exr` (row 0 = bottom) shows
     ``materials[info["index"][row, col]]`` (-1: no plane) and reads
     ``strength * f_r(n, n)`` (cos θi = 1).  Returns a dict: side, index (side x side ints)."""
-    side = max(1, math.ceil(math.sqrt(len(materials))))
+    side = max(4, math.ceil(math.sqrt(len(materials))))  # Blender renders at least 4 x 4 px
     index = np.full((side, side), -1, dtype=np.int64)
     for i, mat in enumerate(materials):
         row, col = divmod(i, side)

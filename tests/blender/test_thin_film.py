@@ -31,7 +31,8 @@ DIELECTRICS = (dict(ior=1.5, level=0.5, tint=(1.0, 1.0, 1.0)),
                dict(ior=1.45, level=0.8, tint=(1.0, 0.6, 0.3)),
                dict(ior=2.0, level=0.25, tint=(1.0, 1.0, 1.0)),
                dict(ior=1.0, level=0.5, tint=(1.0, 1.0, 1.0)),
-               dict(ior=3.0, level=1.0, tint=(0.5, 0.8, 1.0)))
+               dict(ior=3.0, level=1.0, tint=(0.5, 0.8, 1.0)),
+               dict(ior=1.5, level=0.5, tint=(3.0, 12.0, 30.0)))  # f0 tint saturates in blue
 TOLERANCE = 1e-4
 
 
@@ -144,9 +145,9 @@ def test_rendered_peak_matches_model(tf, kind):
     assert err.max() <= TOLERANCE, (err.max(), cases[worst], pixels[worst],
                                     np.array(expected[worst]) * peak_scale())
     # the film matters: the peak is not F0 (except 4.5's metals, which have no film)
-    plain = np.array([p["base"] if kind == "metal" else
-                      np.array(p["tint"]) * 2 * p["level"] * ((p["ior"] - 1) / (p["ior"] + 1)) ** 2
-                      for p, _, _ in cases])
+    plain = np.array([p["base"] if kind == "metal" else np.minimum(
+        np.array(p["tint"]) * 2 * p["level"] * ((p["ior"] - 1) / (p["ior"] + 1)) ** 2, 1.0)
+        for p, _, _ in cases])
     moved = np.abs(pixels / peak_scale() - plain).max()
     if kind == "metal" and VERSION < (5, 0, 0):
         assert moved <= 1e-5
@@ -181,3 +182,26 @@ def test_working_space(tf, space):
     record("thin_film", {f"working space {space} worst relative error": float(err.max())})
     assert err.max() <= TOLERANCE, err.max()
     assert rel_error(pixels, other).max() > 10 * TOLERANCE  # Rec.709's table would be wrong
+
+
+def test_inverse_renders_the_target(tf):
+    """Base Color / IOR (+ Specular Tint) from the inverses render the asked-for peak."""
+    target = np.array([0.55, 0.42, 0.30])
+    films = [(250.0, 1.33), (450.0, 1.33), (700.0, 2.0)]
+    mats, want = [], []
+    for i, (d, n) in enumerate(films):
+        base, ok = tf.metal_base_for_reflectance(target, 1.0, d, n, version=VERSION)
+        if ok.all():
+            mats.append(metal(f"Inv M {i}", tuple(base), (1.0, 1.0, 1.0), d, n))
+            want.append(target)
+        t = target * 0.2
+        ior, ok = tf.dielectric_ior_for_reflectance(t, 0.5, 1.0, d, n, weights=(0.2126, 0.7152, 0.0722),
+                                                    version=VERSION)
+        tint, ok2 = tf.dielectric_tint_for_reflectance(t, ior, 0.5, d, n, version=VERSION)
+        if ok and ok2.all():
+            mats.append(dielectric(f"Inv D {i}", float(ior), 0.5, tuple(tint), d, n))
+            want.append(t)
+    assert len(mats) >= 4
+    err = rel_error(render_grid(mats), np.array(want))
+    record("thin_film", {"inverse render worst relative error": float(err.max())})
+    assert err.max() <= TOLERANCE

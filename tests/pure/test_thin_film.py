@@ -163,6 +163,8 @@ def test_no_film_is_f0(version):
         got = tf.dielectric_reflectance(ior, lvl, tint, d, 1.8, version=version)
         f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * lvl
         assert np.allclose(got, f0[:, None] * tint, rtol=1e-12, atol=0)
+        big = tf.dielectric_reflectance(1.5, 0.5, [3.0, 12.0, 30.0], d, 1.8, version=version)
+        assert np.allclose(big, [0.12, 0.48, 1.0], rtol=1e-12)  # Cycles saturates f0 tint
 
 
 @pytest.mark.parametrize("version", ["5.2", "5.3"])
