@@ -54,7 +54,7 @@ LIMITS = dict(thickness=(-1e9, 1e7), film_ior=(1e-5, 1e4), ior=(1e-5, 1e4),
 
 
 def generation(version=None):
-    """"LUT" (Cycles 5.0+: sensitivity LUT, thin film on metals) or "GAUSS" (4.5)."""
+    """Cycles generation: "LUT" (5.0+: sensitivity LUT, thin film on metals) or "GAUSS" (4.5)."""
     return "LUT" if cycles_version(version) >= (5, 0) else "GAUSS"
 
 
