@@ -32,6 +32,7 @@ __all__ = (
     "black_world",
     "uniform_world",
     "flat_plane_scene",
+    "plane_grid_scene",
     "furnace_sphere_scene",
     "render_exr",
     "eevee_setup",
@@ -341,6 +342,28 @@ def flat_plane_scene(material, *, tilt_deg=0.0, view_dir=None, light_dir=(30.0, 
         "wo": _direction64(*view_dir),
         "size": size,
     }
+
+
+def plane_grid_scene(materials, *, strength=1.0):
+    """One unit plane per material, tiled in a square grid facing +Z, seen straight down by an
+    orthographic camera, lit by a delta sun along the normal: one render measures them all.
+
+    Call :func:`setup_render` with ``resolution=(info["side"],) * 2`` (one pixel per plane) and
+    ``bounces=0``.  Pixel [row, col] of :func:`render_exr` (row 0 = bottom) shows
+    ``materials[info["index"][row, col]]`` (-1: no plane) and reads
+    ``strength * f_r(n, n)`` (cos θi = 1).  Returns a dict: side, index (side x side ints)."""
+    side = max(4, math.ceil(math.sqrt(len(materials))))  # Blender renders at least 4 x 4 px
+    index = np.full((side, side), -1, dtype=np.int64)
+    for i, mat in enumerate(materials):
+        row, col = divmod(i, side)
+        mesh = _plane_mesh(f"HG Grid {i}", 1.0)
+        obj = _link(bpy.data.objects.new(f"HG Grid {i}", mesh))
+        obj.location = (col - (side - 1) / 2.0, row - (side - 1) / 2.0, 0.0)
+        obj.data.materials.append(mat)
+        index[row, col] = i
+    _ortho_camera("HG Test Camera", Vector((0.0, 0.0, 1.0)), float(side))
+    _sun(Vector((0.0, 0.0, 1.0)), strength)
+    return {"side": side, "index": index}
 
 
 def _points_sphere_group(material, radius):
