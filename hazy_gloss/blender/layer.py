@@ -30,7 +30,7 @@ import numpy as np
 from .. import constants as K
 from . import compat
 from ..core import gulbrandsen_inverse
-from ..core import node_math
+from ..core import node_math, thin_film
 from ..core.graph import Graph
 from ..core.lobes import describe
 from ..core.parameters import HAZE_DEFAULTS
@@ -193,6 +193,8 @@ class Plan:
         lx, ly = haze["haze_extent"]
         self.anisotropic = on and (a.linked or a.value != 0.0 or lx != ly)
         self.maps = tuple(n for n in HAZE_MAPS if _haze_value(haze, n) == TEXTURE)
+        self.film = _film(self) if self.type == "PRINCIPLED" and self.parts else None
+        self.notes = []  # what values() could not make exact, in plain words
 
     @property
     def active(self):
@@ -210,6 +212,8 @@ class Plan:
             first = self.parts[0]
             names += {"DIELECTRIC": ["IOR"], "METAL": ["Base Color"], "PHYSICAL": ["IOR", "Extinction"],
                       "GLOSSY": ["Color"]}[first]
+            if self.film is not None and "DIELECTRIC" in self.parts:
+                names.append("Specular Tint")  # a film's peak needs the tint too
             if self.split:
                 names.append("Metallic")
         if self.coat:
@@ -224,6 +228,18 @@ class Plan:
         return repr((self.type, self.parts, self.coat, self.anisotropic,
                      self.haze["smoothness"] is not None, linked, self.maps,
                      tuple(sorted(k for k, v in self.base.items() if "link" in v))))
+
+
+def _film(plan):
+    """(thickness, film IOR) of an active constant thin film whose part inputs are constants
+    (the peak then follows the film exactly, core.thin_film), else None."""
+    t, n = plan.inp("Thin Film Thickness"), plan.inp("Thin Film IOR")
+    if t.linked or n.linked or not thin_film.film_active(t.value):
+        return None
+    names = ["Base Color", "Specular Tint", "IOR", "Specular IOR Level", "Roughness"]
+    if any(plan.inp(nm).linked for nm in names):
+        return None
+    return float(t.value), float(n.value)
 
 
 def _positive(v):
@@ -339,13 +355,46 @@ def values(plan):
             rc, kind = x("Color", True), "LEGACY"
         tint_name = "Specular Tint" if t == "PRINCIPLED" else "Edge Tint"
         lobe = dict(lobe="F82_TINT", tint=x(tint_name, True)) if part == "METAL" else {}
+        film = plan.film if part in ("DIELECTRIC", "METAL") else None
+        if film is not None:  # the film's interference sets the peak: map from it (thin_film)
+            base = np.asarray(plan.inp("Base Color").value, float)
+            tint = np.asarray(plan.inp("Specular Tint").value, float)
+            ior, lvl = float(plan.inp("IOR").value), float(plan.inp("Specular IOR Level").value)
+            if part == "METAL":
+                rc = g.const(tuple(thin_film.metal_reflectance(base, tint, *film)))
+            else:
+                rc = g.const(tuple(thin_film.dielectric_reflectance(ior, lvl, tint, *film)))
         m, mp = _mapping(plan, g, x, kind, rc, edge, rough, aniso, rot, hz("haziness"),
                          (hz("haze_extent_x"), hz("haze_extent_y")), haze["smoothness"], dist,
                          plan.anisotropic, **lobe)
         if mp is not None:
             maps[part] = mp
         own = {}
-        if part == "DIELECTRIC":
+        if film is not None:  # the IOR / Base Color whose film gives r in every channel
+            r = np.asarray(m["reflectivity"].value, float)
+            if part == "METAL":
+                b2, ok = thin_film.metal_base_for_reflectance(r, tint, *film, near=base)
+                own["Base Color"] = g.const(tuple(b2))
+                got = thin_film.metal_reflectance(b2, tint, *film)
+            else:
+                best = None  # one IOR meets one weighted sum; the tint fixes the channels
+                for wts in ((1.0, 1.0, 1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+                    i2, _ = thin_film.dielectric_ior_for_reflectance(r, lvl, tint, *film, weights=wts)
+                    i2 = float(np.asarray(i2))
+                    t2, ok_ = thin_film.dielectric_tint_for_reflectance(r, i2, lvl, *film)
+                    got_ = thin_film.dielectric_reflectance(i2, lvl, t2, *film)
+                    err = float(np.max(np.abs(np.asarray(got_) / np.maximum(r, 1e-12) - 1.0)))
+                    if best is None or err < best[0] - 1e-12:
+                        best = (err, i2, t2, ok_, got_)
+                    if np.all(ok_):
+                        break
+                _, ior2, t2, ok, got = best
+                own["IOR"], own["Specular Tint"] = g.const(ior2), g.const(tuple(t2))
+            if not np.all(ok):
+                off = float(np.max(np.abs(np.asarray(got) / np.maximum(r, 1e-12) - 1.0)))
+                plan.notes.append(f"the thin film cannot reflect as much as this haze needs: "
+                                  f"the peak moves by {off:.1%} (lower Haziness)")
+        elif part == "DIELECTRIC":
             gain = g.div(m["reflectivity_max"], g.maximum(m["core_max"], 1e-30))
             own["IOR"] = _ior_from_f0(g, g.mul(f0_user, gain))
         elif part == "PHYSICAL":

@@ -287,9 +287,11 @@ def layer_warnings(info, context=None, prefs=None):
             out.append(f"{_PART_NAMES.get(part, part)}: " + next(
                 (t for k, t in _CLAMP_TEXT.items() if reason.startswith(k)), reason))
     core = info["core"]
+    out += [n[:1].upper() + n[1:] for n in plan.notes]
     tf = core.inputs.get("Thin Film Thickness")
-    if plan.parts and tf is not None and (tf.is_linked or tf.default_value > 0.0):
-        out.append("Thin film: its interference sets the peak, which haze moves slightly")
+    if plan.parts and plan.film is None and tf is not None and (tf.is_linked or tf.default_value > 0.1):
+        out.append("Thin film with textured inputs: the peak follows the film only "
+                   "approximately (constant inputs keep it exactly)")
     scene = getattr(context, "scene", None) if context is not None else None
     if scene is not None and "EEVEE" in scene.render.engine and info["bsdfs"] > 2:
         out.append(f"EEVEE renders at most 3 closures per pixel: this layer mixes "

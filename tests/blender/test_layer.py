@@ -354,6 +354,9 @@ PEAK = {
                                                      "Roughness": 0.2})[0],
     "textured roughness dielectric": lambda: textured_roughness(),
     "metal, Multiscatter GGX": multiscatter_metal,
+    "dielectric with thin film": lambda: principled(
+        "Film Dielectric", **{"Base Color": (0.05, 0.05, 0.05, 1.0), "Roughness": 0.25,
+                              "Thin Film Thickness": 320.0, "Thin Film IOR": 1.6})[0],
     "dielectric, Multiscatter GGX": lambda: principled(
         "MS Dielectric", distribution="MULTI_GGX", **{"Base Color": (0.3, 0.3, 0.3, 1.0),
                                                        "Roughness": 0.3})[0],
@@ -380,7 +383,9 @@ def test_peak_is_invariant(env, name):
         mat.node_tree.nodes.remove(nm)
     make_hazy(env, mat)
     before = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
-    env.api.update_material(mat, haziness=0.9, haze_extent=(8.0, 3.0))
+    # a film on a dielectric reaches r ~ 0.5 at most (0.9 cannot keep the peak: a note says so)
+    haziness = 0.3 if "film" in name and "dielectric" in name else 0.9
+    env.api.update_material(mat, haziness=haziness, haze_extent=(8.0, 3.0))
     after = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
     err = rel_diff(before, after)
     record("layer_peak", {name: err})
