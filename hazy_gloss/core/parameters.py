@@ -17,7 +17,7 @@ from .. import constants as K
 from .lobes import check_kind
 
 __all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "HAZE_PARAMETERS", "normalise", "normalise_haze",
-           "sanitise", "is_anisotropic")
+           "check_value", "sanitise", "is_anisotropic")
 
 #: Every perceptual parameter of a hazy material (the stamp's keys).
 PARAMETERS = ("kind", "distribution", "core_reflectivity", "edge_tint", "roughness", "anisotropy",
@@ -54,13 +54,32 @@ def _fail(msg):
     raise ValueError(msg)
 
 
+def _short(value, limit=60):
+    """repr(value), cut to ``limit`` characters (messages stay one short line)."""
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _numbers_in(text):
+    """The numbers a string such as "0.9, 0.6, 0.3" or "5" spells, or None."""
+    parts = [t for t in text.replace(",", " ").replace("(", " ").replace(")", " ").split() if t]
+    try:
+        return [float(t) for t in parts] if parts else None
+    except ValueError:
+        return None
+
+
 def _number(name, value):
-    if isinstance(value, bool) or isinstance(value, str) or value is None:
-        _fail(f"{name} must be a number, got {value!r}")
+    if isinstance(value, str):
+        nums = _numbers_in(value)
+        hint = f" (write {nums[0]:g}, a number, not a string)" if nums and len(nums) == 1 else ""
+        _fail(f"{name} must be a number, got the string {_short(value)}{hint}")
+    if isinstance(value, bool) or value is None:
+        _fail(f"{name} must be a number, got {_short(value)}")
     try:
         x = float(value)
-    except (TypeError, ValueError):
-        _fail(f"{name} must be a number, got {value!r}")
+    except (TypeError, ValueError, OverflowError):
+        _fail(f"{name} must be a number, got {_short(value)}")
     if math.isnan(x):
         _fail(f"{name} is NaN")
     return x
@@ -68,7 +87,8 @@ def _number(name, value):
 
 def _in_range(name, x):
     lo, hi = RANGES[name]
-    if x < lo or (hi is not None and x > hi) or (hi is None and math.isinf(x)):
+    if x < lo or (hi is not None and x > hi) or (hi is None and math.isinf(x)) or \
+            (name == "rotation" and math.isinf(x)):
         rng = f"[{lo:g}, {hi:g}]" if hi is not None and not math.isinf(hi) else f">= {lo:g} and finite"
         if name == "rotation":
             rng = "finite (turns)"
@@ -79,18 +99,28 @@ def _in_range(name, x):
 
 def _colour(name, value):
     if isinstance(value, str):
-        _fail(f"{name} must be a number or an RGB triple of numbers, got the string {value!r}")
-    if np.ndim(value) == 0:
+        nums = _numbers_in(value)
+        hint = ""
+        if nums and len(nums) == 3:
+            hint = f" (write the tuple ({', '.join(f'{v:g}' for v in nums)}))"
+        elif nums and len(nums) == 1:
+            hint = f" (write {nums[0]:g}, a number, not a string)"
+        _fail(f"{name} must be a number or an RGB triple of numbers, got the string "
+              f"{_short(value)}{hint}")
+    if isinstance(value, dict) or value is None:
+        _fail(f"{name} must be a number or an RGB triple of numbers, got {_short(value)}")
+    if np.ndim(value) == 0 and not isinstance(value, (list, tuple)):
         rgb = (_number(name, value),) * 3
     else:
         try:
             items = list(value)
         except TypeError:
-            _fail(f"{name} must be a number or an RGB triple, got {value!r}")
+            _fail(f"{name} must be a number or an RGB triple, got {_short(value)}")
         if len(items) == 4:  # RGBA from a colour socket or FloatVectorProperty: alpha ignored
             items = items[:3]
         if len(items) != 3:
-            _fail(f"{name} must be a number or an RGB triple, got {len(items)} values")
+            _fail(f"{name} must be a number or an RGB triple, got {len(items)} "
+                  f"value{'s' if len(items) != 1 else ''} {_short(tuple(items))}")
         rgb = tuple(_number(name, v) for v in items)
     lo, hi = RANGES[name]
     if any(x < lo or x > hi for x in rgb):
@@ -101,24 +131,45 @@ def _colour(name, value):
     return tuple(float(x) for x in rgb)
 
 
-def _extent(value):
+def _extent(value, name="haze_extent"):
+    if isinstance(value, str):
+        nums = _numbers_in(value)
+        hint = ""
+        if nums and len(nums) == 2:
+            hint = f" (write the pair ({nums[0]:g}, {nums[1]:g}))"
+        elif nums and len(nums) == 1:
+            hint = f" (write {nums[0]:g}, a number, not a string)"
+        _fail(f"{name} must be a number or an (x, y) pair of numbers, got the string "
+              f"{_short(value)}{hint}")
     if isinstance(value, (tuple, list, np.ndarray)):
         if len(value) != 2:
-            _fail(f"haze_extent must be a number or an (x, y) pair, got {len(value)} values")
-        x, y = (_in_range("haze_extent", _number("haze_extent", v)) for v in value)
+            hint = f" (for one extent in both directions write {name}={_short(value[0])})" \
+                if len(value) == 1 else ""
+            _fail(f"{name} must be a number or an (x, y) pair, got {len(value)} "
+                  f"value{'s' if len(value) != 1 else ''} {_short(tuple(value))}{hint}")
+        x, y = (_in_range("haze_extent", _number(name, v)) for v in value)
         return (x, y)
-    x = _in_range("haze_extent", _number("haze_extent", value))
+    x = _in_range("haze_extent", _number(name, value))
     return (x, x)
 
 
+#: Words people use for a kind, and the kind they mean.
+_KIND_WORDS = {"METAL": "CONDUCTOR", "METALLIC": "CONDUCTOR", "PLASTIC": "DIELECTRIC",
+               "GLASS": "DIELECTRIC", "VARNISH": "DIELECTRIC", "GLOSSY": "LEGACY"}
+
+
 def _choice(name, value, options):
-    v = str(value).upper().replace(" ", "_").replace("-", "_")
+    if not isinstance(value, str):
+        _fail(f"{name} must be one of {', '.join(options)} (a string), got {_short(value)}")
+    v = value.upper().replace(" ", "_").replace("-", "_")
     if v in ("MULTISCATTER_GGX", "MULTI_SCATTER_GGX"):
         v = "MULTI_GGX"
     if v not in options:
         close = difflib.get_close_matches(v, options, n=1)
+        if not close and name == "kind" and v in _KIND_WORDS:
+            close = [_KIND_WORDS[v]]
         hint = f" (did you mean {close[0]}?)" if close else ""
-        _fail(f"{name} must be one of {', '.join(options)}, got {value!r}{hint}")
+        _fail(f"{name} must be one of {', '.join(options)}, got {_short(value)}{hint}")
     return v
 
 
@@ -149,15 +200,20 @@ def normalise(params, explicit=None):
         p["edge_tint"] = (0.0, 0.0, 0.0)
     explicit = set(params) if explicit is None else set(explicit)
     if p["kind"] != "DIELECTRIC" and p["base_color"] != (0.0, 0.0, 0.0) and "base_color" in explicit:
-        _fail(f"base_color applies to dielectrics only; a {p['kind'].lower()} has no base layer")
+        _fail(f"base_color applies to dielectrics only; a {p['kind'].lower()} has no base layer "
+              f"(its colour is core_reflectivity{' and edge_tint' if p['kind'] == 'CONDUCTOR' else ''})")
+    if p["kind"] != "CONDUCTOR" and "edge_tint" in explicit and \
+            _colour("edge_tint", params["edge_tint"]) != (0.0, 0.0, 0.0):
+        _fail(f"edge_tint applies to conductors only; a {p['kind'].lower()} has no edge tint "
+              f"(set kind='CONDUCTOR', or leave edge_tint out)")
     p["haze_extent"] = _extent(p["haze_extent"])
     for name in ("roughness", "anisotropy", "rotation", "haziness", "transmission"):
         p[name] = _in_range(name, _number(name, p[name]))
+    if p["kind"] != "DIELECTRIC" and p["transmission"] != 0.0 and "transmission" in explicit:
+        _fail(f"transmission applies to dielectrics only; a {p['kind'].lower()} transmits no light")
     if p["smoothness"] is not None:
         p["smoothness"] = _in_range("smoothness", _number("smoothness", p["smoothness"]))
-    if not isinstance(p["shader_mapping"], (bool, int, np.bool_)):
-        _fail(f"shader_mapping must be True or False, got {p['shader_mapping']!r}")
-    p["shader_mapping"] = bool(p["shader_mapping"])
+    p["shader_mapping"] = _flag("shader_mapping", p["shader_mapping"])
     p["tangent"] = _choice("tangent", p["tangent"], TANGENTS)
     return p
 
@@ -184,15 +240,45 @@ def normalise_haze(params, current=None):
     for name in ("haziness", "coat_haziness"):
         h[name] = _in_range(name, _number(name, h[name]))
     h["haze_extent"] = _extent(h["haze_extent"])
-    ce = h["coat_haze_extent"]
-    h["coat_haze_extent"] = _in_range("coat_haze_extent", _number("coat_haze_extent", ce[0] if
-                                      isinstance(ce, (tuple, list)) else ce))
+    h["coat_haze_extent"] = check_value("coat_haze_extent", h["coat_haze_extent"])
     if h["smoothness"] is not None:
         h["smoothness"] = _in_range("smoothness", _number("smoothness", h["smoothness"]))
-    if not isinstance(h["keep_body_colour"], (bool, int, np.bool_)):
-        _fail(f"keep_body_colour must be True or False, got {h['keep_body_colour']!r}")
-    h["keep_body_colour"] = bool(h["keep_body_colour"])
+    h["keep_body_colour"] = check_value("keep_body_colour", h["keep_body_colour"])
     return h
+
+
+def _flag(name, value):
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer))
+                                               and value in (0, 1)):
+        return bool(value)
+    _fail(f"{name} must be True or False, got {_short(value)}")
+
+
+def check_value(name, value):
+    """The normalised form of one parameter's value on its own (material or haze layer), or
+    ValueError with one line naming it and what is valid.  Used for values read back from a
+    stamp, where each key is checked separately (kind-dependent rules are normalise's)."""
+    if name in ("kind", "distribution", "tangent"):
+        return _choice(name, value, {"kind": K.KINDS, "distribution": K.DISTRIBUTIONS,
+                                     "tangent": TANGENTS}[name])
+    if name in _COLOURS:
+        return _colour(name, value)
+    if name == "haze_extent":
+        return _extent(value)
+    if name == "coat_haze_extent":
+        if isinstance(value, (tuple, list, np.ndarray)) and not isinstance(value, str):
+            if len(value) != 1:
+                _fail(f"coat_haze_extent must be a number (the coat's halo is isotropic), got "
+                      f"{len(value)} values {_short(tuple(value))}")
+            value = value[0]
+        return _in_range(name, _number(name, value))
+    if name in ("shader_mapping", "keep_body_colour"):
+        return _flag(name, value)
+    if name == "smoothness":
+        return None if value is None else _in_range(name, _number(name, value))
+    if name in RANGES:
+        return _in_range(name, _number(name, value))
+    _fail(f"unknown hazy parameter {name!r}")
 
 
 def is_anisotropic(p):
