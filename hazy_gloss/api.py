@@ -152,9 +152,19 @@ _CONVERT_OPTIONS = ("resample", "prefix", "exr_codec", "material", "interpolatio
                     "tile_texels")
 
 
+def last_error(mat):
+    """The message of the last change of ``mat`` through ``mat.hazy_gloss_settings`` that was
+    refused (None after a change that went through).  Blender prints and swallows exceptions
+    raised in property setters, so a script setting ``mat.hazy_gloss_settings.roughness = 2``
+    learns of the refusal here."""
+    _material.check_material(mat, "last_error")
+    from .blender import properties as _props
+    return _props.error_for(mat)
+
+
 __all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
-           "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
+           "last_error", "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
 
 
 # --------------------------------------------------------------------------------------------
@@ -220,6 +230,9 @@ def engine_parameters(mat, engines=None, *, measure=True):
         p = read_parameters(mat)
         if p is None:
             raise ValueError(f"{getattr(mat, 'name', mat)!r} is not a hazy material")
+        if p.get("layered"):
+            raise ValueError(f"{mat.name!r} is a haze layer on its own BSDF: engine parameters "
+                             f"are for materials made with create_material")
     return _engines.engine_parameters(lobes_of(p), engines or _engines.ENGINES, measure=measure)
 
 

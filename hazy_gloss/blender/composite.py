@@ -22,6 +22,7 @@ from ..recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOU
                            LAYERS, PROPERTY, compositor_graph, exr_layers)
 from ..exr import exr_header_check, read_exr
 from . import compat, material
+from . import stamp as _stamps
 from .nodes.builder import TreeBuilder
 from .nodes.emit import combine_compositor, emit
 from .nodes.lobes import build_lobes, tangent
@@ -175,11 +176,17 @@ def _build_schlick(tree, p, v, tb):
 
 def convert_material(mat):
     """Switch one hazy material to recomposite mode (idempotent).  Raises Unsupported."""
-    p = material.read_parameters(mat)
+    try:
+        p = material.read_parameters(mat)
+    except ValueError as exc:  # a damaged stamp: skipped, with the reason
+        raise Unsupported(str(exc)) from None
     if p is None:
         raise Unsupported(f"{mat.name!r} is not a hazy material")
     if mat.library is not None:
         raise Unsupported(f"{mat.name!r} is linked from a library")
+    if p.get("layered"):
+        raise Unsupported("a haze layer on the material's own BSDF (Make Hazy) has no "
+                          "recomposite passes yet")
     _schlick_distribution(p["distribution"])
     restore_material(mat)
     notes = []
@@ -226,13 +233,15 @@ def restore_material(mat):
     if tree is None:
         return False
     ours = [n for n in tree.nodes if n.name.startswith(RC_PREFIX + " ")]
-    stamp = mat.get(STAMP)
-    if stamp is None and not ours:
+    present = STAMP in mat
+    if not present and not ours:
         return False
     for n in ours:
         tree.nodes.remove(n)
-    if stamp is not None:
-        node = tree.nodes.get(stamp.get("surface_node", ""))
+    if present:  # a stamp that is not a group, or names no node: only the relink is skipped
+        stamp = _stamps.group(mat, STAMP) or {}
+        name = stamp.get("surface_node", "")
+        node = tree.nodes.get(name) if isinstance(name, str) else None
         if node is not None:
             sock = next((s for s in node.outputs if s.identifier == stamp.get("surface_socket")), None)
             outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
@@ -241,6 +250,15 @@ def restore_material(mat):
                 tree.links.new(sock, out.inputs["Surface"])
         del mat[STAMP]
     return True
+
+
+def _scene_state(scene):
+    """The scene's recomposite stamp as a dict whose values have the types setup wrote (what
+    does not is left out: a damaged stamp only loses what it cannot say)."""
+    state = _stamps.group(scene, STAMP) or {}
+    types = {"template": str, "file_format": str, "color_depth": str, "exr_codec": str,
+             "media_type": str, "use_single_layer": (bool, int), "template_use": (bool, int)}
+    return {k: v for k, v in state.items() if k in types and isinstance(v, types[k])}
 
 
 def is_recomposite_material(mat):
@@ -380,8 +398,7 @@ def setup_recomposite(scene, *, template=None, compositor=True, holdout=True, ex
     if scene.render.engine != "CYCLES":
         raise ValueError("the recomposite passes need Cycles (the per-layer switch relies on "
                          "Cycles' view-layer attributes and holdout semantics)")
-    state = scene.get(STAMP)
-    state = state.to_dict() if state is not None else {}
+    state = _scene_state(scene)
     if template is None:
         name = state.get("template")
         template = scene.view_layers.get(name) if name else None
@@ -437,8 +454,7 @@ def clear_recomposite(scene):
     settings, compositor nodes."""
     for mat in bpy.data.materials:
         restore_material(mat)
-    state = scene.get(STAMP)
-    state = state.to_dict() if state is not None else {}
+    state = _scene_state(scene)
     for name in LAYERS:
         layer = scene.view_layers.get(name)
         if layer is not None and len(scene.view_layers) > 1:
@@ -448,17 +464,21 @@ def clear_recomposite(scene):
         bpy.data.collections.remove(coll)
     template = scene.view_layers.get(state.get("template", ""))
     if template is not None:
-        template.use = state.get("template_use", True)
+        template.use = bool(state.get("template_use", True))
     s = scene.render.image_settings
     if state:
         if state.get("media_type") and hasattr(s, "media_type"):
-            s.media_type = state["media_type"]
+            try:
+                s.media_type = state["media_type"]
+            except (TypeError, ValueError, AttributeError):
+                pass
         for attr in ("file_format", "color_depth", "exr_codec"):
             try:
                 setattr(s, attr, state[attr])
-            except (KeyError, TypeError, AttributeError):
+            except (KeyError, TypeError, ValueError, AttributeError):
                 pass
-        scene.render.use_single_layer = state.get("use_single_layer", False)
+        scene.render.use_single_layer = bool(state.get("use_single_layer", False))
+    if STAMP in scene:
         del scene[STAMP]
     tree = compat.compositor_tree(scene, create=False)
     if tree is not None:
@@ -512,7 +532,7 @@ def ensure_compositor_group():
     """The compositor node group "Hazy Gloss Recomposite" (built from code, rebuilt if stale)."""
     ng = bpy.data.node_groups.get(GROUP_NAME)
     if ng is not None and ng.bl_idname == "CompositorNodeTree" \
-            and ng.get(K.GROUP_STAMP, {}).get("version") == GROUP_VERSION:
+            and (_stamps.group(ng, K.GROUP_STAMP) or {}).get("version") == GROUP_VERSION:
         return ng
     if ng is None or ng.bl_idname != "CompositorNodeTree":
         ng = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
@@ -555,8 +575,7 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
                 raise ValueError(f"cannot tell the original layer among {others}; pass original=")
             original = others[0]
     elif original is None:
-        state = scene.get(STAMP)
-        original = state.get("template") if state is not None else None
+        original = _scene_state(scene).get("template")
         if original is None or scene.view_layers.get(original) is None:
             raise ValueError("run setup_recomposite first (or pass original=<view layer>)")
     names = (original,) + LAYERS

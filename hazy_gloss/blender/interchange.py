@@ -38,7 +38,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import engines, materialx, usd
-from . import compat, material
+from . import compat, material, stamp
 from .context import plain_message, target_material
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -53,8 +53,15 @@ _RENDER_TARGETS = ("CYCLES", "EEVEE")
 # --------------------------------------------------------------------------------------------
 
 
-def _stamp_dict(value):
-    return value.to_dict() if hasattr(value, "to_dict") else dict(value)
+def _maps_stamp(mat):
+    """The converted-maps stamp as (kind, distribution, anisotropic, {map: path}), or None when
+    it does not read."""
+    d = stamp.group(mat, K.MAPS_STAMP)
+    maps = d.get("maps") if d is not None else None
+    if not isinstance(maps, dict) or not all(isinstance(v, str) for v in maps.values()) or \
+            d.get("kind") not in K.KINDS or d.get("distribution") not in K.DISTRIBUTIONS:
+        return None
+    return d["kind"], d["distribution"], bool(d.get("anisotropic")), maps
 
 
 def _tangent_kind(tree):
@@ -67,6 +74,9 @@ def _tangent_kind(tree):
 def source_of(mat):
     """(materialx.Source or None, reason) for one Blender material."""
     p = material.read_parameters(mat)
+    if p is not None and p.get("layered"):
+        return None, (f"“{mat.name}” is a haze layer on its own BSDF: not exported yet (export "
+                      f"a material made with New Hazy Material)")
     if p is not None:
         src = materialx.Source(mat.name, parameters=p)
         if p["shader_mapping"] and mat.node_tree is not None:
@@ -76,11 +86,14 @@ def source_of(mat):
                                  f"(the stamped constants are)")
         return src, ""
     if K.MAPS_STAMP in mat and mat.node_tree is not None:
-        d = _stamp_dict(mat[K.MAPS_STAMP])
-        maps = {k: os.path.normpath(bpy.path.abspath(v)) for k, v in _stamp_dict(d["maps"]).items()}
-        src = materialx.Source(mat.name, maps=maps, kind=str(d["kind"]),
-                               distribution=str(d["distribution"]),
-                               anisotropic=bool(d.get("anisotropic")))
+        read = _maps_stamp(mat)
+        if read is None:
+            return None, (f"the converted-maps stamp of “{mat.name}” (mat[{K.MAPS_STAMP!r}]) is "
+                          f"damaged: convert the maps again")
+        kind, distribution, anisotropic, maps = read
+        maps = {k: os.path.normpath(bpy.path.abspath(v)) for k, v in maps.items()}
+        src = materialx.Source(mat.name, maps=maps, kind=kind, distribution=distribution,
+                               anisotropic=anisotropic)
         tree = mat.node_tree
         narrow = material.ours(tree).get("Narrow lobe")
         if src.kind == "DIELECTRIC" and narrow is not None:
@@ -429,6 +442,9 @@ def add_export_fallback(mat):
     if K.RECOMPOSITE_STAMP in mat:
         raise ValueError(f"{mat.name!r} is in recomposite mode: leave it first")
     p = material.read_parameters(mat)
+    if p is not None and p.get("layered"):
+        raise ValueError(f"{mat.name!r} is a haze layer on its own BSDF: the export fallback is "
+                         f"for materials made with New Hazy Material")
     if p is None:
         if K.MAPS_STAMP in mat:
             raise ValueError(f"{mat.name!r} is driven by converted maps: the export fallback "
@@ -446,7 +462,7 @@ def add_export_fallback(mat):
     if fresh:
         previous = next((n for n in user_outs if n.is_active_output), user_outs[0])
         mat[FALLBACK_STAMP] = {"version": 1, "active": previous.name}
-    ref = tree.nodes.get(_stamp_dict(mat[FALLBACK_STAMP]).get("active", "")) if FALLBACK_STAMP in mat else None
+    ref = tree.nodes.get(_fallback_active(mat)) if FALLBACK_STAMP in mat else None
     if ref is None or material.is_ours(ref):
         ref = user_outs[0]
     loc = ref.location
@@ -528,7 +544,7 @@ def remove_export_fallback(mat):
             tree.nodes.remove(n)
             removed = True
     if FALLBACK_STAMP in mat:
-        name = _stamp_dict(mat[FALLBACK_STAMP]).get("active", "")
+        name = _fallback_active(mat)
         del mat[FALLBACK_STAMP]
         prev = tree.nodes.get(name)
         if prev is None:
@@ -537,6 +553,12 @@ def remove_export_fallback(mat):
             prev.is_active_output = True
         removed = True
     return removed
+
+
+def _fallback_active(mat):
+    """The name of the output the fallback replaced ("" when its stamp does not say)."""
+    name = (stamp.group(mat, FALLBACK_STAMP) or {}).get("active", "")
+    return name if isinstance(name, str) else ""
 
 
 def refresh_export_fallback(mat):

@@ -543,8 +543,16 @@ def _stamp(mat):
 
 
 def layer_state(mat):
-    d = _stamp(mat)
-    return d.get("layer") if d else None
+    """The layer's state read from the stamp, sanitised (blender.stamp.check_layer: what does
+    not read is left out, and listed in ``"problems"``), or None when ``mat`` has no layer.
+    Never raises: a stamp that is not a group has no layer."""
+    from . import stamp as _stamp_module
+    if mat is None:
+        return None
+    d = _stamp_module.group(mat, K.STAMP)
+    if d is not None and "layer" in d:
+        return _stamp_module.check_layer(mat, d["layer"])
+    return _stamp_module.lost_layer(mat, d)  # a layer's nodes whose stamp lost "layer", or None
 
 
 def is_layered(mat):
@@ -614,7 +622,7 @@ def output_keys(plan):
 
 
 def is_baked(mat):
-    return bool((layer_state(mat) or {}).get("baked"))
+    return "baked" in (layer_state(mat) or {})
 
 
 def _baked_from_state(tree, state):
@@ -795,13 +803,15 @@ def _build(mat, plan, tb):
 
 
 def haze_of(mat):
-    """The haze parameters stamped on a layered material (HAZE defaults filled in)."""
+    """The haze parameters stamped on a layered material (HAZE defaults filled in, also for
+    values that do not read: layer_state(mat)["problems"] names them)."""
     state = layer_state(mat) or {}
+    haze = state.get("haze", {})
     h = dict(HAZE)
-    h.update(state.get("haze", {}))
-    h["haze_extent"] = tuple(h["haze_extent"]) if hasattr(h["haze_extent"], "__len__") \
-        else (float(h["haze_extent"]),) * 2
-    if "smoothness" not in state.get("haze", {}):
+    h.update(haze)
+    ext = h["haze_extent"]
+    h["haze_extent"] = tuple(ext) if isinstance(ext, (tuple, list)) else (float(ext),) * 2
+    if "smoothness" not in haze:
         h["smoothness"] = None
     return h
 
@@ -844,12 +854,20 @@ def fingerprint(core):
 def read(mat):
     """The perceptual view of a layered material: the haze parameters, and the core's own
     parameters as it holds them (linked inputs report their unlinked value and are listed in
-    ``textured``)."""
-    core = find_core(mat.node_tree)
-    h = haze_of(mat)
+    ``textured``).  Raises ValueError (one line) when the layer's stamp is damaged."""
+    from . import stamp as _stamp_module
     state = layer_state(mat) or {}
+    problem = _stamp_module.layer_problem(mat, state.get("problems", []))
+    if problem is not None:
+        raise _stamp_module.StampError(problem)
+    core = find_core(mat.node_tree, state.get("core"))
+    h = haze_of(mat)
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone")
+    if core.bl_idname not in CORE_TYPES:
+        raise ValueError(f"the haze layer of {mat.name!r} sits on {core.name!r}, a "
+                         f"{core.bl_label} node, not a Principled, Metallic or Glossy BSDF: "
+                         f"Remove Haze")
     base = state.get("base", {})
     inp = lambda n: Input(core, n, base.get(n))  # noqa: E731
     t = core_type(core)
@@ -867,7 +885,9 @@ def read(mat):
         p["metallic"] = m.value if not m.linked else None
         p["kind"] = ("DIELECTRIC" if (not m.linked and m.value <= 0.0) else
                      "CONDUCTOR" if (not m.linked and m.value >= 1.0) else "MIXED")
-        f0 = ((inp("IOR").value - 1.0) / (inp("IOR").value + 1.0)) ** 2 * 2.0 * inp("Specular IOR Level").value
+        ior = inp("IOR").value
+        f0 = (((ior - 1.0) / (ior + 1.0)) ** 2 if ior != -1.0 else 1.0) * 2.0 * \
+            inp("Specular IOR Level").value
         dielectric = tuple(min(max(f0 * c, 0.0), 1.0) for c in inp("Specular Tint").value)
         metal = tuple(min(max(c, 0.0), 1.0) for c in inp("Base Color").value)
         p["core_reflectivity"] = metal if p["kind"] == "CONDUCTOR" else dielectric
@@ -894,11 +914,20 @@ def read(mat):
 def summary(mat):
     """What the panel shows of a layered material: the core, the plan, the constant parts'
     HazeMappings by part ("COAT" for the coat), whether node math varies them per pixel, and the
-    number of BSDF nodes the layer renders."""
+    number of BSDF nodes the layer renders.  Raises ValueError (one line) when the layer's stamp
+    is damaged or its core is gone."""
+    from . import stamp as _stamp_module
     state = layer_state(mat) or {}
+    problem = _stamp_module.layer_problem(mat, state.get("problems", []))
+    if problem is not None:
+        raise _stamp_module.StampError(problem)
     core = find_core(mat.node_tree, state.get("core"))
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
+    if core.bl_idname not in CORE_TYPES:
+        raise ValueError(f"the haze layer of {mat.name!r} sits on {core.name!r}, a "
+                         f"{core.bl_label} node, not a Principled, Metallic or Glossy BSDF: "
+                         f"Remove Haze")
     plan = Plan(core, haze_of(mat), dict(state.get("base", {})))
     _, _, _, sources, maps = values(plan)
     return dict(core=core, plan=plan, maps=maps, textured=sorted(k[3:] for k in sources),

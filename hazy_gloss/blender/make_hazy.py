@@ -241,10 +241,16 @@ def remove_haze(mat):
     problem = edit_problem(mat)
     if problem is not None:
         return "ERROR", problem, []
-    core = layer.find_core(mat.node_tree)
+    state = layer.layer_state(mat) or {}
+    notes = []
+    if any(keys is None and (".base" in why or why.startswith("layer is"))
+           for why, keys in state.get("problems", [])):
+        notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
+                     "could not restore keep the values the layer gave them")
+    core = layer.find_core(mat.node_tree, state.get("core"))
     layer.remove(mat)
     where = f" from its {core.bl_label} “{core.name}”" if core is not None else ""
-    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", []
+    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes
 
 
 # --------------------------------------------------------------------------------------------

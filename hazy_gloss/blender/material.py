@@ -16,12 +16,13 @@ rebuilds only when the structure must change (kind, distribution of a group, iso
 anisotropic, halo <-> none, lean <-> in-shader), keeping the user's links into and out of the
 hazy nodes, where the user moved them, and their labels.
 """
+import bpy
 import numpy as np
 
 from .. import constants as K
 from ..core.lobes import describe
 from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise, normalise_haze
-from . import compat, layer
+from . import compat, layer, stamp
 from .nodes.builder import TreeBuilder, socket_value
 from .nodes.groups import ensure_group
 from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
@@ -60,34 +61,61 @@ def _stamp(mat, p):
     mat[K.STAMP] = d
 
 
-def _stamp_dict(mat):
-    d = mat.get(K.STAMP)
-    if d is None:
-        return None
-    if hasattr(d, "to_dict"):
-        d = d.to_dict()
-    if not isinstance(d, dict):
-        raise ValueError(f"the stored Hazy Gloss parameters of {mat.name!r} are not a "
-                         f"dictionary ({type(d).__name__})")
-    return d
+def check_material(mat, caller):
+    """TypeError (one line) unless ``mat`` is a bpy.types.Material."""
+    if isinstance(mat, bpy.types.Material):
+        return
+    hint = ""
+    if isinstance(mat, str):
+        hint = f" (look it up first: {caller}(bpy.data.materials[{mat!r}], ...))"
+    elif isinstance(mat, bpy.types.Object):
+        hint = " (an object: pass obj.active_material)"
+    raise TypeError(f"{caller} expects a bpy.types.Material, got {type(mat).__name__}{hint}")
 
 
 def read_parameters(mat):
     """The perceptual parameters stamped on a hazy material, or None.  Raises ValueError (one
-    line naming the parameter) when the stored values are unreadable.  A layered material (Make
-    Hazy on the user's BSDF) gives its haze parameters and the core's own (blender.layer.read),
-    with ``layered`` True."""
-    d = _stamp_dict(mat)
-    if d is None:
+    line naming the material, the parameter and what is valid; blender.stamp.StampError) when
+    the stored values do not read.  A layered material (Make Hazy on the user's BSDF) gives its
+    haze parameters and the core's own (blender.layer.read), with ``layered`` True."""
+    check_material(mat, "read_parameters")
+    if K.STAMP not in mat:
         return None
-    if "layer" in d:
+    if layer.is_layered(mat):
         return layer.read(mat)
-    p = {k: d[k] for k in PARAMETERS if k in d and k != "smoothness"}
-    for k in ("core_reflectivity", "edge_tint", "base_color", "haze_extent"):
-        if k in p and hasattr(p[k], "__len__") and not isinstance(p[k], str):
-            p[k] = tuple(p[k])
-    p["smoothness"] = d.get("smoothness") if d.get("use_smoothness") else None
-    return normalise(p, explicit=())
+    values, problems = stamp.read_material(mat)
+    if problems:
+        raise stamp.StampError(stamp.material_problem(mat, problems))
+    return normalise(values, explicit=())
+
+
+def read_parameters_lenient(mat):
+    """(parameters, problem): what the panel shows — the stamped parameters, the defaults for
+    whatever does not read — and the one-line reason why not, or None.  Never raises."""
+    try:
+        return read_parameters(mat), None
+    except (ValueError, TypeError) as exc:
+        problem = str(exc)
+    p = tree_defaults(mat)
+    try:
+        if layer.is_layered(mat):
+            p.update(layer.haze_of(mat))
+        else:
+            values, _ = stamp.read_material(mat)
+            p.update(values or {})
+        return normalise(p, explicit=()), problem
+    except (ValueError, TypeError):
+        return normalise({}), problem
+
+
+def tree_defaults(mat):
+    """DEFAULTS, with what the tree tells for values a damaged stamp lost: in-shader mapping
+    when the add-on's group node is there."""
+    d = dict(DEFAULTS)
+    tree = getattr(mat, "node_tree", None)
+    if tree is not None:
+        d["shader_mapping"] = GROUP_ROLE in ours(tree)
+    return d
 
 
 def is_hazy(mat):
@@ -356,7 +384,7 @@ def apply(mat, p, *, force_rebuild=False):
     if K.RECOMPOSITE_STAMP in mat:  # an edit leaves recomposite mode: rebuild the normal material
         force_rebuild = True
         del mat[K.RECOMPOSITE_STAMP]
-    old = _stamp_dict(mat) if K.STAMP in mat else None
+    old = stamp.group(mat, K.STAMP)
     same = old is not None and old.get("structure") == repr(structure) and not force_rebuild
     dropped = []
     if not (same and _update_values(mat, p, d)):
@@ -384,9 +412,7 @@ def create_material(name, **params):
 def update_material(mat, **changes):
     """Change some perceptual parameters of a hazy material.  Returns (HazeMapping, group
     inputs whose links had to be dropped because the new configuration has no such input)."""
-    if not hasattr(mat, "node_tree") or not hasattr(mat, "library"):
-        raise TypeError(f"update_material expects a bpy.types.Material, got {type(mat).__name__}"
-                        + (" (look it up with bpy.data.materials[name])" if isinstance(mat, str) else ""))
+    check_material(mat, "update_material")
     if mat.library is not None:
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
     if layer.is_layered(mat):
@@ -394,14 +420,26 @@ def update_material(mat, **changes):
             raise ValueError(f"the haze of {mat.name!r} comes from converted maps: convert the "
                              f"maps again to change it (or Remove Haze, then Make Hazy for "
                              f"haze set here)")
+        normalise_haze(changes)  # unknown names first (did you mean ...)
+        problem = stamp.layer_problem(mat, layer.layer_state(mat)["problems"], fixing=changes)
+        if problem is not None:  # only setting the damaged haze values repairs the stamp
+            raise stamp.StampError(problem)
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
         return next(iter(maps.values()), None), []
-    p = read_parameters(mat)
-    if p is None:
+    unknown = {k: v for k, v in changes.items() if k not in PARAMETERS}
+    if unknown:
+        normalise(unknown)  # raises: unknown names, with "did you mean"
+    values, problems = stamp.read_material(mat)
+    if values is None:
         raise ValueError(f"material {mat.name!r} is not a hazy material (use Make Hazy or "
                          f"api.create_material)")
-    merged = dict(p)
+    damaged = set(PARAMETERS) if "*" in problems else set(problems)
+    if damaged - set(changes):  # a change that sets every damaged value repairs the stamp
+        raise stamp.StampError(stamp.material_problem(
+            mat, {k: v for k, v in problems.items() if k == "*" or k not in changes}))
+    merged = dict(DEFAULTS)
+    merged.update(values)
     merged.update(changes)
     p = normalise(merged, explicit=changes)
     if not p["shader_mapping"]:
@@ -412,6 +450,7 @@ def update_material(mat, **changes):
     return apply(mat, p)
 
 
-__all__ = ("create_material", "update_material", "read_parameters", "is_hazy", "map_parameters",
+__all__ = ("create_material", "update_material", "read_parameters", "read_parameters_lenient",
+           "check_material", "is_hazy", "map_parameters",
            "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",
            "DEFAULTS")

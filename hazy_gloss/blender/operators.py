@@ -22,9 +22,9 @@ from bl_operators.presets import AddPresetBase
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 
 from .. import constants as K
-from ..core.parameters import HAZE_PARAMETERS
+from ..core.parameters import HAZE_PARAMETERS, PARAMETERS
 from ..utils import looks, presets
-from . import layer, material, plots, preferences, properties
+from . import layer, material, plots, preferences, properties, stamp
 from .context import PRESET_SUBDIR, plain_message, target_material
 from .looks import create_look
 from .make_hazy import CORE_NODES, import_two_lobe_mix, make_hazy, remove_haze
@@ -230,6 +230,14 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
             p = presets.parameters(self.preset)
         if layer.is_layered(mat):  # a layer takes the preset's haze; its core is the user's
             p = {k: v for k, v in p.items() if k in HAZE_PARAMETERS}
+            for k in stamp.damaged_haze(layer.layer_state(mat)["problems"]):
+                p.setdefault(k, layer.HAZE[k])  # a preset resets what does not read
+        else:
+            values, problems = stamp.read_material(mat)
+            damaged = PARAMETERS if "*" in problems else problems
+            defaults = material.tree_defaults(mat)
+            for k in damaged:
+                p.setdefault(k, defaults[k])
         _, msg = properties.edit_material(mat, **p)
         if msg:
             _report(self, "ERROR", msg)
@@ -283,8 +291,21 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
         if mat is None or not material.is_hazy(mat):
             _report(self, "ERROR", "The material is not hazy")
             return {"CANCELLED"}
+        if layer.is_layered(mat):
+            _report(self, "ERROR", f"“{mat.name}” is a haze layer on its own BSDF: its parts' "
+                    f"values are in the panel (plots are drawn for hazy materials)")
+            return {"CANCELLED"}
+        problem = properties.stamp_problem(mat)
+        if problem is not None:
+            _report(self, "ERROR", problem)
+            return {"CANCELLED"}
         names = []
-        for which, rgba in plots.compute_plots(mat, preferences.get(context), size=self.size).items():
+        try:
+            plotted = plots.compute_plots(mat, preferences.get(context), size=self.size)
+        except ValueError as exc:
+            _report(self, "ERROR", plain_message(exc))
+            return {"CANCELLED"}
+        for which, rgba in plotted.items():
             img = plots.plot_image(which, rgba)
             names.append(img.name)
         _report(self, "INFO", "Plots written to " + ", ".join(f"“{n}”" for n in names))

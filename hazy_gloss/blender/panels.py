@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core.parameters import is_anisotropic
-from . import layer, material, plots, preferences, properties
+from . import layer, material, plots, preferences, properties, stamp
 from .context import edit_problem, maps_problem, plain_message, target_material
 from .menus import draw_recomposite_operators
 
@@ -77,8 +77,6 @@ def warnings_for(mat, p, m, context=None, prefs=None):
         scene = getattr(context, "scene", None) if context is not None else None
         if scene is not None and "EEVEE" in scene.render.engine:
             out.append("EEVEE ignores anisotropy: render with Cycles to see it")
-    if properties.stamp_problem(mat):
-        out.append(properties.stamp_problem(mat))
     return out
 
 
@@ -139,15 +137,20 @@ def draw_material(layout, context, mat, idname):
     if layer.is_layered(mat):
         draw_layer(layout, context, mat, idname, hg, problem)
         return
-    p = properties.parameters(mat)
+    p, damaged = material.read_parameters_lenient(mat)
 
     col = layout.column()
     if problem is not None:
         box = col.box()
         box.alert = True
         box.label(text=problem, icon="LIBRARY_DATA_DIRECT")
+    if damaged is not None:  # the sliders show the defaults where the stamp does not read
+        box = col.box()
+        box.alert = True
+        box.label(text=damaged, icon="ERROR")
+        box.label(text="Apply a preset (Presets below) to reset the parameters", icon="PRESET")
     err = properties.error_for(mat)
-    if err and problem is None:
+    if err and problem is None and err != damaged:
         box = col.box()
         box.alert = True
         box.label(text=err, icon="ERROR")
@@ -304,10 +307,14 @@ def draw_layer(layout, context, mat, idname, hg, problem):
     col = layout.column()
     try:
         info = layer.summary(mat)
-    except ValueError as exc:
+    except ValueError as exc:  # a damaged stamp or a missing core: say so, offer the way out
         box = col.box()
         box.alert = True
         box.label(text=plain_message(exc), icon="ERROR")
+        state = layer.layer_state(mat) or {}
+        if stamp.damaged_haze(state.get("problems", [])) and problem is None:
+            row = col.row(align=True)  # a preset sets every haze value: it repairs them
+            row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
         col.operator("hazy_gloss.remove_haze", icon="X")
         return
     core = info["core"]

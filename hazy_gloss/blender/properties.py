@@ -27,6 +27,7 @@ Edits go through :func:`edit_material`, which
 - records a plain-language message per material when a change is refused
   (:data:`last_error`, shown by the panel).
 """
+import math
 import time
 
 import bpy
@@ -99,23 +100,20 @@ def is_live(mat):
 
 
 def parameters(mat):
-    """The stamped parameters, or the defaults (a non-hazy material, an unreadable stamp)."""
-    try:
-        p = material.read_parameters(mat) if mat is not None else None
-    except (ValueError, TypeError, KeyError, IndexError):
-        p = None
+    """The stamped parameters; the defaults for a non-hazy material and for whatever part of a
+    damaged stamp does not read (stamp_problem says what)."""
+    if mat is None or not material.is_hazy(mat):
+        return normalise({})
+    p, _ = material.read_parameters_lenient(mat)
     return p if p is not None else normalise({})
 
 
 def stamp_problem(mat):
-    """Why the stamp cannot be read, in plain words, or None."""
+    """Why the stamp cannot be read (one line naming the key and the way out), or None."""
     if mat is None or not material.is_hazy(mat):
         return None
-    try:
-        material.read_parameters(mat)
-    except (ValueError, TypeError, KeyError, IndexError) as exc:
-        return f"The stored Hazy Gloss parameters are unreadable ({exc}); apply a preset to reset them"
-    return None
+    _, problem = material.read_parameters_lenient(mat)
+    return problem
 
 
 def edit_material(mat, **changes):
@@ -157,15 +155,33 @@ def edit_material(mat, **changes):
 
 
 def _set(pg, **changes):
+    """A setter: Blender prints and swallows exceptions raised in a property setter, so a
+    refused change is recorded (:data:`last_error`, api.last_error)."""
     mat = pg.id_data
     _, msg = edit_material(mat, **changes)
     if msg:
         print(f"Hazy Gloss: {mat.name}: {msg}")
 
 
+def _finite(value, default=0.0):
+    """A getter's float: ``default`` for what is not a finite number (a baked layer's
+    "texture" haziness, say)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return float(default)
+    if not math.isfinite(x):
+        return float(default)
+    return max(-_FLOAT32_MAX, min(x, _FLOAT32_MAX))  # a float property is a C float
+
+
+_FLOAT32_MAX = 3.0e38
+
+
 def _get_float(key):
     def get(self):
-        return float(parameters(self.id_data).get(key, HAZE_DEFAULTS.get(key, 0.0)))
+        default = HAZE_DEFAULTS.get(key, 0.0)
+        return _finite(parameters(self.id_data).get(key, default), default)
     return get
 
 
@@ -177,7 +193,7 @@ def _set_float(key):
 
 def _get_rgb(key):
     def get(self):
-        return tuple(parameters(self.id_data)[key])
+        return tuple(_finite(c) for c in parameters(self.id_data)[key])
     return get
 
 
@@ -230,7 +246,7 @@ def _set_tangent(self, value):
 
 def _get_extent(axis):
     def get(self):
-        return float(parameters(self.id_data)["haze_extent"][axis])
+        return _finite(parameters(self.id_data)["haze_extent"][axis], 5.0)
     return get
 
 
@@ -279,7 +295,7 @@ def _set_use_smooth(self, value):
 
 def _get_smoothness(self):
     w = parameters(self.id_data)["smoothness"]
-    return float(w) if w is not None else float(self.smoothness_memory)
+    return min(_finite(w, 1e6), 1e6) if w is not None else float(self.smoothness_memory)
 
 
 def _set_smoothness(self, value):

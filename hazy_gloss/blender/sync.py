@@ -15,7 +15,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from .. import constants as K
-from . import layer, properties
+from . import layer, properties, stamp
 from .context import plain_message
 
 _fingerprints = layer.FINGERPRINTS
@@ -27,6 +27,10 @@ def sync(mat, *, force=False):
     if not layer.is_layered(mat) or mat.library is not None:
         return False
     state = layer.layer_state(mat) or {}
+    problem = stamp.layer_problem(mat, state.get("problems", []))
+    if problem is not None:  # rerunning would take the damaged values for the user's
+        properties.last_error[mat.session_uid] = problem
+        return False
     core = layer.find_core(mat.node_tree, state.get("core"))
     if core is None:
         properties.last_error[mat.session_uid] = (
@@ -35,12 +39,40 @@ def sync(mat, *, force=False):
     key = mat.session_uid
     if not force and _fingerprints.get(key) == layer.fingerprint(core):
         return False
+    gaps = _baked_gaps(mat, state, core) if "baked" in state else []
+    if gaps:  # the layer would have to rebuild them from maps it no longer knows
+        properties.last_error[key] = (
+            f"The haze layer of “{mat.name}” lists no baked map for {len(gaps)} of its values "
+            f"(its stamp lost them): convert the maps again, or Remove Haze")
+        return False
     try:
         layer.apply(mat, layer.haze_of(mat), core=core)  # records the new fingerprint
     except (ValueError, TypeError) as exc:
         properties.last_error[key] = plain_message(exc)
         return False
     return True
+
+
+def _needs_haze_map(expr, seen):
+    """Whether ``expr`` reads a per-texel haze value (a graph input "haze:<name>")."""
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if id(e) in seen:
+            continue
+        seen.add(id(e))
+        if e.op == "input" and (e.name or "").startswith("haze:"):
+            return True
+        stack.extend(a for a in e.args if hasattr(a, "op"))
+    return False
+
+
+def _baked_gaps(mat, state, core):
+    """The outputs of a baked layer that vary with a haze map but have no baked image."""
+    baked = layer._baked_from_state(mat.node_tree, state) or {"maps": {}}
+    plan = layer.Plan(core, layer.haze_of(mat), dict(state.get("base", {})))
+    flat, _, _, _ = layer.output_keys(plan)
+    return [k for k, e in flat.items() if k not in baked["maps"] and _needs_haze_map(e, set())]
 
 
 @persistent
@@ -58,7 +90,12 @@ def on_depsgraph_update(scene, depsgraph):
     _busy = True
     try:
         for mat in mats:
-            sync(mat)
+            try:
+                sync(mat)
+            except Exception as exc:  # noqa: BLE001 (a handler must not raise on every update)
+                properties.last_error[mat.session_uid] = (
+                    f"Hazy Gloss could not update the haze layer of “{mat.name}”: "
+                    f"{plain_message(exc)}")
     finally:
         _busy = False
 

@@ -11,6 +11,7 @@ from ... import constants as K
 from ...core import node_math
 from ...core.graph import Graph
 from ...core.lobes import check_kind
+from .. import stamp
 from .builder import TreeBuilder
 from .emit import emit
 from .lobes import build_lobes
@@ -158,7 +159,8 @@ def ensure_group(kind, distribution="GGX", anisotropic=False, smooth=False):
     check_kind(kind, distribution)
     name = group_name(kind, distribution, anisotropic, smooth)
     ng = bpy.data.node_groups.get(name)
-    if ng is not None and ng.get(K.GROUP_STAMP, {}).get("version") == GROUP_VERSION and not ng.library:
+    if ng is not None and not ng.library and \
+            (stamp.group(ng, K.GROUP_STAMP) or {}).get("version") == GROUP_VERSION:
         return ng
     if ng is None:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")

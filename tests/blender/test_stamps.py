@@ -1,0 +1,264 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Damaged stamps (issue 14 item 6): every reader of ``mat["hazy_gloss"]`` (and of a haze
+layer's ``["layer"]``, the recomposite and export-fallback stamps) survives any content with
+one line naming the key and what is valid, and a safe result: the panel shows the message and
+a way out, operators report ERROR, nothing is deleted.
+
+- the issue's reproduction, saved and reloaded, through every reader it broke;
+- the way out works: a preset (or setting the damaged value) repairs the stamp, Remove Haze
+  takes a damaged layer off restoring what it can;
+- recomposite set-up / clear with stamps of the wrong type;
+- the stamp fuzz (stamp_fuzz.py): every key path of each material type's stamp times every
+  mutation, bounded in time; outcomes counted in out/measurements (docs/verification.md).
+"""
+import importlib
+import os
+from types import SimpleNamespace
+
+import bpy
+import pytest
+
+import scenes
+import stamp_fuzz
+from measurements import record
+from test_ui import StandIn, fake_context
+
+
+@pytest.fixture
+def env(hg, clean_file):
+    def mod(name):
+        return importlib.import_module(f"{hg.__name__}.{name}")
+    return SimpleNamespace(api=mod("api"), panels=mod("blender.panels"), ops=mod("blender.operators"),
+                           props=mod("blender.properties"), layer=mod("blender.layer"),
+                           composite=mod("blender.composite"),
+                           hg=hg)
+
+
+def draw(env, mat, node_editor=False):
+    log = []
+    obj = bpy.data.objects.get("Obj") or bpy.data.objects.new("Obj", bpy.data.meshes.new("Obj"))
+    if node_editor:
+        obj.active_material = mat
+        space = SimpleNamespace(type="NODE_EDITOR", tree_type="ShaderNodeTree",
+                                shader_type="OBJECT", id=mat, edit_tree=mat.node_tree)
+        env.panels.HAZY_GLOSS_PT_shader_editor.draw(SimpleNamespace(layout=StandIn(log)),
+                                                    fake_context(None, obj, space))
+    else:
+        env.panels.HAZY_GLOSS_PT_material.draw(SimpleNamespace(layout=StandIn(log)),
+                                               fake_context(mat, obj))
+    labels = [g.get("text", "") for n, g in log if n == "label"]
+    menus = {g["menu"] for n, g in log if n == "menu"}
+    ops = {g["operator"] for n, g in log if n == "operator"}
+    return labels, menus, ops
+
+
+def reload(tmp_path, name):
+    path = str(tmp_path / "damaged.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    return bpy.data.materials[name]
+
+
+def one_line(msg):
+    assert "\n" not in msg.strip() and "Traceback" not in msg, msg
+    return msg
+
+
+def test_issue_reproduction_haze_extent_of_one_value(env, tmp_path):
+    """mat["hazy_gloss"]["haze_extent"] = [1.0], saved and reloaded: read_parameters,
+    update_material, both panels and the operators used to raise IndexError."""
+    api = env.api
+    mat = api.create_material("Broken", haziness=0.3)
+    user = mat.node_tree.nodes.new("ShaderNodeTexNoise")
+    user.name = "User noise"
+    mat["hazy_gloss"]["haze_extent"] = [1.0]
+    mat.use_fake_user = True
+    mat = reload(tmp_path, "Broken")
+    with pytest.raises(ValueError, match=r"haze_extent must be a number or an \(x, y\) pair") as e:
+        api.read_parameters(mat)
+    one_line(str(e.value))
+    assert "“Broken”" in str(e.value) and "preset" in str(e.value)
+    with pytest.raises(ValueError, match="haze_extent"):
+        api.update_material(mat, haziness=0.2)
+    for node_editor in (False, True):
+        labels, menus, ops = draw(env, mat, node_editor)
+        assert any("haze_extent" in t for t in labels), labels
+        assert "HAZY_GLOSS_MT_presets" in menus  # the way out
+    # the settings show the defaults for what does not read, the rest as stored
+    s = mat.hazy_gloss_settings
+    assert s.haze_extent_x == 5.0 and s.haziness == pytest.approx(0.3)
+    s.haziness = 0.2  # refused, with the reason recorded (not only printed)
+    assert "haze_extent" in api.last_error(mat)
+    for op, kw in (("plot_to_image", {}), ("import_two_lobe_mix", {}), ("make_hazy", {})):
+        try:
+            getattr(bpy.ops.hazy_gloss, op)(material=mat.name, **kw)
+        except RuntimeError as exc:  # an ERROR report, never a traceback
+            one_line(str(exc))
+    assert "User noise" in mat.node_tree.nodes and "hazy_gloss" in mat
+    # setting the damaged value repairs the stamp; so does a preset
+    s.haze_extent_x = 4.0
+    assert api.read_parameters(mat)["haze_extent"] == (4.0, 4.0)
+    mat["hazy_gloss"]["haze_extent"] = [1.0]
+    assert bpy.ops.hazy_gloss.apply_preset(material=mat.name, preset="PROBE_B") == {"FINISHED"}
+    p = api.read_parameters(mat)
+    assert p["haze_extent"][0] == p["haze_extent"][1] > 0
+    assert "User noise" in mat.node_tree.nodes
+
+
+@pytest.mark.parametrize("stamp", [5, "junk", [1.0, 2.0], {}, {"kind": 7}])
+def test_stamp_that_is_not_a_group(env, stamp):
+    api = env.api
+    mat = api.create_material("Odd", shader_mapping=True)
+    mat["hazy_gloss"] = stamp
+    with pytest.raises(ValueError) as e:
+        api.read_parameters(mat)
+    msg = one_line(str(e.value))
+    assert "“Odd”" in msg and ("kind" in msg or "not a group" in msg), msg
+    labels, menus, _ = draw(env, mat)
+    assert any(msg[:30] in t for t in labels) and "HAZY_GLOSS_MT_presets" in menus
+    # a preset resets it, keeping the in-shader group the tree still has
+    assert bpy.ops.hazy_gloss.apply_preset(material=mat.name, preset="PROBE_B") == {"FINISHED"}
+    assert api.read_parameters(mat)["shader_mapping"] is True
+
+
+def _layered(name):
+    mat = scenes.new_material(name)
+    bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Metallic"].default_value = 0.5
+    bsdf.inputs["Coat Weight"].default_value = 1.0
+    bsdf.inputs["IOR"].default_value = 1.45
+    return mat, bsdf
+
+
+def test_damaged_layer_stamp(env, tmp_path):
+    """A haze layer's stamp: damaged haze values are reset by a preset; a damaged record of
+    the BSDF's own values leaves only Remove Haze, which restores what it can."""
+    api, layer = env.api, env.layer
+    mat, bsdf = _layered("Layer")
+    api.make_hazy(mat, haziness=0.4, coat_haziness=0.3)
+    mat.use_fake_user = True
+    d = mat["hazy_gloss"].to_dict()
+    d["layer"]["haze"]["coat_haze_extent"] = []
+    mat["hazy_gloss"] = d
+    mat = reload(tmp_path, "Layer")
+    with pytest.raises(ValueError, match="coat_haze_extent") as e:
+        api.read_parameters(mat)
+    one_line(str(e.value))
+    with pytest.raises(ValueError, match="coat_haze_extent"):
+        api.update_material(mat, haziness=0.2)
+    api.update_material(mat, haziness=0.2, coat_haze_extent=4.0)  # sets what was damaged
+    assert layer.haze_of(mat)["coat_haze_extent"] == 4.0
+    d = mat["hazy_gloss"].to_dict()
+    d["layer"]["haze"]["haziness"] = "abc"
+    mat["hazy_gloss"] = d
+    labels, menus, ops = draw(env, mat)
+    assert any("layer.haze.haziness" in t for t in labels)
+    assert "HAZY_GLOSS_MT_presets" in menus and "hazy_gloss.remove_haze" in ops
+    assert bpy.ops.hazy_gloss.apply_preset(material=mat.name, preset="PROBE_B") == {"FINISHED"}
+    assert not layer.layer_state(mat)["problems"]
+    # the BSDF's own IOR as the layer recorded it, damaged: only Remove Haze
+    d = mat["hazy_gloss"].to_dict()
+    d["layer"]["base"]["IOR"] = {"value": "1.45"}
+    d["layer"]["base"]["Metallic"] = {"value": [0.5, 0.5]}
+    mat["hazy_gloss"] = d
+    bsdf = layer.find_core(mat.node_tree)
+    with pytest.raises(ValueError, match=r"layer\.base\.IOR.*Remove Haze"):
+        api.update_material(mat, haziness=0.3)
+    sync = importlib.import_module(env.hg.__name__ + ".blender.sync")
+    assert not sync.sync(mat, force=True)  # the handler does not take it either
+    assert "layer.base.IOR" in api.last_error(mat)
+    with pytest.raises(RuntimeError, match="Remove Haze"):
+        bpy.ops.hazy_gloss.apply_preset(material=mat.name, preset="PROBE_B")
+    labels, menus, ops = draw(env, mat, node_editor=True)
+    assert any("layer.base.IOR" in t for t in labels) and "hazy_gloss.remove_haze" in ops
+    assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"FINISHED"}
+    assert "hazy_gloss" not in mat and not env.layer._layer_nodes(mat.node_tree)
+    assert bsdf.inputs["Coat IOR"].default_value == pytest.approx(1.5)  # restored
+    out = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    assert out.inputs["Surface"].links[0].from_node == bsdf
+
+
+@pytest.mark.parametrize("stamp", [5, "junk", {"version": 2}])
+def test_layer_whose_stamp_lost_it(env, stamp):
+    """A layered tree whose stamp no longer says so is a damaged layer, not a lean material a
+    preset would rebuild over the user's BSDF."""
+    api = env.api
+    mat, bsdf = _layered("Lost")
+    api.make_hazy(mat, haziness=0.4)
+    mat["hazy_gloss"] = stamp
+    assert env.layer.is_layered(mat)
+    with pytest.raises(ValueError, match="haze layer"):
+        api.read_parameters(mat)
+    with pytest.raises(RuntimeError, match="Remove Haze"):
+        bpy.ops.hazy_gloss.apply_preset(material=mat.name, preset="PROBE_B")
+    assert bsdf.name in mat.node_tree.nodes
+    _, _, ops = draw(env, mat)
+    assert "hazy_gloss.remove_haze" in ops
+    assert bpy.ops.hazy_gloss.remove_haze(material=mat.name) == {"FINISHED"}
+    out = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    assert out.inputs["Surface"].links[0].from_node == bsdf
+
+
+@pytest.mark.parametrize("bad", [5, "junk", [1.0], {"template": 7, "file_format": ["x"]}])
+def test_recomposite_stamps_of_the_wrong_type(env, bad):
+    """setup_recomposite / clear_recomposite used to raise on stamps of the wrong type."""
+    api, composite = env.api, env.composite
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    good = api.create_material("Good", haziness=0.4)
+    broken = api.create_material("Broken")
+    broken["hazy_gloss"] = bad if not isinstance(bad, dict) else {"kind": 7}
+    obj = bpy.data.objects.new("Obj", bpy.data.meshes.new("Obj"))
+    obj.data.materials.append(good)
+    obj.data.materials.append(broken)
+    scene.collection.objects.link(obj)
+    good["hazy_gloss_recomposite"] = bad
+    scene["hazy_gloss_recomposite"] = bad
+    report = composite.setup_recomposite(scene)
+    assert report["converted"] == ["Good"]
+    one_line(report["skipped"]["Broken"])
+    assert "Broken" in report["skipped"]["Broken"]
+    broken["hazy_gloss_recomposite"] = bad
+    composite.clear_recomposite(scene)
+    assert "hazy_gloss_recomposite" not in scene and "hazy_gloss_recomposite" not in good
+    assert bpy.ops.hazy_gloss.setup_recomposite() == {"FINISHED"}
+    scene["hazy_gloss_recomposite"] = bad
+    assert bpy.ops.hazy_gloss.clear_recomposite() == {"FINISHED"}
+
+
+def test_export_stamps_of_the_wrong_type(env, tmp_path):
+    api = env.api
+    mat = api.create_material("Export me", haziness=0.4)
+    api.add_export_fallback(mat)
+    mat["hazy_gloss_export_fallback"] = [1, 2, 3]
+    api.remove_export_fallback(mat)
+    maps = scenes.new_material("Maps")
+    maps["hazy_gloss_maps"] = {"kind": 7, "maps": "x"}
+    rep = api.export_materialx([mat, maps], str(tmp_path / "x.mtlx"), validate=False)
+    assert [m[0] for m in rep.materials] == ["Export me"]
+    assert any("Maps" in str(s) and "damaged" in str(s) for s in rep.skipped)
+
+
+FUZZ_BUDGET = float(os.environ.get("HAZY_GLOSS_FUZZ_SECONDS", "150"))
+FUZZ_STRIDE = int(os.environ.get("HAZY_GLOSS_FUZZ_STRIDE", "7"))
+
+
+def test_stamp_fuzz(env, tmp_path):
+    """Every key path x every mutation of the four material types' stamps (every seventh case
+    by default: 7 is prime to the 20 mutations, so every mutation meets every kind of key;
+    HAZY_GLOSS_FUZZ_STRIDE=1 for all), through every driver, then saved, reloaded and driven
+    again: only ok, refused (one line, the add-on's own words) or noop."""
+    fuzz = stamp_fuzz.Fuzz(env.hg.__name__, str(tmp_path), alarm=10.0)
+    counts = fuzz.run(budget=FUZZ_BUDGET, stride=FUZZ_STRIDE)
+    by_outcome = {}
+    for (_, _, _, outcome), n in counts.items():
+        by_outcome[outcome] = by_outcome.get(outcome, 0) + n
+    record("stamp_fuzz", {"cases": fuzz.cases, "driver_calls": sum(counts.values()),
+                          "seconds": fuzz.seconds, "slowest_driver_s": fuzz.slowest[0],
+                          "outcomes": by_outcome,
+                          "by_attack": {k[0]: dict(c) for k, c in stamp_fuzz.summary(counts).items()}})
+    bad = {k: n for k, n in counts.items() if k[3] not in ("ok", "refused", "noop")}
+    examples = {k: v for k, v in fuzz.examples.items() if k[1] not in ("ok", "refused", "noop")}
+    assert not bad, (stamp_fuzz.table(bad), examples)
+    assert fuzz.cases >= 1000, fuzz.cases  # the budget is not eaten by a slow machine alone
+    assert fuzz.slowest[0] < 5.0, fuzz.slowest
