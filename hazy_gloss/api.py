@@ -51,6 +51,7 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     BSDF.  Returns ``mat``; raises ValueError
     (one line, the reason) when it cannot, touching nothing."""
     from .blender import make_hazy as _make
+    _material.check_material(mat, "make_hazy")
     status, msg, _ = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
     if status == "ERROR":
         raise ValueError(msg)
@@ -69,6 +70,7 @@ def remove_haze(mat):
     """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
     the layer's nodes go.  Returns whether there was a layer."""
     from .blender import make_hazy as _make
+    _material.check_material(mat, "remove_haze")
     status, msg, _ = _make.remove_haze(mat)
     if status == "ERROR":
         raise ValueError(msg)
@@ -79,6 +81,7 @@ def sync_haze(mat):
     """Bring ``mat``'s haze layer up to date after its BSDF was edited (a handler does this for
     materials in use; call it for a material no object uses).  Returns whether it changed."""
     from .blender import sync as _sync
+    _material.check_material(mat, "sync_haze")
     return _sync.sync(mat)
 
 
@@ -156,15 +159,26 @@ def last_error(mat):
     """The message of the last change of ``mat`` through ``mat.hazy_gloss_settings`` that was
     refused (None after a change that went through).  Blender prints and swallows exceptions
     raised in property setters, so a script setting ``mat.hazy_gloss_settings.roughness = 2``
-    learns of the refusal here."""
+    learns of the refusal here, or raises with :func:`strict_settings`."""
     _material.check_material(mat, "last_error")
     from .blender import properties as _props
     return _props.error_for(mat)
 
 
+def strict_settings():
+    """A context manager: settings changed inside it that are refused raise ValueError (one
+    line: the material and the reason) when the block ends::
+
+        with api.strict_settings():
+            mat.hazy_gloss_settings.roughness = 2   # ValueError: roughness must be in [0, 1] ...
+    """
+    from .blender import properties as _props
+    return _props.strict_settings()
+
+
 __all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
-           "last_error", "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
+           "last_error", "strict_settings", "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
 
 
 # --------------------------------------------------------------------------------------------
@@ -208,12 +222,14 @@ def add_export_fallback(mat):
     """Make Blender's own glTF and USD exporters write this hazy material's core lobe (its
     look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes."""
     from .blender import interchange as _ix
+    _material.check_material(mat, "add_export_fallback")
     return _ix.add_export_fallback(mat)
 
 
 def remove_export_fallback(mat):
     """Undo :func:`add_export_fallback`; returns True when something was removed."""
     from .blender import interchange as _ix
+    _material.check_material(mat, "remove_export_fallback")
     return _ix.remove_export_fallback(mat)
 
 

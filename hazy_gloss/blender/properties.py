@@ -154,13 +154,38 @@ def edit_material(mat, **changes):
 # --------------------------------------------------------------------------------------------
 
 
+#: Open strict_settings() blocks: lists collecting (material name, message) of refused changes.
+_strict = []
+
+
 def _set(pg, **changes):
     """A setter: Blender prints and swallows exceptions raised in a property setter, so a
-    refused change is recorded (:data:`last_error`, api.last_error)."""
+    refused change is recorded (:data:`last_error`, api.last_error) and collected by an open
+    :func:`strict_settings` block, which raises when it closes."""
     mat = pg.id_data
     _, msg = edit_material(mat, **changes)
     if msg:
         print(f"Hazy Gloss: {mat.name}: {msg}")
+        for errors in _strict:
+            errors.append((mat.name, msg))
+
+
+class strict_settings:
+    """``with strict_settings(): mat.hazy_gloss_settings.roughness = 2`` raises ValueError (one
+    line) when the block ends if a setting made in it was refused (api.strict_settings)."""
+
+    def __enter__(self):
+        self.errors = []
+        _strict.append(self.errors)
+        return self.errors
+
+    def __exit__(self, typ, value, tb):
+        _strict.remove(self.errors)
+        if typ is None and self.errors:
+            name, msg = self.errors[0]
+            more = f" (and {len(self.errors) - 1} more refused)" if len(self.errors) > 1 else ""
+            raise ValueError(f"{name}: {msg}{more}")
+        return False
 
 
 def _finite(value, default=0.0):
@@ -330,12 +355,12 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
                                get=_get_distribution, set=_set_distribution, options=_NO_ANIM,
                                description="Microfacet distribution of both lobes")
     core_reflectivity: FloatVectorProperty(
-        name="Core Reflectivity", subtype="COLOR", size=3, min=0.0, max=1.0,
+        name="Core Reflectivity", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
         get=_get_rgb("core_reflectivity"), set=_set_rgb("core_reflectivity"), options=_NO_ANIM,
         description="r_c: reflectivity of the sharp core at normal incidence (linear RGB). "
                     "Haze never changes the brightness of the highlight's peak")
     edge_tint: FloatVectorProperty(
-        name="Edge Tint", subtype="COLOR", size=3, min=0.0, max=1.0,
+        name="Edge Tint", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
         get=_get_rgb("edge_tint"), set=_set_rgb("edge_tint"), options=_NO_ANIM,
         description="g: colour towards grazing angles (Gulbrandsen 2014); black = "
                     "dielectric-like Fresnel")
@@ -387,7 +412,7 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
         description="Compute the mapping in the shader (a node group whose inputs take "
                     "textures) instead of constants computed here (leaner, faster to render)")
     base_color: FloatVectorProperty(
-        name="Base Color", subtype="COLOR", size=3, min=0.0, max=1.0,
+        name="Base Color", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
         get=_get_rgb("base_color"), set=_set_rgb("base_color"), options=_NO_ANIM,
         description="Diffuse colour under a dielectric's specular layer")
     transmission: FloatProperty(
