@@ -78,7 +78,8 @@ def remove_haze(mat):
 
 
 def sync_haze(mat):
-    """Bring ``mat``'s haze layer up to date after its BSDF was edited (a handler does this for
+    """Bring ``mat``'s haze layer up to date after its BSDF was edited, or read a lean /
+    in-shader material's node-editor edits back into its parameters (a handler does this for
     materials in use; call it for a material no object uses).  Returns whether it changed."""
     from .blender import sync as _sync
     _material.check_material(mat, "sync_haze")
@@ -90,14 +91,24 @@ def update_material(mat, **changes):
     structure stays the same, else the hazy nodes are rebuilt keeping the user's links.  On a
     material made hazy with :func:`make_hazy` (a haze layer) the changes are haze parameters
     (the core's own are its node's inputs).  Returns the HazeMapping of the new parameters
-    (of a layer: of its first constant part, or None when node math varies it per pixel)."""
-    return _material.update_material(mat, **changes)[0]
+    (of a layer: of its first constant part, or None when node math varies it per pixel).
+
+    Values the user changed in the node editor on the add-on's nodes are read back first (the
+    group's inputs of an in-shader material; a lean tree through the inverse haze mapping); what
+    cannot be read back is replaced, with a UserWarning naming it."""
+    return update_material_links(mat, **changes)[0]
 
 
 def update_material_links(mat, **changes):
     """:func:`update_material`, also returning the group inputs whose links had to be dropped
     because the new configuration has no such input (e.g. Edge Tint of a dielectric)."""
-    return _material.update_material(mat, **changes)
+    out = _material.update_material(mat, **changes)
+    replaced = _material.REPLACED.get(mat.session_uid)
+    if replaced:
+        import warnings
+        warnings.warn(f"{mat.name}: replaced node-editor edits the haze parameters cannot "
+                      f"represent: {', '.join(replaced)}", UserWarning, stacklevel=2)
+    return out
 
 
 def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",

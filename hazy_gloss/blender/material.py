@@ -16,15 +16,19 @@ rebuilds only when the structure must change (kind, distribution of a group, iso
 anisotropic, halo <-> none, lean <-> in-shader), keeping the user's links into and out of the
 hazy nodes, where the user moved them, and their labels.
 """
+from typing import NamedTuple
+
 import bpy
 import numpy as np
 
 from .. import constants as K
+from ..core import inverse_haze_mapping
+from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.lobes import describe
 from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise, normalise_haze
 from . import compat, layer, stamp
 from .nodes.builder import TreeBuilder, socket_value
-from .nodes.groups import ensure_group
+from .nodes.groups import GROUP_VERSION, ensure_group
 from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
 from .nodes.ownership import is_ours, output_node, ours, role  # noqa: F401  (re-exported)
 
@@ -153,9 +157,17 @@ def remove_ours(tree):
         tree.nodes.remove(n)
 
 
+#: What the user may set on the add-on's nodes in the node editor that a rebuild keeps (for
+#: every role the rebuilt tree still has), besides their location: set in this order (the
+#: parent frame before the location, which is relative to it).
+_KEPT = ("name", "label", "parent", "width", "hide", "use_custom_color", "color")
+
+
 class UserLinks:
     """The links between the user's nodes and the hazy nodes, recorded before a rebuild and
-    restored after it, with where the user put our nodes and the labels they gave them.
+    restored after it, with what the user set on our nodes in the node editor: name (F2 on
+    older keymaps, the sidebar), label, frame, width, collapse, colour, and where each of them
+    is (a single node moved stays where it was put; new nodes follow the moved BSDF).
     ``dropped`` lists group inputs that no longer exist (e.g. Edge Tint of a dielectric)."""
 
     def __init__(self, tree):
@@ -182,9 +194,14 @@ class UserLinks:
                     self.outgoing.append((ra, link.to_node.name, link.to_socket.identifier))
         if surf.is_linked and by_node.get(surf.links[0].from_node.as_pointer()) is None:
             self.surface_from = (surf.links[0].from_node.name, surf.links[0].from_socket.identifier)
+        self.kept = {}  # role -> {property: value}
         for r, n in mine.items():
             if n.label:
                 self.labels[r] = n.label
+            self.kept[r] = {"name": n.name, "label": n.label,
+                            "parent": n.parent.name if n.parent is not None else None,
+                            "width": n.width, "hide": n.hide,
+                            "use_custom_color": n.use_custom_color, "color": tuple(n.color)}
         self.locations = {r: tuple(n.location) for r, n in mine.items()}
 
     @property
@@ -197,14 +214,29 @@ class UserLinks:
         nodes = tree.nodes
         mine = ours(tree)
         final_role = role(final.node) if final is not None else None
-        if self.anchor is not None and final is not None:  # keep where the user put our nodes
+        if self.anchor is not None and final is not None:  # new nodes follow the moved BSDF
             dx = self.anchor[1][0] - final.node.location.x
             dy = self.anchor[1][1] - final.node.location.y
             for n in mine.values():
                 n.location = (n.location.x + dx, n.location.y + dy)
-        for r, label in self.labels.items():
-            if r in mine and mine[r].label != label:
-                mine[r].label = label
+        for r, n in mine.items():  # what the user set on a node that is still there
+            kept = self.kept.get(r)
+            if kept is None:
+                continue
+            for attr in _KEPT:
+                value = kept[attr]
+                if attr == "parent":
+                    value = nodes.get(value) if value is not None else None
+                    if value is not None and value.bl_idname != "NodeFrame":
+                        continue
+                if attr == "name" and value == n.name:
+                    continue
+                try:
+                    if getattr(n, attr) != value:
+                        setattr(n, attr, value)
+                except (TypeError, ValueError, AttributeError):
+                    pass
+            n.location = self.locations[r]
         surf = output_node(tree).inputs["Surface"]
         if self.surface_from is not None:
             src = nodes.get(self.surface_from[0])
@@ -319,58 +351,432 @@ def _set(node, name, value):
         sock.default_value = v
 
 
-def _update_values(mat, p, d):
-    """Write the values of ``p`` into a tree of the right structure.  Returns False when the
-    tree does not have it (the caller rebuilds)."""
+class Write(NamedTuple):
+    """One value the add-on writes into its nodes: an input's default value, or a node
+    property (``attr``: distribution, a Tangent's direction and axis)."""
+
+    role: str
+    name: str
+    value: object
+    attr: bool = False
+
+
+def group_fits(ng, p, anisotropic):
+    """Whether the node group ``ng`` is the add-on's group for ``p``'s configuration (by its
+    stamp, so a group the user renamed still fits)."""
+    if ng is None or ng.library is not None:
+        return False
+    g = stamp.group(ng, K.GROUP_STAMP) or {}
+    return (g.get("version") == GROUP_VERSION and g.get("kind") == p["kind"]
+            and g.get("distribution") == p["distribution"]
+            and bool(g.get("anisotropic")) == bool(anisotropic)
+            and bool(g.get("smooth")) == (p["smoothness"] is not None))
+
+
+def writes(mat, p, d):
+    """Every value the add-on writes into a tree of ``p``'s structure ([Write]), or None when
+    the tree does not have that structure (the caller rebuilds)."""
     mine = ours(mat.node_tree)
+    out = []
     if p["shader_mapping"]:
         g = mine.get(GROUP_ROLE)
-        want = ensure_group(p["kind"], p["distribution"], bool(d.anisotropic), p["smoothness"] is not None)
-        if g is None or g.bl_idname != "ShaderNodeGroup" or g.node_tree != want:
-            return False
-        for name, value in _group_values(p).items():
-            _set(g, name, value)
+        if g is None or g.bl_idname != "ShaderNodeGroup" or \
+                not group_fits(g.node_tree, p, d.anisotropic):
+            return None
+        out += [Write(GROUP_ROLE, name, value) for name, value in _group_values(p).items()]
     else:
         node_type = LOBE_NODES[p["kind"]]
         narrow, wide = mine.get("Narrow lobe"), mine.get("Wide lobe")
         if narrow is None or narrow.bl_idname not in node_type or \
                 (d.wide is not None) != (wide is not None) or \
                 (wide is not None and wide.bl_idname not in node_type):
-            return False
-        mix = mine.get("Lobe sum" if p["kind"] == "LEGACY" else "Lobe mix")
-        if (d.wide is not None) != (mix is not None):
-            return False
+            return None
+        mix_role = "Lobe sum" if p["kind"] == "LEGACY" else "Lobe mix"
+        if (d.wide is not None) != (mix_role in mine):
+            return None
         f = _fresnel_values(p, d)
-        for which, node in (("narrow", narrow), ("wide", wide)):
+        for which, role_, node in (("narrow", "Narrow lobe", narrow), ("wide", "Wide lobe", wide)):
             if node is None:
                 continue
-            node.distribution = p["distribution"]
+            out.append(Write(role_, "distribution", p["distribution"], True))
             lobe = _lobe_values(d, which)
-            _set(node, "Roughness", lobe["roughness"])
+            out.append(Write(role_, "Roughness", lobe["roughness"]))
             if d.anisotropic:
                 a_name, r_name = ANISO_INPUTS[p["kind"]]
-                _set(node, a_name, lobe["anisotropy"])
-                _set(node, r_name, lobe["rotation"])
+                out += [Write(role_, a_name, lobe["anisotropy"]),
+                        Write(role_, r_name, lobe["rotation"])]
             if p["kind"] == "CONDUCTOR":
-                _set(node, "IOR", f["ior"])
-                _set(node, "Extinction", f["extinction"])
+                out += [Write(role_, "IOR", f["ior"]), Write(role_, "Extinction", f["extinction"])]
             elif p["kind"] == "DIELECTRIC":
-                for name, key in (("IOR", "ior"), ("Specular Tint", "specular_tint"),
-                                  ("Base Color", "base_color"),
-                                  ("Transmission Weight", "transmission")):
-                    _set(node, name, f[key])
+                out += [Write(role_, name, f[key]) for name, key in _DIELECTRIC_INPUTS]
             else:
-                _set(node, "Color", f["colour_" + which])
-        if mix is not None and p["kind"] != "LEGACY":
-            _set(mix, "Fac", d.beta)
+                out.append(Write(role_, "Color", f["colour_" + which]))
+        if mix_role in mine and p["kind"] != "LEGACY":
+            out.append(Write(mix_role, "Fac", d.beta))
     t = mine.get("Tangent")
     if d.anisotropic and t is not None and t.bl_idname == "ShaderNodeTangent":
         if p["tangent"] == "UV_MAP":
-            t.direction_type = "UV_MAP"
+            out.append(Write("Tangent", "direction_type", "UV_MAP", True))
         else:
-            t.direction_type = "RADIAL"
-            t.axis = p["tangent"][-1]
+            out += [Write("Tangent", "direction_type", "RADIAL", True),
+                    Write("Tangent", "axis", p["tangent"][-1], True)]
+    return out
+
+
+_DIELECTRIC_INPUTS = (("IOR", "ior"), ("Specular Tint", "specular_tint"),
+                      ("Base Color", "base_color"), ("Transmission Weight", "transmission"))
+
+
+def _update_values(mat, p, d):
+    """Write the values of ``p`` into a tree of the right structure.  Returns False when the
+    tree does not have it (the caller rebuilds)."""
+    ws = writes(mat, p, d)
+    if ws is None:
+        return False
+    mine = ours(mat.node_tree)
+    for w in ws:
+        node = mine.get(w.role)
+        if node is None:
+            continue
+        if w.attr:
+            if getattr(node, w.name) != w.value:
+                setattr(node, w.name, w.value)
+        else:
+            _set(node, w.name, w.value)
     return True
+
+
+# --------------------------------------------------------------------------------------------
+# Node-editor edits: what the user changed in the add-on's nodes since the add-on wrote them
+# --------------------------------------------------------------------------------------------
+
+#: The stamp's record of what the add-on last wrote: {role: {input or "@property": value}}.
+WRITTEN = "written"
+
+
+def _current(node, w):
+    """What a Write's target holds now (None for a linked input: the link is the source)."""
+    if w.attr:
+        return getattr(node, w.name, None)
+    sock = node.inputs.get(w.name)
+    if sock is None or sock.is_linked or not hasattr(sock, "default_value"):
+        return None
+    v = sock.default_value
+    return tuple(float(x) for x in v) if hasattr(v, "__len__") else float(v)
+
+
+def _record(mat, p, d):
+    """Keep in the stamp what the nodes hold now for every value the add-on writes."""
+    ws = writes(mat, p, d) or []
+    mine = ours(mat.node_tree)
+    rec = {}
+    for w in ws:
+        node = mine.get(w.role)
+        now = _current(node, w) if node is not None else None
+        if now is not None:
+            rec.setdefault(w.role, {})[("@" if w.attr else "") + w.name] = \
+                list(now) if isinstance(now, tuple) else now
+    mat[K.STAMP][WRITTEN] = rec
+
+
+def _differs(now, was):
+    if isinstance(now, str) or isinstance(was, str):
+        return now != was
+    a = np.atleast_1d(np.asarray(now, dtype=np.float64))
+    b = np.atleast_1d(np.asarray(was, dtype=np.float64))
+    if a.shape != b.shape:
+        n = min(a.size, b.size)  # an RGBA socket against an RGB value: alpha is not ours
+        a, b = a[:n], b[:n]
+    return bool(np.any(np.abs(a - b) > 1e-6 + 1e-5 * np.abs(b)))
+
+
+class Edit(NamedTuple):
+    """A value the user changed in the node editor: the add-on wrote ``was``, the node holds
+    ``now``."""
+
+    role: str
+    node: str  # the node's name now
+    name: str
+    now: object
+    was: object
+    attr: bool
+
+    def __str__(self):
+        return f"{self.node}: {self.name}"
+
+
+def node_edits(mat, p=None):
+    """[Edit] of the add-on's values the user changed in the node editor (socket values and
+    node settings of a lean or in-shader tree of the stamped structure).  Compared with what
+    the add-on last wrote (the stamp's record); for a material stamped before the record
+    existed, with what the stamped parameters map to now."""
+    if not is_hazy(mat) or mat.node_tree is None or layer.is_layered(mat):
+        return []
+    try:
+        p = p or read_parameters(mat)
+        d = lobes_for(p)
+    except (ValueError, TypeError):
+        return []
+    ws = writes(mat, p, d)
+    if ws is None:  # not the stamped structure: the next change rebuilds
+        return []
+    rec = (stamp.group(mat, K.STAMP) or {}).get(WRITTEN)
+    mine = ours(mat.node_tree)
+    out = []
+    for w in ws:
+        node = mine.get(w.role)
+        if node is None:
+            continue
+        now = _current(node, w)
+        if now is None:
+            continue
+        key = ("@" if w.attr else "") + w.name
+        if isinstance(rec, dict):
+            entry = rec.get(w.role)
+            was = entry.get(key) if isinstance(entry, dict) else None
+            if was is None or not isinstance(was, (str, int, float, list)):
+                continue  # not recorded (or a damaged record): nothing to compare with
+        else:
+            was = w.value if w.attr else socket_value(node.inputs[w.name], w.value)
+        if _differs(now, was):
+            out.append(Edit(w.role, node.name, w.name, now, was, w.attr))
+    return out
+
+
+#: Group inputs -> the perceptual parameter they are (in-shader mapping).
+_GROUP_KEYS = {"Core Reflectivity": "core_reflectivity", "Edge Tint": "edge_tint",
+               "Roughness": "roughness", "Anisotropy": "anisotropy", "Rotation": "rotation",
+               "Haziness": "haziness", "Smoothness": "smoothness", "Base Color": "base_color",
+               "Transmission": "transmission"}
+
+
+def _adopt_group(p, edits):
+    """p with the group inputs the user edited (they are the perceptual parameters)."""
+    q = dict(p)
+    ex, ey = q["haze_extent"]
+    for e in edits:
+        v = e.now
+        if e.role == "Tangent":
+            continue
+        if e.name == "Haze Extent":
+            ex = ey = v
+        elif e.name == "Haze Extent X":
+            ex = v
+        elif e.name == "Haze Extent Y":
+            ey = v
+        elif e.name in _GROUP_KEYS:
+            q[_GROUP_KEYS[e.name]] = tuple(v[:3]) if isinstance(v, tuple) else v
+    q["haze_extent"] = (ex, ey)
+    return q
+
+
+def _tangent_of(mat, p):
+    t = ours(mat.node_tree).get("Tangent")
+    if t is None or t.bl_idname != "ShaderNodeTangent":
+        return p["tangent"]
+    return "UV_MAP" if t.direction_type == "UV_MAP" else f"RADIAL_{t.axis}"
+
+
+def _lobe_alpha(node, kind, anisotropic, rotation):
+    """(α_x, α_y, rotation) of one lean lobe in its node's convention, long axis along x."""
+    rough = float(np.clip(node.inputs["Roughness"].default_value, 0.0, 1.0))
+    if not anisotropic:
+        a = rough * rough
+        return a, a, rotation
+    a_name, r_name = ANISO_INPUTS[kind]
+    aniso = float(node.inputs[a_name].default_value)
+    rot = float(node.inputs[r_name].default_value)
+    if kind == "LEGACY":  # Glossy: a in [-0.99, 0.99], a < 0 stretches along x
+        a = float(np.clip(aniso, -0.99, 0.99))
+        k = 1.0 - abs(a)
+        ax, ay = (rough * rough / k, rough * rough * k) if a <= 0 else \
+            (rough * rough * k, rough * rough / k)
+        ax, ay = min(ax, K.ALPHA_MAX), min(ay, K.ALPHA_MAX)
+    else:
+        ax, ay = (float(v) for v in alpha_from_roughness(rough, aniso))
+    if ax < ay:
+        ax, ay, rot = ay, ax, rot + 0.25
+    return ax, ay, rot
+
+
+def _adopt_lean(mat, p, d, edits):
+    """p with a lean tree's values read back through the inverse haze mapping
+    (core.inverse_haze_mapping), or None when they are not a hazy material's (the lobes no
+    longer share one Fresnel term, a Glossy colour pair has no single β, ...).  A value shared
+    by both lobes (the Fresnel inputs, a dielectric's base, the distribution) that the user
+    changed on one lobe is taken as the new shared value."""
+    kind = p["kind"]
+    mine = ours(mat.node_tree)
+    narrow, wide = mine["Narrow lobe"], mine.get("Wide lobe")
+    mix = mine.get("Lobe mix")
+    edited = {(e.role, e.name): e.now for e in edits}
+
+    def value(node_role, name):
+        node = mine[node_role]
+        if (node_role, name) in edited:
+            return edited[(node_role, name)]
+        other = "Wide lobe" if node_role == "Narrow lobe" else "Narrow lobe"
+        if name in _SHARED[kind] and (other, name) in edited:
+            return edited[(other, name)]
+        v = node.inputs[name].default_value
+        return tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
+
+    dist = edited.get(("Narrow lobe", "distribution")) or \
+        edited.get(("Wide lobe", "distribution")) or p["distribution"]
+    if dist not in K.NODE_DISTRIBUTIONS[kind] or dist == "MULTI_GGX":
+        return None  # Multiscatter GGX: Cycles' energy factor is not inverted here
+    aniso = bool(d.anisotropic)
+    ax, ay, rot = _lobe_alpha(narrow, kind, aniso, p["rotation"])
+    rough = (ax * ay) ** 0.25
+    anisotropy = float(metallic_anisotropy(ay / ax)) if aniso and ax > 0 else 0.0
+    if wide is not None:
+        wx, wy, wrot = _lobe_alpha(wide, kind, aniso, p["rotation"])
+        turn = (wrot - rot) % 0.5
+        if aniso and abs(turn - 0.25) < 1e-4:
+            wx, wy = wy, wx
+        elif aniso and min(turn, 0.5 - turn) > 1e-4:
+            return None  # the halo is rotated against the core
+    else:
+        wx, wy = (float(a) for a in d.mapping.alpha_wide)
+    kw = {}
+    if kind == "CONDUCTOR":
+        if narrow.fresnel_type != "PHYSICAL_CONDUCTOR":
+            return None
+        kw = dict(ior=value("Narrow lobe", "IOR"), extinction=value("Narrow lobe", "Extinction"))
+        beta = float(mix.inputs["Fac"].default_value) if wide is not None else 0.0
+    elif kind == "DIELECTRIC":
+        ior = float(value("Narrow lobe", "IOR"))
+        f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 if ior != -1.0 else 1.0
+        tint = np.asarray(value("Narrow lobe", "Specular Tint"), float)[:3]
+        kw = dict(reflectivity=np.clip(f0 * tint, 0.0, 1.0))
+        beta = float(mix.inputs["Fac"].default_value) if wide is not None else 0.0
+    else:
+        k_n = np.asarray(value("Narrow lobe", "Color"), float)[:3]
+        k_w = np.asarray(value("Wide lobe", "Color"), float)[:3] if wide is not None else 0 * k_n
+        r = k_n + k_w
+        ch = int(np.argmax(r))
+        beta = float(k_w[ch] / r[ch]) if r[ch] > 0 else 0.0
+        kw = dict(reflectivity=np.clip(r, 0.0, 1.0))
+    try:
+        inv = inverse_haze_mapping(beta, (ax, ay), (max(wx, ax), max(wy, ay)), distribution=dist,
+                                   smoothness=p["smoothness"], alpha_max=K.ALPHA_MAX, **kw)
+    except ValueError:
+        return None
+    q = dict(p, distribution=dist, roughness=rough, anisotropy=anisotropy, rotation=rot % 1.0,
+             core_reflectivity=tuple(float(x) for x in np.clip(inv.core_reflectivity, 0, 1)),
+             haziness=float(np.clip(inv.haziness, 0.0, K.MAX_HAZINESS)),
+             haze_extent=tuple(float(x) for x in inv.haze_extent), tangent=_tangent_of(mat, p))
+    if not aniso:
+        q["rotation"] = p["rotation"]
+    if kind == "CONDUCTOR":
+        q["edge_tint"] = tuple(float(x) for x in np.clip(inv.edge_tint, 0, 1))
+    if kind == "DIELECTRIC":
+        q["base_color"] = tuple(value("Narrow lobe", "Base Color"))[:3]
+        q["transmission"] = float(value("Narrow lobe", "Transmission Weight"))
+    if wide is None:  # no halo: the haze values stay (they do not show)
+        q["haziness"], q["haze_extent"] = p["haziness"], p["haze_extent"]
+    return q
+
+
+#: Inputs both lean lobes share (Eq. 1 has one Fresnel term).
+_SHARED = {"CONDUCTOR": ("IOR", "Extinction"),
+           "DIELECTRIC": ("IOR", "Specular Tint", "Base Color", "Transmission Weight"),
+           "LEGACY": ()}
+
+
+def _matches(mat, q, edits):
+    """Whether parameters ``q`` write back what the nodes hold (the edited values where the
+    user set them, shared values following the lobe the user edited)."""
+    try:
+        q = normalise(q, explicit=())
+        dq = lobes_for(q)
+    except (ValueError, TypeError):
+        return None
+    ws = writes(mat, q, dq)
+    if ws is None:
+        return None
+    mine = ours(mat.node_tree)
+    edited = {(e.role, e.name): e.now for e in edits}
+    kind = q["kind"]
+    for w in ws:
+        node = mine.get(w.role)
+        now = _current(node, w) if node is not None else None
+        if (w.role, w.name) in edited:
+            now = edited[(w.role, w.name)]
+        elif w.name in _SHARED.get(kind, ()) and not q["shader_mapping"]:
+            other = "Wide lobe" if w.role == "Narrow lobe" else "Narrow lobe"
+            now = edited.get((other, w.name), now)
+        if now is None:
+            continue
+        want = w.value if w.attr else socket_value(node.inputs[w.name], w.value)
+        if w.attr and w.name == "distribution" and (w.role, w.name) not in edited:
+            other = "Wide lobe" if w.role == "Narrow lobe" else "Narrow lobe"
+            now = edited.get((other, w.name), now)
+        if _differs(now, want):
+            return None
+    return q
+
+
+def adopt_edits(mat, p=None, edits=None):
+    """(parameters, replaced): the stamped parameters with the user's node-editor edits read
+    back (in-shader: the group inputs are the perceptual parameters; lean: the inverse haze
+    mapping, kept only when the result writes back what the nodes hold), and the edits that
+    could not be read back (they are replaced by the next change), as [Edit]."""
+    p = p or read_parameters(mat)
+    edits = node_edits(mat, p) if edits is None else edits
+    if not edits:
+        return p, []
+    d = lobes_for(p)
+    tangent_edits = [e for e in edits if e.role == "Tangent"]
+    base = dict(p, tangent=_tangent_of(mat, p)) if tangent_edits else dict(p)
+    if p["shader_mapping"]:
+        q = _matches(mat, _adopt_group(base, edits), edits)
+        if q is not None:
+            return q, []
+        kept, replaced = dict(base), []  # one by one: keep what reads, replace the rest
+        for e in edits:
+            trial = _matches(mat, _adopt_group(kept, [e]), [e])
+            if trial is not None and e.role != "Tangent":
+                kept = trial
+            elif e.role != "Tangent":
+                replaced.append(e)
+        return normalise(kept, explicit=()), replaced
+    q = _adopt_lean(mat, base, d, edits)
+    q = _matches(mat, q, edits) if q is not None else None
+    if q is not None:
+        return q, []
+    return p, edits
+
+
+def adopt_node_edits(mat):
+    """Read the user's node-editor edits of a lean / in-shader material into its stamp (the
+    nodes are not touched: they already hold the values).  Returns (adopted, replaced) lists
+    of Edit; called by the depsgraph handler (blender.sync) after the user edits a node."""
+    if mat is None or mat.library is not None or not is_hazy(mat) or layer.is_layered(mat):
+        return [], []
+    try:
+        p = read_parameters(mat)
+        edits = node_edits(mat, p)
+        if not edits:
+            return [], []
+        q, replaced = adopt_edits(mat, p, edits)
+    except (ValueError, TypeError):
+        return [], []
+    adopted = [e for e in edits if e not in replaced]
+    if adopted:
+        if q != p:
+            old = stamp.group(mat, K.STAMP) or {}
+            _stamp(mat, q)
+            if isinstance(old.get("structure"), str):
+                mat[K.STAMP]["structure"] = old["structure"]
+        _record(mat, q, lobes_for(q))
+        if replaced:  # keep the record of what could not be read back: still an edit
+            rec = mat[K.STAMP][WRITTEN]
+            for e in replaced:
+                key = ("@" if e.attr else "") + e.name
+                if e.role in rec:
+                    rec[e.role][key] = list(e.was) if isinstance(e.was, tuple) else e.was
+    return adopted, replaced
 
 
 def apply(mat, p, *, force_rebuild=False):
@@ -394,7 +800,13 @@ def apply(mat, p, *, force_rebuild=False):
         dropped = keep.dropped
     _stamp(mat, p)
     mat[K.STAMP]["structure"] = repr(structure)
+    _record(mat, p, d)
     return d.mapping, dropped
+
+
+#: material session_uid -> the node-editor edits (as "node: input") the last update_material
+#: could not read back and replaced (properties.edit_material tells the user).
+REPLACED = {}
 
 
 def create_material(name, **params):
@@ -440,6 +852,11 @@ def update_material(mat, **changes):
             mat, {k: v for k, v in problems.items() if k == "*" or k not in changes}))
     merged = dict(DEFAULTS)
     merged.update(values)
+    replaced = []
+    if not problems:  # node-editor edits: read back where they can be, else replaced (said)
+        read_back, replaced = adopt_edits(mat, normalise(dict(merged), explicit=()))
+        merged.update(read_back)
+    REPLACED[mat.session_uid] = [str(e) for e in replaced]
     merged.update(changes)
     p = normalise(merged, explicit=changes)
     if not p["shader_mapping"]:
@@ -451,6 +868,7 @@ def update_material(mat, **changes):
 
 
 __all__ = ("create_material", "update_material", "read_parameters", "read_parameters_lenient",
-           "check_material", "is_hazy", "map_parameters",
+           "check_material", "node_edits", "adopt_edits", "adopt_node_edits", "is_hazy",
+           "map_parameters",
            "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",
            "DEFAULTS")

@@ -80,6 +80,33 @@ def warnings_for(mat, p, m, context=None, prefs=None):
     return out
 
 
+def _names(edits, most=3):
+    names = [str(e) for e in edits]
+    return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")
+
+
+def node_edit_notes(mat, p):
+    """[(text, icon)] about the user's node-editor edits of the add-on's nodes that are not in
+    the parameters yet (the depsgraph handler reads them back right after the edit; a material
+    no object uses is read back on its next change): kept, or replaced by the next change."""
+    try:
+        edits = material.node_edits(mat, p)
+        if not edits:
+            return []
+        _, replaced = material.adopt_edits(mat, p, edits)
+    except (ValueError, TypeError):
+        return []
+    out = []
+    kept = [e for e in edits if e not in replaced]
+    if kept:
+        out.append((f"Node-editor edits ({_names(kept)}) are read back into these parameters "
+                    f"on the next change", "INFO"))
+    if replaced:
+        out.append((f"Node-editor edits these parameters cannot represent ({_names(replaced)}) "
+                    f"are replaced by the next change here", "ERROR"))
+    return out
+
+
 def _fmt(v, digits=3):
     arr = np.asarray(v, dtype=np.float64).ravel()
     if arr.size == 1 or np.all(arr == arr[0]):
@@ -157,6 +184,11 @@ def draw_material(layout, context, mat, idname):
     if K.RECOMPOSITE_STAMP in mat:
         col.label(text="In recomposite mode: a change here rebuilds the normal material",
                   icon="NODE_COMPOSITING")
+    if damaged is None and problem is None:
+        for text, icon in node_edit_notes(mat, p):
+            box = col.box()
+            box.alert = icon == "ERROR"
+            box.label(text=text, icon=icon)
     body = col.column()
     body.enabled = problem is None
 

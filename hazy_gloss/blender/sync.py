@@ -4,7 +4,8 @@ or setting, in the node editor, the Properties editor, a driver or a script), th
 and node math are brought up to date.
 
 A ``depsgraph_update_post`` handler (persistent across file loads) sees which materials were
-updated; for a layered one whose core changed since the layer last wrote it (a fingerprint of
+updated; for a lean or in-shader one it reads the user's node-editor edits of the add-on's nodes
+back into the stamp (material.adopt_node_edits); for a layered one whose core changed since the layer last wrote it (a fingerprint of
 the core's inputs, links and settings), :func:`sync` reruns the layer with its stamped haze.
 The layer's own writes change the fingerprint only once: the handler then finds it unchanged
 and stops.  Scripts that edit a material no object uses (no depsgraph update) call
@@ -15,7 +16,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from .. import constants as K
-from . import layer, properties, stamp
+from . import layer, material, properties, stamp
 from .context import plain_message
 
 _fingerprints = layer.FINGERPRINTS
@@ -23,9 +24,16 @@ _busy = False
 
 
 def sync(mat, *, force=False):
-    """Bring ``mat``'s haze layer up to date with its core; returns whether it was rerun."""
-    if not layer.is_layered(mat) or mat.library is not None:
+    """Bring ``mat``'s haze layer up to date with its core; returns whether it was rerun.  For a
+    lean / in-shader material: read the user's node-editor edits of the add-on's nodes back
+    into its parameters (material.adopt_node_edits); returns whether there were any."""
+    if mat is None or mat.library is not None:
         return False
+    if not layer.is_layered(mat):
+        if not material.is_hazy(mat):
+            return False
+        adopted, _ = material.adopt_node_edits(mat)
+        return bool(adopted)
     state = layer.layer_state(mat) or {}
     problem = stamp.layer_problem(mat, state.get("problems", []))
     if problem is not None:  # rerunning would take the damaged values for the user's
