@@ -193,7 +193,8 @@ class Plan:
         lx, ly = haze["haze_extent"]
         self.anisotropic = on and (a.linked or a.value != 0.0 or lx != ly)
         self.maps = tuple(n for n in HAZE_MAPS if _haze_value(haze, n) == TEXTURE)
-        self.film = _film(self) if self.type == "PRINCIPLED" and self.parts else None
+        self.film = _film(self) if self.parts and (self.type == "PRINCIPLED" or (
+            self.type == "METALLIC" and self.parts == ("METAL",))) else None
         self.notes = []  # what values() could not make exact, in plain words
 
     @property
@@ -233,10 +234,13 @@ class Plan:
 def _film(plan):
     """(thickness, film IOR) of an active constant thin film whose part inputs are constants
     (the peak then follows the film exactly, core.thin_film), else None."""
+    if plan.core.inputs.get("Thin Film Thickness") is None:  # a Metallic BSDF before 5.0
+        return None
     t, n = plan.inp("Thin Film Thickness"), plan.inp("Thin Film IOR")
     if t.linked or n.linked or not thin_film.film_active(t.value):
         return None
-    names = ["Base Color", "Specular Tint", "IOR", "Specular IOR Level", "Roughness"]
+    names = (["Base Color", "Specular Tint", "IOR", "Specular IOR Level", "Roughness"]
+             if plan.type == "PRINCIPLED" else ["Base Color", "Edge Tint", "Roughness"])
     if any(plan.inp(nm).linked for nm in names):
         return None
     return float(t.value), float(n.value)
@@ -358,8 +362,9 @@ def values(plan):
         film = plan.film if part in ("DIELECTRIC", "METAL") else None
         if film is not None:  # the film's interference sets the peak: map from it (thin_film)
             base = np.asarray(plan.inp("Base Color").value, float)
-            tint = np.asarray(plan.inp("Specular Tint").value, float)
-            ior, lvl = float(plan.inp("IOR").value), float(plan.inp("Specular IOR Level").value)
+            tint = np.asarray(plan.inp(tint_name).value, float)
+            if part == "DIELECTRIC":
+                ior, lvl = float(plan.inp("IOR").value), float(plan.inp("Specular IOR Level").value)
             if part == "METAL":
                 rc = g.const(tuple(thin_film.metal_reflectance(base, tint, *film)))
             else:

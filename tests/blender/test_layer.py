@@ -354,6 +354,7 @@ PEAK = {
                                                      "Roughness": 0.2})[0],
     "textured roughness dielectric": lambda: textured_roughness(),
     "metal, Multiscatter GGX": multiscatter_metal,
+    "Metallic BSDF (F82) with thin film": lambda: metallic_film(),
     "dielectric with thin film": lambda: principled(
         "Film Dielectric", **{"Base Color": (0.05, 0.05, 0.05, 1.0), "Roughness": 0.25,
                               "Thin Film Thickness": 320.0, "Thin Film IOR": 1.6})[0],
@@ -361,6 +362,16 @@ PEAK = {
         "MS Dielectric", distribution="MULTI_GGX", **{"Base Color": (0.3, 0.3, 0.3, 1.0),
                                                        "Roughness": 0.3})[0],
 }
+
+
+def metallic_film():
+    mat = metallic_node("F82")
+    n = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfMetallic")
+    if "Thin Film Thickness" not in n.inputs:
+        pytest.skip("the Metallic BSDF has no thin film before Blender 5.0")
+    n.inputs["Thin Film Thickness"].default_value = 380.0
+    n.inputs["Thin Film IOR"].default_value = 1.45
+    return mat
 
 
 def textured_roughness():
