@@ -26,7 +26,8 @@ Version differences: 4.5/5.2 read a 16³ table with y = μ, 5.3 a 32³ table wit
 different E table grid, y_E = μ vs √μ); 4.5/5.2 take the maximum over channels after the
 multiscatter factor, 5.3 before it (so a tinted Multiscatter GGX specular darkens the base by a
 coloured A in 5.3 only); 4.5 skips the table and returns 0 where the specular's Fresnel at the
-view angle is 0 in every channel (Specular Tint black and F_dielectric(μ) <= F0(η), e.g. μ = 1).
+view angle is 0 in every channel (Specular Tint black and F_dielectric(μ) < F0(η): past the
+Brewster dip of a large IOR).
 The tables come from the bpy wheels (scripts/extract_albedo_tables.py -> cycles_albedo_tables).
 
 The estimate is not the GGX BRDF's albedo: s is the mean of the remapped Fresnel over visible
@@ -219,10 +220,13 @@ def _estimate(p, version):
     s = _read3(_tables(p["gen"])["ior_s"], p["rough"], p["y"], z)
     est = p["f0_c"] + (1.0 - p["f0_c"]) * s[..., None]
     if cycles_version(version) < (5, 2):
-        # 4.5: no table where microfacet_fresnel(cos_NI) is 0 in every channel
+        # 4.5: no table where microfacet_fresnel(cos_NI) is 0 in every channel: f0 = 0 and the
+        # real Fresnel at the view angle below F0 (past the Brewster dip of a large IOR).  Face-on
+        # F = F0 exactly and the kernel's float32 rounding decides (renders show both): the table
+        # is taken there, a difference of at most s(α, 1, η) <= 1.8e-3.
         c = np.clip(p["mu"], 0.0, 1.0)
         f_real = _fresnel_dielectric(c, eta)
-        zero = (np.max(p["f0_c"], axis=-1) == 0.0) & (f_real <= _f0_from_ior(eta))
+        zero = (np.max(p["f0_c"], axis=-1) == 0.0) & (f_real < _f0_from_ior(eta) * (1.0 - 1e-6))
         est = np.where(zero[..., None], 0.0, est)
     return est
 
