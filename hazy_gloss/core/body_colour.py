@@ -302,9 +302,9 @@ def facing(mu):
 MAX_ANGLE = 80.0
 #: Fit nodes (Chebyshev points of [0, f_max]); the tables are piecewise linear in μ or √μ, so c
 #: has kinks at their nodes and is sampled densely.
-_FIT_POINTS = 400
+_FIT_POINTS = 240
 #: Report grid: μ from 0 to 1 (trapezoid rule for the 2μ-weighted averages).
-_REPORT_POINTS = 2001
+_REPORT_POINTS = 1025
 _FLOOR = 1e-12
 #: c never exceeds this (a vanishing hazy body, e.g. IOR' -> ∞, would make it unbounded).
 C_LIMIT = 1e3
@@ -403,11 +403,14 @@ class BodyColour:
     def nodes(self):
         """A builder-independent description of the shader nodes: Layer Weight (Blend 0.5)
         -> Facing f; c = a[n] f^n + ... + a[0] by Horner, p <- p f + a[k] (one MULTIPLY_ADD
-        per degree); Base Color = min(base c, 1)."""
+        per degree); Base Color = min(base c, 1): n + 3 nodes for degree n >= 1.
+        "constant_base": the same with the base folded into the coefficients (b[k] = base a[k],
+        Vector Math MULTIPLY_ADD, then MINIMUM): n + 2 nodes, for an unlinked Base Color."""
         a = np.asarray(self.coefficients, np.float64)
         n = a.shape[0] - 1
         coeffs = [float(x) for x in a[:, 0]] if self.grey else [tuple(map(float, r)) for r in a]
         math = "ShaderNodeMath" if self.grey else "ShaderNodeVectorMath"
+        folded = [tuple(float(x) for x in np.asarray(self.base) * r) for r in a]
         return {
             "facing": {"node": "ShaderNodeLayerWeight", "output": "Facing", "Blend": 0.5,
                        "Normal": "the core's Normal input (the same link, if any)"},
@@ -421,7 +424,16 @@ class BodyColour:
                       "inputs": ("base", "c")},
                      {"node": "ShaderNodeVectorMath", "operation": "MINIMUM",
                       "inputs": ("previous", (1.0, 1.0, 1.0))}],
-            "node_count": n + 3 if n > 0 else 3,
+            "node_count": n + 3 if n > 0 else 2,
+            "constant_base": {
+                "coefficients": folded,
+                "horner": [{"node": "ShaderNodeVectorMath", "operation": "MULTIPLY_ADD",
+                            "inputs": ("b[n]" if k == n - 1 else "previous", "f", f"b[{k}]")}
+                           for k in range(n - 1, -1, -1)],
+                "base": [{"node": "ShaderNodeVectorMath", "operation": "MINIMUM",
+                          "inputs": ("previous", (1.0, 1.0, 1.0))}],
+                "node_count": n + 2 if n > 0 else 0,
+            },
         }
 
 
@@ -472,10 +484,11 @@ def compensation(alpha, ior, ior_hazy, beta, alpha_wide, base_color=(1.0, 1.0, 1
     n = _FIT_POINTS
     f = 0.5 * f_max * (1.0 - np.cos(np.pi * (np.arange(n) + 0.5) / n))
     c = factor(alpha, ior, ior_hazy, beta, alpha_wide, 1.0 - f, **kw)
-    coeffs = np.stack([_fit(f, c[:, ch], int(degree)) for ch in range(3)], axis=1)
     grey = bool(np.all(c == c[:, :1]))
     if grey:
-        coeffs[:] = coeffs[:, :1]
+        coeffs = np.repeat(_fit(f, c[:, 0], int(degree))[:, None], 3, axis=1)
+    else:
+        coeffs = np.stack([_fit(f, c[:, ch], int(degree)) for ch in range(3)], axis=1)
 
     mu = np.linspace(0.0, 1.0, _REPORT_POINTS)
     orig, hazy = body_weights(alpha, ior, ior_hazy, beta, alpha_wide, mu, **kw)
@@ -503,7 +516,9 @@ def compensation(alpha, ior, ior_hazy, beta, alpha_wide, base_color=(1.0, 1.0, 1
 
     dark = lost(base * hazy)
     resid = lost(kept)
-    return replace(result, fit_error=float(np.abs(rel_in).max()),
+    inside = mu >= np.cos(np.radians(max_angle)) - 1e-12
+    fit_error = max(float(np.abs(rel_in).max()), float(np.abs(rel[inside]).max(initial=0.0)))
+    return replace(result, fit_error=fit_error,
                    fit_error_hemisphere=float(np.abs(rel).max()),
                    fit_rms=float(np.sqrt(w @ np.mean(rel ** 2, axis=1) / w.sum())),
                    darkening_face_on=dark[0], darkening_average=dark[1],

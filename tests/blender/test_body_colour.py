@@ -15,7 +15,8 @@ Principled BSDF (kernel/film/data_passes.h: surface_shader_diffuse), independent
 (c) A hand-wired hazy material (Mix Shader by β of the core with IOR' and a wide copy, Base
     Color = min(base c_fit(Facing), 1) from compensation().nodes(): Layer Weight + Math
     MULTIPLY_ADD) keeps the original's diffuse to the reported fit error at 0-80°, for
-    haziness 0.1 and 0.5, and where the clamp bites it is darker by what the report predicts.
+    haziness 0.1 and 0.5, and where the clamp bites it is darker by what the report predicts;
+    the constant-base form (base folded into the coefficients) renders the same.
 """
 import importlib
 import math
@@ -298,7 +299,36 @@ def wire_compensation(tree, description, base, target_sockets):
     return 1 + len(description["horner"]) + 2
 
 
-def hazy_material(name, bc, lobes, ior, roughness, haziness, base, distribution="GGX"):
+def wire_folded(tree, description, target_sockets):
+    """The constant-base form: Layer Weight -> Vector Math MULTIPLY_ADD (b[k] = base a[k]) ->
+    MINIMUM, from the description alone (the float Facing feeds vector sockets as (f, f, f))."""
+    folded = description["constant_base"]
+    lw = tree.nodes.new("ShaderNodeLayerWeight")
+    lw.inputs["Blend"].default_value = description["facing"]["Blend"]
+    f = lw.outputs[description["facing"]["output"]]
+    b = folded["coefficients"]
+    prev = None
+    for k, step in zip(range(len(b) - 2, -1, -1), folded["horner"]):
+        node = tree.nodes.new(step["node"])
+        node.operation = step["operation"]
+        if prev is None:
+            node.inputs[0].default_value = b[-1]
+        else:
+            tree.links.new(prev, node.inputs[0])
+        tree.links.new(f, node.inputs[1])
+        node.inputs[2].default_value = b[k]
+        prev = node.outputs[0]
+    lo = tree.nodes.new("ShaderNodeVectorMath")
+    lo.operation = "MINIMUM"
+    tree.links.new(prev, lo.inputs[0])
+    lo.inputs[1].default_value = (1.0, 1.0, 1.0)
+    for sock in target_sockets:
+        tree.links.new(lo.outputs[0], sock)
+    return 1 + len(folded["horner"]) + 1
+
+
+def hazy_material(name, bc, lobes, ior, roughness, haziness, base, distribution="GGX",
+                  folded=False):
     beta, r_wide, ior_h = hazy_parameters(lobes, ior, roughness, haziness, distribution)
     comp = bc.compensation(roughness ** 2, ior, ior_h, beta, r_wide ** 2, base,
                            distribution=distribution, version=version())
@@ -310,9 +340,13 @@ def hazy_material(name, bc, lobes, ior, roughness, haziness, base, distribution=
     tree.links.new(narrow.outputs[0], mix.inputs[1])
     tree.links.new(wide.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    nodes = wire_compensation(tree, comp.nodes(), base,
-                              [narrow.inputs["Base Color"], wide.inputs["Base Color"]])
-    assert nodes == comp.nodes()["node_count"]
+    sockets = [narrow.inputs["Base Color"], wide.inputs["Base Color"]]
+    if folded:
+        nodes = wire_folded(tree, comp.nodes(), sockets)
+        assert nodes == comp.nodes()["constant_base"]["node_count"]
+    else:
+        nodes = wire_compensation(tree, comp.nodes(), base, sockets)
+        assert nodes == comp.nodes()["node_count"]
     return mat, comp, (beta, r_wide, ior_h)
 
 
@@ -436,3 +470,21 @@ def test_clamp_leaves_the_predicted_darkening(env):
                                       report_average=list(comp.residual_average),
                                       warning=comp.warning())
     record("body_colour", {"clamp at haziness 0.5": figures})
+
+
+def test_folded_constant_base_renders_the_same(env):
+    """The constant-base form (one node fewer) gives the same Diffuse Color as the general one,
+    the clamp included."""
+    bc, read_exr, lobes = env
+    cases = []
+    for n, (base, h) in enumerate((((0.45, 0.3, 0.15), 0.5), ((0.8, 0.1, 0.1), 0.5),
+                                   ((0.6, 0.6, 0.6), 0.1))):
+        general, _, _ = hazy_material(f"HG FG {n}", bc, lobes, 1.5, 0.3, h, base)
+        folded, _, _ = hazy_material(f"HG FF {n}", bc, lobes, 1.5, 0.3, h, base, folded=True)
+        for theta in ANGLES:
+            cases += [(general, theta), (folded, theta)]
+    where, _ = grid_scene(cases, columns=12)
+    p, mus = render(read_exr, ("diffuse_color",), where)
+    dc = p["diffuse_color"]
+    for k in range(len(cases) // 2):
+        np.testing.assert_allclose(dc[where[2 * k + 1]], dc[where[2 * k]], rtol=1e-6, atol=1e-7)

@@ -368,6 +368,13 @@ def test_node_description_evaluates_to_the_polynomial():
         p = p * f + a[k]
     np.testing.assert_allclose(p, res.polynomial(f)[:, 0], rtol=1e-14)
     np.testing.assert_allclose(sum(ak * f ** k for k, ak in enumerate(a)), p, rtol=1e-12)
+    folded = d["constant_base"]
+    assert folded["node_count"] == 6 and len(folded["horner"]) == 4
+    b = np.asarray(folded["coefficients"])
+    q = np.broadcast_to(b[-1], (33, 3)).copy()
+    for k in range(len(b) - 2, -1, -1):
+        q = q * f[:, None] + b[k]
+    np.testing.assert_allclose(np.minimum(q, 1.0), res.compensated_base(1.0 - f), rtol=1e-13)
 
 
 def test_coloured_compensation_only_for_53_multiscatter_with_tint():
