@@ -30,7 +30,7 @@ import numpy as np
 from .. import constants as K
 from . import compat
 from ..core import gulbrandsen_inverse
-from ..core import node_math, thin_film
+from ..core import body_colour, node_math, thin_film
 from ..core.graph import Graph
 from ..core.lobes import describe
 from ..core.parameters import HAZE_DEFAULTS
@@ -196,6 +196,15 @@ class Plan:
         self.film = _film(self) if self.parts and (self.type == "PRINCIPLED" or (
             self.type == "METALLIC" and self.parts == ("METAL",))) else None
         self.notes = []  # what values() could not make exact, in plain words
+        self.body = bool(haze.get("keep_body_colour")) and "DIELECTRIC" in self.parts and \
+            self.film is None and not self.maps and not any(
+                self.inp(n).linked for n in ("Roughness", "IOR", "Specular Tint",
+                                             "Specular IOR Level", "Anisotropic"))
+        self.facing = None  # the Layer Weight Facing socket body colour reads (set by apply)
+        if haze.get("keep_body_colour") and "DIELECTRIC" in self.parts and not self.body:
+            self.notes.append("Keep Body Colour needs constant Roughness, IOR, Specular Tint, "
+                              "Specular IOR Level and Anisotropic, no thin film and no haze "
+                              "maps: not applied")
 
     @property
     def active(self):
@@ -215,6 +224,8 @@ class Plan:
                       "GLOSSY": ["Color"]}[first]
             if self.film is not None and "DIELECTRIC" in self.parts:
                 names.append("Specular Tint")  # a film's peak needs the tint too
+            if self.body and "Base Color" not in names:
+                names.append("Base Color")  # keep body colour: base c(μ) under the haze
             if self.split:
                 names.append("Metallic")
         if self.coat:
@@ -227,7 +238,7 @@ class Plan:
         linked = tuple(sorted(s.name for s in self.core.inputs if _source(s) is not None
                               and not ownership.is_ours(_source(s).node)))
         return repr((self.type, self.parts, self.coat, self.anisotropic,
-                     self.haze["smoothness"] is not None, linked, self.maps,
+                     self.haze["smoothness"] is not None, linked, self.maps, self.body,
                      tuple(sorted(k for k, v in self.base.items() if "link" in v))))
 
 
@@ -406,6 +417,8 @@ def values(plan):
             own["IOR"], own["Extinction"] = m["ior"], m["extinction"]
         elif part == "METAL":
             own["Base Color"] = m["reflectivity"]
+        if plan.body and part == "DIELECTRIC" and mp is not None:
+            own["Base Color"] = _body_colour(plan, g, x, mp, own["IOR"], dist)
         if plan.split:
             own["Metallic"] = g.const(1.0 if part == "METAL" else 0.0)
         for wide in (False, True):
@@ -419,6 +432,8 @@ def values(plan):
             for name, e in w.items():
                 writes[((part, wide), name)] = e
         mixes[f"Mix {part.lower()}"] = m["beta"]
+    if "facing" in g.inputs:
+        sources["facing"] = plan.facing
     if plan.split:
         mixes["Mix metallic"] = x("Metallic")
     if plan.coat:
@@ -433,6 +448,37 @@ def values(plan):
         writes[("coat wide", "Coat Roughness")] = mc["roughness_wide"]
         mixes["Mix coat"] = mc["beta"]
     return g, writes, mixes, sources, maps
+
+
+def _body_colour(plan, g, x, m, ior_hazy, dist):
+    """Base Color = min(base c(f), 1), c fitted in the Layer Weight Facing f (core.body_colour):
+    the diffuse under the hazy dielectric as it was under the user's (Cycles attenuates it by
+    the specular layer's albedo, which haze raises)."""
+    base = x("Base Color", True)
+    bright = plan.inp("Base Color").value if not base.is_const else base.value
+    tint = plan.inp("Specular Tint").value
+    bc = body_colour.compensation(
+        m.alpha, float(plan.inp("IOR").value), float(ior_hazy.value), float(m.beta), m.alpha_wide,
+        base_color=np.asarray(bright, float)[:3] if base.is_const else (1.0, 1.0, 1.0),
+        tint=np.asarray(tint, float)[:3], level=float(plan.inp("Specular IOR Level").value),
+        distribution=dist)
+    note = bc.warning()
+    if note:
+        plan.notes.append(note)
+    a = np.asarray(bc.coefficients, np.float64)
+    f = g.input("facing")
+    if bc.grey:  # Horner: p <- p f + a[k]
+        p = g.const(float(a[-1, 0]))
+        for k in range(a.shape[0] - 2, -1, -1):
+            p = g.math("MULTIPLY_ADD", p, f, float(a[k, 0]))
+        c = g.vmath("SCALE", base, p)
+    else:
+        fv = g.combine(f, f, f)
+        p = g.const(tuple(a[-1]))
+        for k in range(a.shape[0] - 2, -1, -1):
+            p = g.vmath("MULTIPLY_ADD", p, fv, tuple(a[k]))
+        c = g.vmath("MULTIPLY", base, p)
+    return g.vmath("MINIMUM", c, (1.0, 1.0, 1.0))
 
 
 def slot_writes(plan, writes, slot):
@@ -660,6 +706,8 @@ def _apply(mat, haze, core, baked):
     for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back
         _restore(core, name, base.pop(name))
     key = plan.key()
+    if plan.body:  # the view cosine body colour reads: a Layer Weight on the core's normal
+        plan.facing = _facing(tree, core)
     flat, g, sources, maps = output_keys(plan)
     if baked is None:
         baked = _baked_from_state(tree, state)
@@ -675,9 +723,11 @@ def _apply(mat, haze, core, baked):
     reuse = old_math if same and state.get("signature") == signature and not baked_maps and \
         all(n is not None for n in old_math) else None
     destinations = _destinations(tree, core)
+    keep = plan.facing.node if plan.facing is not None else None
     if not same:
         for n in layer_nodes.values():
-            tree.nodes.remove(n)
+            if n != keep:
+                tree.nodes.remove(n)
     elif reuse is None:
         for n in old_math:
             if n is not None:
@@ -743,6 +793,25 @@ def _apply(mat, haze, core, baked):
     mat[K.STAMP] = d
     FINGERPRINTS[mat.session_uid] = fingerprint(core)
     return maps
+
+
+def _facing(tree, core):
+    node = _layer_nodes(tree).get(_ROLE + "facing")
+    if node is None:
+        node = tree.nodes.new("ShaderNodeLayerWeight")
+        node.name = f"{K.NODE_PREFIX} {_ROLE}facing"
+        node[K.ROLE] = _ROLE + "facing"
+        node.label = "Hazy Gloss view cosine"
+        node.hide = True
+        node.location = (core.location.x - 520.0, core.location.y + 80.0)
+    node.inputs["Blend"].default_value = 0.5
+    normal = _source(core.inputs["Normal"])
+    if normal is not None:
+        if not _linked_from(node.inputs["Normal"], normal):
+            _new_link(tree, normal, node.inputs["Normal"])
+    elif node.inputs["Normal"].is_linked:
+        _unlink(tree, node.inputs["Normal"])
+    return node.outputs["Facing"]
 
 
 def _existing(tree, plan):
@@ -896,15 +965,34 @@ def read(mat):
     return p
 
 
+_SUMMARIES = {}
+
+
 def summary(mat):
     """What the panel shows of a layered material: the core, the plan, the constant parts'
     HazeMappings by part ("COAT" for the coat), whether node math varies them per pixel, and the
-    number of BSDF nodes the layer renders."""
+    number of BSDF nodes the layer renders.  Cached until the stamp or the core changes (the
+    panel draws it many times a second)."""
     state = layer_state(mat) or {}
+    core = find_core(mat.node_tree, state.get("core"))
+    key = (repr(state), fingerprint(core) if core is not None else None)
+    hit = _SUMMARIES.get(mat.session_uid)
+    if hit is not None and hit[0] == key:  # fresh node references (undo replaces them)
+        hit[1]["core"] = hit[1]["plan"].core = core
+        return hit[1]
+    out = _summary(mat, state)
+    _SUMMARIES[mat.session_uid] = (key, out)
+    if len(_SUMMARIES) > 64:
+        _SUMMARIES.pop(next(iter(_SUMMARIES)))
+    return out
+
+
+def _summary(mat, state):
     core = find_core(mat.node_tree, state.get("core"))
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
     plan = Plan(core, haze_of(mat), dict(state.get("base", {})))
     _, _, _, sources, maps = values(plan)
-    return dict(core=core, plan=plan, maps=maps, textured=sorted(k[3:] for k in sources),
+    return dict(core=core, plan=plan, maps=maps,
+                textured=sorted(k[3:] for k in sources if k.startswith("in:")),
                 bsdfs=len(plan.slots()) if plan.active else 1)

@@ -632,3 +632,40 @@ def test_picks_the_bsdf_and_names_the_others(env):
     env.api.make_hazy(mat, node=glossy.name, haziness=0.3)
     assert env.layer.find_core(tree) == glossy
     assert env.api.read_parameters(mat)["kind"] == "LEGACY"
+
+
+# --------------------------------------------------------------------------------------------
+# 5. Keep body colour
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("view", [(0.0, 0.0), (40.0, 180.0), (70.0, 180.0)])
+def test_keep_body_colour(env, view):
+    """Haze raises a dielectric's reflectivity, which darkens the diffuse under it; Keep Body
+    Colour brightens the base colour by c(μ) so the diffuse pass stays what it was (to the
+    fit's error), where the base has room to get brighter."""
+    def plastic():
+        return principled("Red Plastic", **{"Base Color": (0.5, 0.1, 0.05, 1.0), "Roughness": 0.3})[0]
+    light = (30.0, 0.0)
+    orig = render(env, plastic(), light, view, passes=("diffuse",))["diffuse"]
+    hazy = plastic()
+    make_hazy(env, hazy, haziness=0.3)
+    dark = render(env, hazy, light, view, passes=("diffuse",))["diffuse"]
+    kept = plastic()
+    make_hazy(env, kept, haziness=0.3, keep_body_colour=True)
+    keep = render(env, kept, light, view, passes=("diffuse",))["diffuse"]
+    darkening = 1.0 - float(dark[4, 4, 0] / orig[4, 4, 0])
+    residual = float(np.abs(keep[4, 4] / orig[4, 4] - 1.0).max())
+    record("layer_body_colour", {f"view {view[0]:g}": dict(darkening=darkening, kept=residual)})
+    assert darkening > 0.03, darkening
+    assert residual <= 1.5e-2, residual
+    # the peak is untouched by the compensation (specular only)
+    peak = lambda m: render(env, m, (0.0, 0.0), passes=("glossy",))["glossy"]  # noqa: E731
+    assert rel_diff(peak(hazy), peak(kept)) <= 1e-5
+
+
+def test_keep_body_colour_says_what_it_cannot_keep(env):
+    mat, _ = principled("White", **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.3})
+    make_hazy(env, mat, haziness=0.5, keep_body_colour=True)
+    notes = " ".join(env.layer.summary(mat)["plan"].notes)
+    assert "too bright to keep" in notes and "darker" in notes
