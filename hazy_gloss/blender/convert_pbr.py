@@ -267,6 +267,7 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             if nm_ not in plan.base:
                 plan.base[nm_] = layer._current(bsdf.inputs[nm_])
         flat, g, graph_sources, _ = layer.output_keys(plan)
+        warnings.extend(plan.notes)
         feeds = {f"in:{PBR_MAPS[k][0]}": arrays[k] for k in arrays if k in PBR_MAPS}
         for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y"):
             src = key if key in arrays else "haze_extent" if key.startswith("haze_extent_") else None

@@ -691,6 +691,8 @@ def _apply(mat, haze, core, baked):
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone, so its Hazy Gloss layer cannot "
                          f"be updated: Remove Haze and Make Hazy again")
+    # the core as the layer left it: its copies need no sync (a haze-only update)
+    followed = FINGERPRINTS.get(mat.session_uid) == fingerprint(core)
     base = _adopt(core, state)
     plan = Plan(core, haze, base)
     animated = compat.animated_paths(tree)
@@ -759,7 +761,7 @@ def _apply(mat, haze, core, baked):
             _write(tree, node, name, val)
         if node is core:
             written = {name: _current(core.inputs[name]) for name in w}
-        else:
+        elif not (same and followed):
             sync_node(core, node, skip=set(w))
     current = _layer_nodes(tree)
     for k, val in out.items():
