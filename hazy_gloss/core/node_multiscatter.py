@@ -37,6 +37,8 @@ LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
 #: channel at the final β (the physical conductor: with its exact F_ss at each iterate), "b"
 #: Glossy lobes' β_max.  Measured bounds: docs/mapping.md §11.
 ITERATIONS = {"k": 2, "m": 1, "c": 2, "b": 4}
+#: Per lobe type: the coat has no per-channel solve, its max channel is the peak.
+DEFAULTS = {"COAT": {"m": 2}, "CONDUCTOR": {"c": 3}}
 
 _F = 6.0 / 7.0  # F82: cos θ = 1/7
 _F5 = _F ** 5
@@ -195,83 +197,79 @@ def _affine(g, a, b):
 def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None, version=None,
             iterations=None):
     """Corrected (β, r, ...) for the single-scatter node mapping ``ss`` (node_math's outputs:
-    reflectivity_max, core_max, chroma, halo_intensity, peak_complement; ``haziness`` is β_h,
-    or the Bézier's β_h t/k̂_7).  Returns a dict replacing beta, reflectivity,
-    reflectivity_max, halo_intensity, peak_ratio, peak_complement (those of the max channel,
-    p_ms = p S_w/S_n) and adding halo_max (k̂_max)."""
+    reflectivity_max, core_max, chroma, peak_complement); ``rc`` the clamped r_c, ``p`` the
+    peak ratio, ``x_n``, ``x_w`` the lobes' roughness indices (α_x α_y)^¼, ``haziness`` β_h
+    (or the Bézier's share β_h t/k̂_7).  Returns beta, reflectivity, reflectivity_max,
+    halo_intensity, halo_max (k̂_max) and, for Glossy lobes, colour_narrow, colour_wide.
+    peak_ratio / peak_complement stay the single-scatter p, 1 - p of the node math."""
     lobe = str(lobe).upper()
     if lobe not in LOBES:
         raise ValueError(f"multiscatter lobe must be one of {', '.join(LOBES)}; got {lobe!r}")
-    it = dict(ITERATIONS, **(iterations or {}))
+    it = dict(ITERATIONS, **DEFAULTS.get(lobe, {}), **(iterations or {}))
     stops = table_stops(version)
     tn, tw = _Table(g, x_n, stops, "narrow"), _Table(g, x_w, stops, "wide")
-    v = _Ops(g, True)
     s = _Ops(g, False)
-    # the max channel m (the first of equal maxima, as argmax): e = its indicator, from
-    # floor(chroma) (chroma = r_c / r̂_c is exactly 1 there); all 0 where r_c = 0
-    e0, e1, e2 = g.separate(g.vmath("FLOOR", ss["chroma"]))
-    e = g.combine(e0, g.mul(e1, g.sub(1.0, e0)), g.mul(e2, g.sub(1.0, g.maximum(e0, e1))),
-                  label="max channel")
-
-    def lane_m(x):
-        return g.dot(x, e)
-
+    if lobe == "COAT":  # grey: one channel (r_c = r̂_c), scalar nodes
+        v, rc = s, ss["core_max"]
+        lane_m = lambda x: x  # noqa: E731
+    else:
+        v = _Ops(g, True)
+        # the max channel m (the first of equal maxima, as argmax): e = its indicator, from
+        # floor(chroma) (chroma = r_c / r̂_c is exactly 1 there); all 0 where r_c = 0
+        e0, e1, e2 = g.separate(g.vmath("FLOOR", ss["chroma"]))
+        e = g.combine(e0, g.mul(e1, g.sub(1.0, e0)), g.mul(e2, g.sub(1.0, g.maximum(e0, e1))),
+                      label="max channel")
+        lane_m = lambda x: g.dot(x, e)  # noqa: E731
     if lobe == "LEGACY":
-        return _legacy(g, ss, rc, p, tn, tw, haziness, e, lane_m, it)
+        return _legacy(g, ss, rc, p, tn, tw, haziness, lane_m, it)
 
-    # -- F_ss models ---------------------------------------------------------------------------
-    if lobe == "F82_TINT":
+    # -- F_ss of the node as a function of r: per channel (vec_model), max channel (max_model)
+    if lobe == "F82_TINT":  # F_ss = a + b F0, F0 = Base Color (fresnel_f82_Fss, fresnel_f82_B)
         om = g.vmath("SUBTRACT", 1.0, g.vclamp01(1.0 if tint is None else tint))
-        a = g.vmath("MULTIPLY_ADD", om, -_K82 * _F5, 1.0 / 21.0)  # F_ss = a + b F0 (Eq. fresnel_f82_Fss)
+        a = g.vmath("MULTIPLY_ADD", om, -_K82 * _F5, 1.0 / 21.0)
         b = g.vmath("MULTIPLY_ADD", om, -_K82 * (1.0 - _F5), 20.0 / 21.0)
         vec_model = _affine(g, a, b)
-        f0 = vec_model(rc)[0]
-        f1 = g.vmath("ADD", a, b)
+        f0, f1 = vec_model(rc)[0], g.vmath("ADD", a, b)
         a_m, b_m = lane_m(a), lane_m(b)
         max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
     elif lobe == "CONDUCTOR":
         # exact F_ss at r_c; the max channel's solves use the chord to F_ss(1) = 1 (h = (F-r)/(1-r)
         # frozen at r_c), every channel's Newton steps the exact F_ss at the iterate (below)
         exact = _exact_conductor(version)
-        f0 = _conductor_fss(g, rc, edge_tint, exact)
+        f0, f1 = _conductor_fss(g, rc, edge_tint, exact), 1.0
         h = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc),
                     g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), _TINY))
         a_m = lane_m(h)
         b_m = g.sub(1.0, a_m)
         max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
-        vec_model = None
+    elif lobe == "DIELECTRIC":  # F = r + s (1 - r), s from r̂ (Specular Tint r / r̂)
+        f0 = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, rc), _dielectric_s(g, ss["core_max"]), rc)
         f1 = 1.0
-    else:  # DIELECTRIC, COAT: F depends on r̂ through η
-        if lobe == "DIELECTRIC":
-            f0 = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, rc), _dielectric_s(g, ss["core_max"]), rc)
-            f1 = 1.0
-            fm = lambda u: _dielectric_max(g, u)  # noqa: E731
-        else:
-            f0 = _fit(g, ss["core_max"])[0]
-            f1 = 2.0 / (_FIT_A - _FIT_B)
-            fm = lambda u: _fit(g, u)  # noqa: E731
-        max_model = lambda u: (lambda f, df: (f, f, df, df))(*fm(u))  # noqa: E731
-        vec_model = None
+        max_model = lambda u: (lambda f, df: (f, f, df, df))(*_dielectric_max(g, u))  # noqa: E731
+    else:  # COAT: F_ss = fresnel_dielectric_Fss(η(r̂))
+        f0, f1 = _fit(g, rc)[0], 2.0 / (_FIT_A - _FIT_B)
+        max_model = lambda u: (lambda f, df: (f, f, df, df))(*_fit(g, u))  # noqa: E731
 
     # -- the haze-free peak and the largest halo ----------------------------------------------
-    vf0 = f0
-    o0 = v if getattr(f0, "vector", False) else s
-    mn0, _ = _excess(o0, tn, vf0)
-    T = g.vmath("MULTIPLY_ADD", rc, mn0, rc, label="T = r_c S_0")  # (*)'s right side
-    t_m = lane_m(T) if T.vector else T
+    mn0, _ = _excess(v, tn, f0)
+    T = v("MULTIPLY_ADD", rc, mn0, rc)  # T = r_c S_0: (*)'s right side, per channel
+    t_m = lane_m(T)
     o1 = v if getattr(f1, "vector", False) else s
     mn1, _ = _excess(o1, tn, f1)
     mw1, _ = _excess(o1, tw, f1)
-    sn1 = o1("ADD", mn1, 1.0)
-    den = o1("MAXIMUM", o1("SUBTRACT", sn1, o1("MULTIPLY_ADD", mw1, p, p)), _DIV_MIN)
-    beta_e = v("DIVIDE", v("SUBTRACT", sn1, T), den)  # β at which each channel needs r = 1
-    b0, b1, b2 = g.separate(beta_e)
-    beta_max = g.minimum(g.minimum(g.minimum(b0, b1), b2), 1.0, label="β_max")
-    # r̂_m(β_max): from T_m / D(F(r̂_c)) (>= the root), Newton at fixed β
-    mw0, _ = _excess(o0, tw, vf0)
-    mn0_m, mw0_m = (lane_m(x) if o0 is v else x for x in (mn0, mw0))
+    # β at which each channel needs r = 1: (S_n(1) - T)/(S_n(1) - p S_w(1)), the divisor as
+    # (1-p) + (M_n - p M_w) (no cancellation as p -> 1)
+    den = o1("MAXIMUM", o1("ADD", o1("MULTIPLY_ADD", mw1, g.mul(p, -1.0), mn1), ss["peak_complement"]),
+             _DIV_MIN)
+    beta_e = v("DIVIDE", v("SUBTRACT", o1("ADD", mn1, 1.0), T), den)
+    if v.vec:
+        b0, b1, b2 = g.separate(beta_e)
+        beta_e = g.minimum(g.minimum(b0, b1), b2)
+    beta_max = g.minimum(beta_e, 1.0, label="β_max")
+    # r̂_m(β_max): Newton at fixed β from T_m / D(F(r̂_c)) (>= the root: F grows with r)
+    mw0, _ = _excess(v, tw, f0)
     omb, bp = g.sub(1.0, beta_max), g.mul(beta_max, p)
-    d0 = g.add(g.madd(mn0_m, omb, omb), g.madd(mw0_m, bp, bp))
+    d0 = g.add(g.madd(lane_m(mn0), omb, omb), g.madd(lane_m(mw0), bp, bp))
     u = g.minimum(g.div(t_m, d0), 1.0)
     for _ in range(it["k"]):
         u = _fixed_beta_step(s, u, beta_max, t_m, max_model, tn, tw, p)
@@ -282,17 +280,14 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
     u = g.minimum(g.maximum(g.madd(haziness, g.sub(u, ss["core_max"]), ss["core_max"]), k), 1.0)
     for _ in range(it["m"]):
         u = _max_channel_step(g, u, k, t_m, max_model, tn, tw, p)
-    beta = g.div(k, u)
-
+    beta = g.div(k, u, label="β = k̂_h / r̂")
+    out = dict(beta=beta, reflectivity_max=u, halo_intensity=k, halo_max=k_max)
     if lobe == "COAT":  # one Coat IOR: every channel is r̂
-        r = g.combine(u, u, u)
-        return _outputs(g, ss, p, tn, tw, u, r, beta, k, k_max, max_model)
-    if lobe == "DIELECTRIC":  # F = r + s (1 - r), s from r̂
-        sd = _dielectric_s(g, u)
-        vec_model = _affine(g, sd, g.sub(1.0, sd))
+        out["reflectivity"] = g.combine(u, u, u)
+        return out
 
-    # -- every channel at that β, from the max channel's r̂ scaled by the targets ---------
-    r = g.vmath("MINIMUM", g.vmath("SCALE", T, g.div(u, t_m)), 1.0)  # max channel's, scaled
+    # -- every channel at that β, from the max channel's r̂ scaled by the targets -------------
+    r = g.vmath("MINIMUM", g.vmath("SCALE", T, g.div(u, t_m)), 1.0)
     if lobe == "CONDUCTOR":  # exact F_ss at each iterate, F' by the secant through the last two
         r_prev, f_prev = rc, f0
         for _ in range(it["c"]):
@@ -302,9 +297,13 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
             r_prev, f_prev = r, f
             r = _fixed_beta_step(v, r, beta, T, lambda x, f=f, df=df: (f, f, df, df), tn, tw, p)
     else:
+        if lobe == "DIELECTRIC":  # s fixed by r̂: F affine in r
+            sd = _dielectric_s(g, u)
+            vec_model = _affine(g, sd, g.sub(1.0, sd))
         for _ in range(it["c"]):
             r = _fixed_beta_step(v, r, beta, T, vec_model, tn, tw, p)
-    return _outputs(g, ss, p, tn, tw, u, r, beta, k, k_max, max_model)
+    out["reflectivity"] = r
+    return out
 
 
 def _dielectric_s(g, r_hat):
@@ -313,20 +312,7 @@ def _dielectric_s(g, r_hat):
     return g.clamp(g.div(g.sub(f, r_hat), g.maximum(g.sub(1.0, r_hat), _TINY)), 0.0, 1.0)
 
 
-def _outputs(g, ss, p, tn, tw, u, r, beta, k, k_max, max_model):
-    f = max_model(u)[0]
-    s = _Ops(g, False)
-    mn, _ = _excess(s, tn, f)
-    mw, _ = _excess(s, tw, f)
-    sn = g.add(mn, 1.0)
-    # p_ms = p S_w/S_n, 1 - p_ms = (1-p) + p (M_n - M_w)/S_n (no cancellation as p -> 1)
-    p_ms = g.div(g.madd(mw, p, p), sn, label="p_ms = p S_w/S_n")
-    q_ms = g.madd(g.div(g.sub(mn, mw), sn), p, ss["peak_complement"], label="1 - p_ms")
-    return dict(beta=beta, reflectivity=r, reflectivity_max=u, halo_intensity=k, halo_max=k_max,
-                peak_ratio=p_ms, peak_complement=q_ms)
-
-
-def _legacy(g, ss, rc, p, tn, tw, haziness, e, lane_m, it):
+def _legacy(g, ss, rc, p, tn, tw, haziness, lane_m, it):
     """Glossy lobes: F_ss is the colour, (1-β) r narrow and β r wide."""
     v, s = _Ops(g, True), _Ops(g, False)
     mn0, _ = _excess(v, tn, rc)
@@ -367,17 +353,11 @@ def _legacy(g, ss, rc, p, tn, tw, haziness, e, lane_m, it):
     aq = g.add(tn.ma, tn.am1)
     w = g.div(g.mul(rr, 2.0), g.add(bq, g.sqrt(g.madd(g.mul(aq, rr), 4.0, g.mul(bq, bq)))))
     u = g.minimum(g.add(w, k), 1.0)
-    beta = g.div(k, u)
+    beta = g.div(k, u, label="β = k̂_h / r̂")
     r = g.vmath("MINIMUM", g.vmath("SCALE", T, g.div(u, t_m)), 1.0)
     for _ in range(it["c"]):
         r = _fixed_beta_step(v, r, beta, T, model(beta), tn, tw, p)
-    out = _outputs(g, ss, p, tn, tw, u, r, beta, k, k_max, lambda x: (x,))
-    # p_ms of Glossy lobes: the colours differ, F_n = (1-β) r̂, F_w = β r̂
-    mn, _ = _excess(s, tn, g.sub(u, k))
-    mw, _ = _excess(s, tw, k)
-    sn = g.add(mn, 1.0)
-    out["peak_ratio"] = g.div(g.madd(mw, p, p), sn, label="p_ms = p S_w/S_n")
-    out["peak_complement"] = g.madd(g.div(g.sub(mn, mw), sn), p, ss["peak_complement"], label="1 - p_ms")
+    out = dict(beta=beta, reflectivity=r, reflectivity_max=u, halo_intensity=k, halo_max=k_max)
     out["colour_narrow"] = g.vmath("SCALE", r, g.sub(1.0, beta), label="k_n = (1-β) r")
     out["colour_wide"] = g.vmath("SCALE", r, beta, label="k_w = β r")
     return out
