@@ -375,7 +375,8 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
                 table = _RAMP_CACHE.setdefault(stops, ramp_table(stops))
             return _ramp_lookup(table, vals[0])
         if op == "VDOT_PRODUCT":
-            a, b = (v if is_vec else v[..., None] for v, is_vec in zip(vals, vector_args))
+            a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
+                                         for v, is_vec in zip(vals, vector_args)))
             return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2], _F32)
         if op == "SEPARATE":
             out = vals[0][..., lane]

@@ -318,21 +318,36 @@ def _legacy(g, ss, rc, p, tn, tw, haziness, lane_m, it):
     mn0, _ = _excess(v, tn, rc)
     T = g.vmath("MULTIPLY_ADD", rc, mn0, rc, label="T = r_c S_0")
     t_m = lane_m(T)
-    # β_max: the first root of g(β) = (1-β) S_n(1-β) + β p S_w(β) - T (r = 1), convex, g(0) >= 0:
-    # Newton from 0 increases monotonically to it; no root (g' >= 0 while g > 0): pushed to 1
-    b = g.const(0.0)
+    # β_max: the first root of g(β) = (1-β) S_n(1-β) + β p S_w(β) - T_c (r = 1) over the
+    # channels; g - T_c is the same for all, so it is the root for T* = max T_c.  g is convex
+    # with g(0) >= 0: Newton steps from the left of the root increase to it monotonically (no
+    # root: pushed to 1 where g' >= 0 while g > 0).  Three starts in the lanes of one Vector
+    # Math pass: 0, and (for the slow double-root-like cases) β_l and β_l/2, where β_l <= 1 is
+    # the root of the chord bound (1-β) S_n(1) + β p S_w(1) - T* >= g (its first Newton step
+    # lands left of the root when g(β_l) <= 0).  Used: the largest iterate known to be left of
+    # the root (its last step taken from g >= 0, g' < 0), lane 0 always.
+    t0, t1, t2 = g.separate(T)
+    t_max = g.maximum(g.maximum(t0, t1), t2)
+    mn1, _ = _excess(s, tn, 1.0)
+    mw1, _ = _excess(s, tw, 1.0)
+    den1 = g.maximum(g.add(g.madd(mw1, g.mul(p, -1.0), mn1), ss["peak_complement"]), _DIV_MIN)
+    b_l = g.minimum(g.div(g.sub(g.add(mn1, 1.0), t_max), den1), 1.0)
+    b = g.combine(0.0, g.mul(b_l, 0.5), b_l)
+    ok = None
     for i in range(it["b"]):
-        om = v("SUBTRACT", 1.0, b) if i else g.const((1.0, 1.0, 1.0))
-        bv = b if i else g.const((0.0, 0.0, 0.0))
+        om = v("SUBTRACT", 1.0, b)
         mn, dsn = _excess(v, tn, om)
-        mw, dsw = _excess(v, tw, bv)
-        gb = v("SUBTRACT", v("ADD", v("MULTIPLY_ADD", mn, om, om), v("MULTIPLY", v("MULTIPLY_ADD", mw, bv, bv), p)), T)
+        mw, dsw = _excess(v, tw, b)
+        gb = v("SUBTRACT", v("ADD", v("MULTIPLY_ADD", mn, om, om), v("MULTIPLY", v("MULTIPLY_ADD", mw, b, b), p)), t_max)
         # g' = -(S_n + (1-β) S_n') + p (S_w + β S_w')
-        gp = v("SUBTRACT", v("MULTIPLY", v("ADD", v("MULTIPLY_ADD", dsw, bv, mw), 1.0), p),
+        gp = v("SUBTRACT", v("MULTIPLY", v("ADD", v("MULTIPLY_ADD", dsw, b, mw), 1.0), p),
                v("ADD", v("MULTIPLY_ADD", dsn, om, mn), 1.0))
-        b = v("MINIMUM", v("MAXIMUM", v("SUBTRACT", bv, v("DIVIDE", gb, v("MINIMUM", gp, -_DIV_MIN))), 0.0), 1.0)
+        if i == it["b"] - 1:  # left of the root: g >= 0 and g' < 0 where the last step started
+            (_, g1, g2), (_, d1, d2) = g.separate(gb), g.separate(gp)
+            ok = [g.mul(g.math("GREATER_THAN", gi, -1e-30), g.less(di, 0.0)) for gi, di in ((g1, d1), (g2, d2))]
+        b = v("MINIMUM", v("MAXIMUM", v("SUBTRACT", b, v("DIVIDE", gb, v("MINIMUM", gp, -_DIV_MIN))), 0.0), 1.0)
     b0, b1, b2 = g.separate(b)
-    beta_max = g.minimum(g.minimum(b0, b1), b2, label="β_max")
+    beta_max = g.maximum(g.maximum(b0, g.mul(b1, ok[0])), g.mul(b2, ok[1]), label="β_max")
 
     def model(beta):
         omb = g.sub(1.0, beta)
