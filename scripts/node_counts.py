@@ -41,11 +41,12 @@ def main():
             p = dict(base, kind=kind, **extra)
             lean = count(api.create_material("lean", **p))
             shader = count(api.create_material("shader", shader_mapping=True, **p))
-            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} |")
+            ms = count(api.create_material("shader ms", shader_mapping=True, distribution="MULTI_GGX", **p))
+            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} | {ms} |")
     print(f"Blender {bpy.app.version_string}; nodes counted include the output node and every node"
           " inside node groups.\n")
-    print("| kind | configuration | lean (constants) | in-shader mapping |")
-    print("|---|---|---:|---:|")
+    print("| kind | configuration | lean (constants) | in-shader mapping | in-shader, Multiscatter GGX |")
+    print("|---|---|---:|---:|---:|")
     print("\n".join(rows))
 
 

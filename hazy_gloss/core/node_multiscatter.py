@@ -34,11 +34,11 @@ __all__ = ("LOBES", "ITERATIONS", "table_stops", "correct")
 LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
 
 #: Unrolled Newton steps: "k" for r̂_m(β_max) (k̂_max), "m" the max channel r̂_m, "c" every
-#: channel at the final β (the physical conductor: with its exact F_ss at each iterate), "b"
-#: Glossy lobes' β_max.  Measured bounds: docs/mapping.md §11.
+#: channel at the final β (the physical conductor: "c0" on the chord model, then "c" with its
+#: exact F_ss at each iterate), "b" Glossy lobes' β_max.  Measured bounds: docs/mapping.md §11.
 ITERATIONS = {"k": 2, "m": 1, "c": 2, "b": 4}
 #: Per lobe type: the coat has no per-channel solve, its max channel is the peak.
-DEFAULTS = {"COAT": {"m": 2}, "CONDUCTOR": {"c": 3}}
+DEFAULTS = {"COAT": {"m": 2}, "CONDUCTOR": {"c0": 1, "c": 2}}
 
 _F = 6.0 / 7.0  # F82: cos θ = 1/7
 _F5 = _F ** 5
@@ -150,7 +150,8 @@ def _conductor_fss(g, r, edge, exact):
     eta, kappa = gulbrandsen(g, r, omr, edge)
     c = 1.0 / 7.0
     n2, k2 = g.vmath("MULTIPLY", eta, eta), g.vmath("MULTIPLY", kappa, kappa)
-    if exact:  # fresnel_conductor_polarized, F82 < 0 branch: rs and rp from u, v
+    # r_s, r_p = (a - b)/(a + b) each, so F82 = (r_s + r_p)/2 = 1 - X, X = Σ b/(a + b)
+    if exact:  # fresnel_conductor_polarized, F82 < 0 branch: u, v from t1, t2
         d = g.vmath("SUBTRACT", n2, k2)
         t1 = g.vmath("SUBTRACT", d, 1.0 - c * c)
         nk = g.vmath("MULTIPLY", eta, kappa)
@@ -160,24 +161,22 @@ def _conductor_fss(g, r, edge, exact):
         # r_s = (c² + t2 - 2cu)/(c² + t2 + 2cu)
         a_s = g.vmath("ADD", t2, c * c)
         b_s = g.vmath("SCALE", su, 2.0 * c / np.sqrt(2.0))
-        rs = g.vmath("DIVIDE", g.vmath("SUBTRACT", a_s, b_s), g.vmath("ADD", a_s, b_s))
         # r_p = (c²(η²+κ²)² + t2 - 2c(d u + 2ηκ v)) / (... + ...)
         s2 = g.vmath("ADD", n2, k2)
         a_p = g.vmath("MULTIPLY_ADD", g.vmath("MULTIPLY", s2, s2), c * c, t2)
         w = g.vmath("MULTIPLY_ADD", d, su, g.vmath("MULTIPLY", g.vmath("SCALE", nk, 2.0), sv))
         b_p = g.vmath("SCALE", w, 2.0 * c / np.sqrt(2.0))
-        rp = g.vmath("DIVIDE", g.vmath("SUBTRACT", a_p, b_p), g.vmath("ADD", a_p, b_p))
-    else:  # 4.5's fresnel_conductor (exact at normal incidence only)
+    else:  # 4.5's fresnel_conductor (exact at normal incidence only): b = 2ηc in both
         s2 = g.vmath("ADD", n2, k2)
-        two_nc = g.vmath("SCALE", eta, 2.0 * c)
+        b_s = b_p = g.vmath("SCALE", eta, 2.0 * c)
         a_p = g.vmath("MULTIPLY_ADD", s2, c * c, 1.0)
-        rp = g.vmath("DIVIDE", g.vmath("SUBTRACT", a_p, two_nc), g.vmath("ADD", a_p, two_nc))
         a_s = g.vmath("ADD", s2, c * c)
-        rs = g.vmath("DIVIDE", g.vmath("SUBTRACT", a_s, two_nc), g.vmath("ADD", a_s, two_nc))
-    f82 = g.vmath("SCALE", g.vmath("ADD", rs, rp), 0.5)
-    # F_ss = mix(r, 1, 1/21) - (mix(r, 1, f⁵) - F82)·7/(126 f⁶): affine in r and F82
-    lin = g.vmath("MULTIPLY_ADD", r, 20.0 / 21.0 - _K82 * (1.0 - _F5), 1.0 / 21.0 - _K82 * _F5)
-    return g.vclamp01(g.vmath("MULTIPLY_ADD", f82, _K82, lin))
+    x = g.vmath("ADD", g.vmath("DIVIDE", b_s, g.vmath("ADD", a_s, b_s)),
+                g.vmath("DIVIDE", b_p, g.vmath("ADD", a_p, b_p)))
+    # F_ss = mix(r, 1, 1/21) - (mix(r, 1, f⁵) - F82)·7/(126 f⁶): affine in r and F82; <= 1
+    # for r <= 1, saturated below (fresnel_conductor_Fss)
+    lin = g.vmath("MULTIPLY_ADD", r, 20.0 / 21.0 - _K82 * (1.0 - _F5), 1.0 / 21.0 - _K82 * _F5 + _K82)
+    return g.vmath("MAXIMUM", g.vmath("MULTIPLY_ADD", x, -_K82, lin), 0.0)
 
 
 def _affine(g, a, b):
@@ -205,7 +204,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
     lobe = str(lobe).upper()
     if lobe not in LOBES:
         raise ValueError(f"multiscatter lobe must be one of {', '.join(LOBES)}; got {lobe!r}")
-    it = dict(ITERATIONS, **DEFAULTS.get(lobe, {}), **(iterations or {}))
+    it = {**ITERATIONS, **DEFAULTS.get(lobe, {}), **(iterations or {})}
     stops = table_stops(version)
     tn, tw = _Table(g, x_n, stops, "narrow"), _Table(g, x_w, stops, "wide")
     s = _Ops(g, False)
@@ -290,6 +289,9 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
     r = g.vmath("MINIMUM", g.vmath("SCALE", T, g.div(u, t_m)), 1.0)
     if lobe == "CONDUCTOR":  # exact F_ss at each iterate, F' by the secant through the last two
         r_prev, f_prev = rc, f0
+        for _ in range(it.get("c0", 0)):  # steps on the chord model (per channel h frozen at r_c)
+            hv = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc), g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), _TINY))
+            r = _fixed_beta_step(v, r, beta, T, _affine(g, hv, g.vmath("SUBTRACT", 1.0, hv)), tn, tw, p)
         for _ in range(it["c"]):
             f = _conductor_fss(g, r, edge_tint, exact)
             df = g.vmath("MAXIMUM", g.vmath("DIVIDE", g.vmath("SUBTRACT", f, f_prev),

@@ -337,7 +337,7 @@ def test_output_is_finite_on_garbage_texels():
 
 
 #: Nodes of the isotropic Eq. 7 graph (single-scatter mapping included: 61 for the conductor).
-NODE_COUNTS = {"CONDUCTOR": 477, "F82_TINT": 233, "DIELECTRIC": 274, "LEGACY": 332, "COAT": 212}
+NODE_COUNTS = {"CONDUCTOR": 412, "F82_TINT": 233, "DIELECTRIC": 274, "LEGACY": 332, "COAT": 212}
 
 
 def test_node_counts():
