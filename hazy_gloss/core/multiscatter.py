@@ -38,7 +38,8 @@ from . import cycles_ggx_tables as _tables
 from .mapping import HazeMapping, _haze_terms, dielectric_ior, gulbrandsen_ior
 
 __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness_index",
-           "albedo_normal", "albedo_average", "single_scatter_albedo", "energy_scale",
+           "albedo_normal", "albedo_average", "single_scatter_albedo", "fss_dielectric_exact",
+           "energy_scale",
            "peak_ratio", "correct_mapping", "peak_factor")
 
 #: Newest Blender whose Cycles this module reproduces; later versions are assumed to match it.
