@@ -99,11 +99,12 @@ def main():
             p = dict(base, kind=kind, **extra)
             lean = count(api.create_material("lean", **p))
             shader = count(api.create_material("shader", shader_mapping=True, **p))
-            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} |")
+            ms = count(api.create_material("shader ms", shader_mapping=True, distribution="MULTI_GGX", **p))
+            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} | {ms} |")
     lines = [f"Blender {bpy.app.version_string}; nodes counted include the output node and every "
              "node inside node groups.", "",
-             "| kind | configuration | lean (constants) | in-shader mapping |",
-             "|---|---|---:|---:|"] + rows
+             "| kind | configuration | lean (constants) | in-shader mapping | in-shader, Multiscatter GGX |",
+             "|---|---|---:|---:|---:|"] + rows
     lines += ["", "A haze layer (Make Hazy) on a Principled material: what it adds (copies of the "
               "BSDF, mixes, node math and the nodes body colour reads):", "",
               "| material | its nodes | added | BSDF copies | mixes | math and other |",
