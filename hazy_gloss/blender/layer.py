@@ -327,8 +327,11 @@ def _mapping(plan, g, x, kind, rc, edge_tint, rough, aniso, rot, haziness, exten
     src = dict(core_reflectivity=rc, edge_tint=edge_tint, roughness=rough, anisotropy=aniso,
                rotation=rot, haziness=haziness, haze_extent_x=extent[0], haze_extent_y=extent[1],
                smoothness=smooth)
+    ms = None
+    if dist == "MULTI_GGX":  # Cycles' energy factor in node math too (core.node_multiscatter)
+        ms = lobe or {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGACY": "LEGACY"}[kind]
     return node_math.mapping(g, src, kind=kind, anisotropic=anisotropic, smooth=smooth is not None,
-                             distribution=dist), None
+                             distribution=dist, multiscatter=ms, tint=tint), None
 
 
 def values(plan):
@@ -438,9 +441,10 @@ def values(plan):
         mixes["Mix metallic"] = x("Metallic")
     if plan.coat:
         f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
+        # the coat is always energy-compensated GGX (bsdf_coat_setup): its own correction
         mc, mp = _mapping(plan, g, x, "DIELECTRIC", f0c, g.const(0.0), x("Coat Roughness"),
                           g.const(0.0), g.const(0.0), hz("coat_haziness"),
-                          (hz("coat_haze_extent"),) * 2, None, "GGX", False)
+                          (hz("coat_haze_extent"),) * 2, None, "MULTI_GGX", False, lobe="COAT")
         if mp is not None:
             maps["COAT"] = mp
         gain = g.div(mc["reflectivity_max"], g.maximum(mc["core_max"], 1e-30))

@@ -93,8 +93,8 @@ class _ShaderEmitter:
             self.sockets[e.index] = n.outputs[0]
             return
         if e.op == "MIX":
-            n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT")
-            n.clamp_factor = False
+            n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT",
+                           clamp_factor=False)
             fac, a, b, res = _MIX_IDS[e.vector]
             tb.feed(_by_id(n.inputs, fac), self.value(e.args[0]))
             tb.feed(_by_id(n.inputs, a), self.value(e.args[1]))
@@ -104,16 +104,17 @@ class _ShaderEmitter:
         if e.op == "RAMP":  # linear RGB Color Ramp with the graph's stops (set on reuse too)
             n = self._node("ShaderNodeValToRGB", e)
             ramp = n.color_ramp
-            ramp.color_mode = "RGB"
-            ramp.interpolation = "LINEAR"
-            elements = ramp.elements
-            while len(elements) > 1:
-                elements.remove(elements[-1])
-            elements[0].position = e.value[0][0]
-            for pos, _ in e.value[1:]:  # increasing: each new element is the last
-                elements.new(pos)
-            for el, (pos, col) in zip(elements, e.value):
-                el.color = (*col, 1.0)
+            if not _ramp_is(ramp, e.value):  # (a reused ramp usually already is: a slider
+                ramp.color_mode = "RGB"     # change must not rewrite 64 stops)
+                ramp.interpolation = "LINEAR"
+                elements = ramp.elements
+                while len(elements) > 1:
+                    elements.remove(elements[-1])
+                elements[0].position = e.value[0][0]
+                for pos, _ in e.value[1:]:  # increasing: each new element is the last
+                    elements.new(pos)
+                for el, (pos, col) in zip(elements, e.value):
+                    el.color = (*col, 1.0)
             tb.feed(n.inputs["Fac"], self.value(e.args[0]))
             self.sockets[e.index] = n.outputs["Color"]
             return
@@ -132,6 +133,18 @@ class _ShaderEmitter:
         for sock, a in zip(n.inputs, e.args):
             tb.feed(sock, self.value(a))
         self.sockets[e.index] = n.outputs[0]
+
+
+def _ramp_is(ramp, stops):
+    """Whether a Color Ramp already holds ``stops`` ((position, rgb), ...), linear RGB."""
+    if ramp.color_mode != "RGB" or ramp.interpolation != "LINEAR" or \
+            len(ramp.elements) != len(stops):
+        return False
+    f32 = np.float32
+    for el, (pos, col) in zip(ramp.elements, stops):
+        if f32(el.position) != f32(pos) or any(f32(a) != f32(b) for a, b in zip(el.color, col)):
+            return False
+    return True
 
 
 class _CompositorEmitter:
