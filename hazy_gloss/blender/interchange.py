@@ -67,6 +67,9 @@ def _tangent_kind(tree):
 def source_of(mat):
     """(materialx.Source or None, reason) for one Blender material."""
     p = material.read_parameters(mat)
+    if p is not None and p.get("layered"):
+        return None, (f"“{mat.name}” carries a haze layer on its {p.get('core_type', 'BSDF').title()} "
+                      f"BSDF: MaterialX export of haze layers is not supported yet")
     if p is not None:
         src = materialx.Source(mat.name, parameters=p)
         if p["shader_mapping"] and mat.node_tree is not None:
