@@ -294,7 +294,12 @@ def test_haziness_zero_is_the_original(env, name):
     after = render_for(env, name, mat)
     err = rel_diff(before["combined"], after["combined"])
     alpha = float(np.abs(before["alpha"] - after["alpha"]).max())
-    record("layer_haziness0", {name: dict(max_rel=err, alpha=alpha)})
+    b, a = before["combined"], after["combined"]
+    record("layer_haziness0", {name: dict(
+        max_rel=err, alpha=alpha, peak_before=float(b.max()), peak_after=float(a.max()),
+        mean_before=float(b.mean()), mean_after=float(a.mean()),
+        transparent_before=float((before["alpha"] < 0.5).mean()),
+        transparent_after=float((after["alpha"] < 0.5).mean()))})
     assert err <= 1e-5 and alpha <= 1e-6, (err, alpha)
 
 
@@ -696,3 +701,16 @@ def test_keep_body_colour_says_what_it_cannot_keep(env):
     make_hazy(env, mat, haziness=0.5, keep_body_colour=True)
     notes = " ".join(env.layer.summary(mat)["plan"].notes)
     assert "too bright to keep" in notes and "darker" in notes
+
+
+@pytest.mark.parametrize("name", ["emissive plastic", "leaf (alpha texture)", "fabric (sheen)"])
+def test_what_haze_does_not_touch_renders_as_before(env, name):
+    """With haze on, the emission pass and the alpha (cut-out) are exactly the original's."""
+    mat = MATERIALS[name]()
+    before = render(env, mat, passes=("combined", "emission"), transparent=True)
+    make_hazy(env, mat, haziness=0.5, haze_extent=6.0)
+    after = render(env, mat, passes=("combined", "emission"), transparent=True)
+    emission = float(np.abs(before["emission"] - after["emission"]).max())
+    alpha = float(np.abs(before["alpha"] - after["alpha"]).max())
+    record("layer_untouched", {name: dict(emission=emission, alpha=alpha)})
+    assert emission <= 1e-6 * max(1.0, float(before["emission"].max())) and alpha == 0.0
