@@ -709,16 +709,24 @@ def _apply(mat, haze, core, baked):
                                  f"through a Value node instead, then add haze")
             base[name] = _current(core.inputs[name])
     plan = Plan(core, haze, base)
-    for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back
-        _restore(core, name, base.pop(name))
-    key = plan.key()
-    if plan.body:  # the view cosine body colour reads: a Layer Weight on the core's normal
-        plan.facing = _facing(tree, core)
-    flat, g, sources, maps = output_keys(plan)
+    returned = [n for n in base if n not in plan.owned()]  # no longer owned (given back below)
+    flat, g, sources, maps = output_keys(plan)  # (reads the user's values from base)
     if baked is None:
         baked = _baked_from_state(tree, state)
     baked_maps = dict(baked["maps"]) if baked else {}
     live = {k: e for k, e in flat.items() if k not in baked_maps}
+    unfed = sorted({e.name for e in g.used(live) if e.op == "input" and e.name != "facing"
+                    and sources.get(e.name) is None})
+    if unfed:  # (a baked layer whose material changed so that new values depend on the maps)
+        what = ", ".join(n.split(":", 1)[-1] for n in unfed)
+        raise ValueError(f"the layer of {mat.name!r} needs {what} per pixel, which only its "
+                         f"converted maps held: convert the maps again (or Remove Haze)")
+    # nothing above changed the tree; from here on it is updated
+    for name in returned:
+        _restore(core, name, base.pop(name))
+    key = plan.key()
+    if plan.body:  # the view cosine body colour reads: a Layer Weight on the core's normal
+        plan.facing = sources["facing"] = _facing(tree, core)
     signature = str((g.signature(live), sorted((k, _socket_ref(v)) for k, v in sources.items()
                                                if not k.startswith("haze:")),
                      sorted(repr(k) for k in baked_maps)))

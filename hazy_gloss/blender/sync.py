@@ -37,8 +37,9 @@ def sync(mat, *, force=False):
         return False
     try:
         layer.apply(mat, layer.haze_of(mat), core=core)  # records the new fingerprint
-    except (ValueError, TypeError) as exc:
+    except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
         properties.last_error[key] = plain_message(exc)
+        layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
     return True
 
