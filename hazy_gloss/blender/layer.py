@@ -685,7 +685,8 @@ def _baked_from_state(tree, state):
         if img is not None:
             maps[ast.literal_eval(k)] = img
     vec = _resolve(tree, b["vector"]) if b.get("vector") else None
-    return dict(maps=maps, vector=vec, interpolation=b.get("interpolation", "Linear"))
+    return dict(maps=maps, vector=vec, interpolation=b.get("interpolation", "Linear"))  # (no
+    #   "sources": apply compares the stamp's with what the layer reads now)
 
 
 def _apply(mat, haze, core, baked):
@@ -717,6 +718,10 @@ def _apply(mat, haze, core, baked):
     live = {k: e for k, e in flat.items() if k not in baked_maps}
     unfed = sorted({e.name for e in g.used(live) if e.op == "input" and e.name != "facing"
                     and sources.get(e.name) is None})
+    read = sorted(k for k in sources if k.startswith("in:"))
+    if baked_maps and "sources" in (state.get("baked") or {}) and baked is not None and \
+            baked.get("sources") is None and read != sorted(state["baked"]["sources"]):
+        unfed = unfed or [n for n in read if n not in state["baked"]["sources"]] or read
     if unfed:  # (a baked layer whose material changed so that new values depend on the maps)
         what = ", ".join(n.split(":", 1)[-1] for n in unfed)
         raise ValueError(f"the layer of {mat.name!r} needs {what} per pixel, which only its "
@@ -799,7 +804,8 @@ def _apply(mat, haze, core, baked):
                            if v is not None}}
     if baked_maps:  # (ID properties hold no None)
         b = {"maps": {repr(k): img.name for k, img in baked_maps.items()},
-             "interpolation": baked.get("interpolation", "Linear")}
+             "interpolation": baked.get("interpolation", "Linear"),
+             "sources": baked.get("sources") or read}  # what the maps were computed from
         if baked.get("vector") is not None:
             b["vector"] = _socket_ref(baked["vector"])
         d["layer"]["baked"] = b

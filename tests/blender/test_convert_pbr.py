@@ -225,3 +225,16 @@ def test_baked_layer_after_an_edit_that_needs_new_maps(env, tmp_path):
     props = importlib.import_module(env.api.__name__.rsplit(".", 1)[0] + ".blender.properties")
     assert "convert the maps again" in props.error_for(mat)
     assert L.signature(mat) == sig
+
+
+def test_converting_again_replaces_the_baked_layer(env, tmp_path):
+    """A second conversion into the same material (another set: no metallic or haze map now)
+    is fine: the metallic image the material still has linked is read as a map too."""
+    res = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "a"), name="Again")
+    mat = res.material
+    paths = pbr_set(tmp_path, haze=False)
+    del paths["metallic"]
+    paths["haziness"] = 0.3
+    res2 = env.api.convert_maps(paths, str(tmp_path / "b"), material=mat)
+    assert res2.material == mat and env.layer.is_baked(mat)
+    assert "beta_metal" in res2  # the material's own metallic texture still splits it
