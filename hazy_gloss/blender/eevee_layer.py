@@ -46,8 +46,10 @@ between the layer and the output (a Mix / Add Shader of the user's) are duplicat
 output; the user's other inputs are linked, not copied.
 
 The copy holds the core's values as they are when it is built: after the core or the haze
-changes, call :func:`sync_eevee_output` (or :func:`add_eevee_output` again).  Every node made
-here carries the role ``"layer eevee ..."`` (constants.ROLE).
+changes, call :func:`sync_eevee_output`, which also rebuilds the output after the layer rebuilt
+itself (the request is kept in the material's stamp, key "eevee", which the layer keeps and
+Remove Haze drops).  Every node made here carries the role ``"layer eevee ..."``
+(constants.ROLE).
 """
 from __future__ import annotations
 
@@ -59,6 +61,7 @@ ROLE = "layer eevee "
 OUTPUT_ROLE = ROLE + "output"
 BSDF_ROLE = ROLE + "bsdf"
 MODE_KEY = "hazy_gloss_eevee_mode"
+STAMP_KEY = "eevee"  # in the material's stamp (constants.STAMP): {"mode": ...}
 MODES = ("auto", "always")
 _PATH_TYPES = ("ShaderNodeMixShader", "ShaderNodeAddShader")
 _ROUGH_FLOOR = 1e-6
@@ -73,12 +76,39 @@ def has_eevee_output(mat):
     return mat is not None and mat.node_tree is not None and OUTPUT_ROLE in eevee_nodes(mat.node_tree)
 
 
-def remove_eevee_output(mat):
-    """Remove the EEVEE-only output and everything built for it.  Returns whether there was one."""
+def _remove_nodes(mat):
     nodes = eevee_nodes(mat.node_tree)
     for n in nodes.values():
         mat.node_tree.nodes.remove(n)
     return bool(nodes)
+
+
+def requested_mode(mat):
+    """The mode :func:`add_eevee_output` was last asked for on ``mat`` (kept in the material's
+    stamp, which the layer keeps when it rebuilds and drops on Remove Haze), or None."""
+    d = mat.get(K.STAMP)
+    e = d.get(STAMP_KEY) if d is not None else None
+    return e.get("mode") if e is not None else None
+
+
+def _set_request(mat, mode):
+    d = mat.get(K.STAMP)
+    if d is None:
+        return
+    d = d.to_dict() if hasattr(d, "to_dict") else dict(d)
+    if mode is None:
+        d.pop(STAMP_KEY, None)
+    else:
+        d[STAMP_KEY] = {"mode": mode}
+    mat[K.STAMP] = d
+
+
+def remove_eevee_output(mat):
+    """Remove the EEVEE-only output and everything built for it, and forget the request (so
+    :func:`sync_eevee_output` does not bring it back).  Returns whether there was one."""
+    had = _remove_nodes(mat)
+    _set_request(mat, None)
+    return had
 
 
 def _plan(mat):
@@ -307,7 +337,8 @@ def add_eevee_output(mat, *, mode="auto"):
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     plan = _plan(mat)
-    remove_eevee_output(mat)
+    _remove_nodes(mat)
+    _set_request(mat, mode)
     needed, why = needs_eevee_output(mat)
     if not plan.active:
         return dict(added=False, reason=why, nodes=0)
@@ -420,14 +451,15 @@ def _path(user_out, final):
 
 
 def sync_eevee_output(mat):
-    """Rebuild the EEVEE output of ``mat`` from the layer as it is now (after an edit of the
-    core or of the haze), in the mode it was built with.  Returns whether there is one."""
-    nodes = eevee_nodes(mat.node_tree)
-    out = nodes.get(OUTPUT_ROLE)
-    if out is None:
+    """Bring the EEVEE output of ``mat`` up to date with its layer (after an edit of the core or
+    of the haze, also after the layer rebuilt itself and so removed it), in the mode it was
+    requested with; nothing when none was requested.  Call it after every layer.apply.
+    Returns whether the material has an EEVEE output now."""
+    out = eevee_nodes(mat.node_tree).get(OUTPUT_ROLE)
+    mode = requested_mode(mat) or (out.get(MODE_KEY) if out is not None else None)
+    if mode is None:
         return False
-    mode = out.get(MODE_KEY, "auto")
     if not layer.is_layered(mat):
-        remove_eevee_output(mat)
+        _remove_nodes(mat)
         return False
     return add_eevee_output(mat, mode=mode)["added"]

@@ -214,13 +214,21 @@ def test_auto_refuses_and_layer_rebuilds_remove_it(env):
     tree.nodes.remove(out)
     assert env.E.add_eevee_output(mat)["added"]
     # the layer rebuilds (its structure changes): every "layer ..." node goes, ours too, and
-    # EEVEE renders the full layer again; sync then reports there is nothing to follow
+    # EEVEE renders the full layer again; sync brings the output back (the request is stamped)
     env.api.update_material(mat, coat_haziness=0.0)
     assert not env.E.has_eevee_output(mat)
-    assert not env.E.sync_eevee_output(mat)
-    assert env.E.add_eevee_output(mat)["added"]  # base haze under the coat is still noisy
+    assert env.E.requested_mode(mat) == "auto"
+    assert env.E.sync_eevee_output(mat)  # base haze under the coat is still noisy
+    assert env.E.has_eevee_output(mat)
+    # a request for a material that does not need it: kept, nothing built until it does
+    plain = dielectric()
+    env.api.make_hazy(plain, haziness=0.5)
+    assert not env.E.add_eevee_output(plain)["added"]
+    assert not env.E.sync_eevee_output(plain) and env.E.requested_mode(plain) == "auto"
+    env.E.remove_eevee_output(plain)
+    assert env.E.requested_mode(plain) is None
     env.api.remove_haze(mat)
-    assert not env.E.eevee_nodes(tree)
+    assert not env.E.eevee_nodes(tree) and env.E.requested_mode(mat) is None
     with pytest.raises(ValueError, match="no haze layer"):
         env.E.add_eevee_output(mat)
     with pytest.raises(ValueError, match="mode must be"):
