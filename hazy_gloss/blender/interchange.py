@@ -32,12 +32,13 @@ refreshes the values).
 import os
 
 import bpy
+import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
-from ..interchange import engines, materialx, usd
+from ..interchange import engines, layered, materialx, usd
 from . import compat, material
 from .context import plain_message, target_material
 
@@ -64,12 +65,103 @@ def _tangent_kind(tree):
     return f"RADIAL_{t.axis}"
 
 
+_NODE_PROPS = ("operation", "use_clamp", "data_type", "blend_type", "clamp_factor", "clamp_result",
+               "factor_mode", "distribution", "fresnel_type", "subsurface_method", "interpolation",
+               "extension", "projection", "target", "direction_type", "axis", "uv_map", "space",
+               "mode", "clamp_type")
+
+
+def _socket_value(sock):
+    v = getattr(sock, "default_value", None)
+    if v is None or isinstance(v, str):
+        return None
+    if hasattr(v, "__len__"):
+        return tuple(float(x) for x in v)
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None
+
+
+def _snap_socket(sock, is_input):
+    link = None
+    if is_input and sock.is_linked:
+        lk = sock.links[0]
+        if getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
+            link = (lk.from_node.name, lk.from_socket.identifier)
+    return layered.Socket(sock.identifier, sock.name, sock.type, _socket_value(sock), link,
+                          bool(getattr(sock, "enabled", True)),
+                          bool(not is_input and sock.is_linked))
+
+
+def _image_info(img):
+    if img is None:
+        return None
+    info = dict(name=img.name, source=img.source, packed=img.packed_file is not None,
+                colorspace=img.colorspace_settings.name,
+                is_data=bool(getattr(img.colorspace_settings, "is_data", False)), path=None)
+    raw = img.filepath_raw or img.filepath
+    if raw and img.source in ("FILE", "TILED", "SEQUENCE", "MOVIE"):
+        path = os.path.normpath(bpy.path.abspath(raw, library=img.library))
+        if img.source == "TILED" or os.path.isfile(path):
+            info["path"] = path
+    return info
+
+
+def tree_snapshot(mat):
+    """The node tree of ``mat`` as interchange.layered.Tree (plain values, no bpy), with the
+    haze layer's state."""
+    tree = mat.node_tree
+    from . import layer as _layer
+    state = _layer.layer_state(mat) or {}
+    core = _layer.find_core(tree, state.get("core"))
+    nodes = {}
+    for n in tree.nodes:
+        if n.bl_idname in ("NodeFrame",):
+            continue
+        props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
+        props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
+        b = layered.BNode(n.name, n.bl_idname, [_snap_socket(x, True) for x in n.inputs],
+                          [_snap_socket(x, False) for x in n.outputs], props, n.label,
+                          material.role(n),
+                          core is not None and n == core, bool(n.mute))
+        if n.bl_idname == "ShaderNodeTexImage":
+            b.image = _image_info(n.image)
+        if n.bl_idname == "ShaderNodeValToRGB":
+            r = n.color_ramp
+            b.ramp = dict(color_mode=r.color_mode, interpolation=r.interpolation,
+                          elements=[(float(e.position), tuple(float(c) for c in e.color))
+                                    for e in r.elements])
+        if b.core:
+            b.base = {k: dict(v) for k, v in state.get("base", {}).items()}
+        nodes[n.name] = b
+    outs = [n for n in tree.nodes if n.bl_idname == _OUTPUT]
+    used = _engine_output(outs, "CYCLES")
+    lay = {}
+    if state:
+        h = _layer.haze_of(mat)
+        lay = dict(core=core.name if core is not None else None,
+                   core_type=_layer.core_type(core) if core is not None else None,
+                   haze={k: (list(v) if isinstance(v, tuple) else v) for k, v in h.items()},
+                   baked=bool(state.get("baked")), live_math=bool(state.get("math")),
+                   nodes=sorted(r for r in material.ours(tree) if r.startswith("layer ")))
+        if core is not None:
+            plan = _layer.Plan(core, h, dict(state.get("base", {})))
+            lay.update(parts=list(plan.parts), coat=bool(plan.coat), split=bool(plan.split),
+                       owned=plan.owned())
+    return layered.Tree(mat.name, nodes, used.name if used is not None else None, lay)
+
+
 def source_of(mat):
     """(materialx.Source or None, reason) for one Blender material."""
     p = material.read_parameters(mat)
     if p is not None and p.get("layered"):
-        return None, (f"“{mat.name}” carries a haze layer on its {p.get('core_type', 'BSDF').title()} "
-                      f"BSDF: MaterialX export of haze layers is not supported yet")
+        if mat.node_tree is None:
+            return None, f"“{mat.name}” has no node tree"
+        snap = tree_snapshot(mat)
+        if snap.output is None:
+            return None, f"“{mat.name}” has no Material Output"
+        return materialx.Source(mat.name, layer=snap), ""
     if p is not None:
         src = materialx.Source(mat.name, parameters=p)
         if p["shader_mapping"] and mat.node_tree is not None:
