@@ -79,6 +79,7 @@ class Socket:
     link: tuple = None  #: (from node name, from socket identifier) of a valid, unmuted link
     enabled: bool = True
     linked: bool = False  #: an output with links
+    node: str = ""  #: the node it belongs to (for the notes)
 
 
 @dataclass
@@ -210,9 +211,10 @@ def coat_ior_inverse(ior, coat_ior, coat_weight):
         return x, coat_eta(x, c, w) - e
     if w == 1.0:
         x = c / e
-    else:  # η_o < η_c: (1-w) x² - e x + w c = 0
+    else:  # η_o < η_c: (1-w) x² - e x + w c = 0; below its minimum 2√((1-w) w c): the minimum
         disc = e * e - 4.0 * (1.0 - w) * w * c
-        x = (e - math.sqrt(max(disc, 0.0))) / (2.0 * (1.0 - w))
+        x = ((e - math.sqrt(disc)) / (2.0 * (1.0 - w)) if disc >= 0.0
+             else math.sqrt(w * c / (1.0 - w)))
     x = min(max(x, 1e-6), c)
     return x, coat_eta(x, c, w) - e
 
@@ -543,7 +545,8 @@ class Writer:
                 self.stack.pop()
             if got is None:
                 v = sock.value if sock.value is not None else 0.0
-                self.note(f"“{sock.name}” of a node is linked from “{node.name}” "
+                owner = f"“{sock.node}”" if sock.node else "a node"
+                self.note(f"“{sock.name}” of {owner} is linked from “{node.name}” "
                           f"({node.type.replace('ShaderNode', '')}), which is not exported: "
                           f"written at the socket's own value {_fmt(v)}")
                 got = _c(_MX_TYPE.get(sock.type, "float"), v)
@@ -701,17 +704,21 @@ class Writer:
             if np.any(np.abs(slopes[i] - slopes[keep[-1]]) > 1e-9 * (1.0 + np.abs(slopes[i]))):
                 keep.append(i)
         knots = [xs[i] for i in keep] + [1.0]
-        # f(x) = t_0 + Σ_k s_k (clamp(x, x_k, x_k+1) - x_k): every term is at most one table step
-        # (no cancellation in float32, unlike folding the x_k into the constant)
-        acc = _c("vector3", table[0])
-        for k in range(len(keep)):
-            x0, x1, s = knots[k], knots[k + 1], slopes[keep[k]]
+        # the segment holding x, selected from the top: f = t_k + s_k (x - x_k) with
+        # ifgreater(x_k+1, x) — one segment's line per pixel, so float32 rounds as Cycles'
+        # lookup does (a sum of clamped segments accumulates rounding over all of them)
+        def line(k):
+            x0, s = knots[k], slopes[keep[k]]
+            y0 = table[keep[k]]
             if not np.any(s):
-                continue
-            seg = self.sub(self.clamp(x, x0, x1, f"{node.name}_seg{k}"), _c("float", x0),
-                           f"{node.name}_from{k}")
-            acc = self.add(acc, self.mul(_c("vector3", s), seg, f"{node.name}_part{k}"), f"{node.name}_sum{k}")
-        return acc
+                return _c("vector3", y0)
+            d = self.sub(x, _c("float", x0), f"{node.name}_from{k}")
+            return self.add(_c("vector3", y0), self.mul(_c("vector3", s), d, f"{node.name}_slope{k}"),
+                            f"{node.name}_line{k}")
+        v = line(len(keep) - 1)
+        for k in range(len(keep) - 2, -1, -1):
+            v = self.select("ifgreater", _c("float", knots[k + 1]), x, line(k), v, f"{node.name}_seg{k}")
+        return v
 
     def layer_weight(self, node, oid):
         """Facing = 1 - |N·I| at Blend 0.5 (Cycles svm_node_layer_weight); Fresnel not exported."""
