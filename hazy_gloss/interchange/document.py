@@ -134,6 +134,7 @@ NODEDEFS = {
     "ND_floor_float": ("floor", "float", {"in": ("float", 0.0)}),
     "ND_floor_vector3": ("floor", "vector3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_sign_float": ("sign", "float", {"in": ("float", 0.0)}),
+    "ND_modulo_float": ("modulo", "float", {"in1": ("float", 0.0), "in2": ("float", 1.0)}),
     "ND_sign_vector3": ("sign", "vector3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_ifgreater_float": ("ifgreater", "float", {"value1": ("float", 1.0),
         "value2": ("float", 0.0), "in1": ("float", 0.0), "in2": ("float", 0.0)}),

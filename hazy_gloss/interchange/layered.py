@@ -410,11 +410,15 @@ class Writer:
                 return self.mul(a, a, base)
             if e == 0.5:
                 return self.sqrt(a, base)
-            if e == int(e):  # an integer power of any base
+            if e == int(e):  # an integer power of any base: |a|^e, negated for odd e and a < 0
                 p = V(t, node=self.node(f"ND_power_{t}", base, in1=self.unary("absval", a, base + "_abs", np.abs),
                                         in2=_c(t, e)))
                 if int(e) % 2:
-                    p = self.mul(p, self.unary("sign", a, base + "_sign", np.sign), base + "_signed")
+                    if t != "float":
+                        lanes = [self.power(self.lane(a, i), b, f"{base}_{'xyz'[i]}") for i in range(3)]
+                        return self.combine(lanes, base)
+                    neg = self.mul(p, _c("float", -1.0), base + "_neg")
+                    p = self.select("ifgreatereq", a, _c("float", 0.0), p, neg, base + "_signed")
                 return p
             if e > 0:  # a negative base gives 0: power(max(a, 0), e)
                 return V(t, node=self.node(f"ND_power_{t}", base, in1=self.maximum(a, _c(t, 0.0), base + "_nonneg"),
@@ -422,11 +426,16 @@ class Writer:
         if t != "float":
             lanes = [self.power(self.lane(a, i), self.lane(b, i), f"{base}_{'xyz'[i]}") for i in range(3)]
             return self.combine(lanes, base)
-        p = self.node("ND_power_float", base, in1=a, in2=b)
-        self.note("a Math Power with a linked exponent gives 0 for a negative base (Cycles: "
-                  "(-x)ⁿ for integer n)")
-        return V("float", node=self.node("ND_ifgreatereq_float", base + "_safe", value1=a,
-                                         value2=0.0, in1=V("float", node=p), in2=0.0))
+        # a linked exponent: a ≥ 0: a^b; a < 0: |a|^b (-1)^b for an integer b, else 0
+        p = V("float", node=self.node("ND_power_float", base, in1=self.unary("absval", a, base + "_abs", np.abs),
+                                      in2=b))
+        odd = self.node("ND_modulo_float", base + "_odd", in1=self.unary("absval", b, base + "_babs", np.abs),
+                        in2=2.0)
+        sign = self.sub(_c("float", 1.0), self.mul(V("float", node=odd), _c("float", 2.0), base + "_2odd"),
+                        base + "_parity")
+        neg = self.select("ifequal", self.unary("floor", b, base + "_floor", np.floor), b,
+                          self.mul(p, sign, base + "_negbase"), _c("float", 0.0), base + "_int")
+        return self.select("ifgreatereq", a, _c("float", 0.0), p, neg, base + "_safe")
 
     def select(self, cat, v1, v2, a, b, base):
         """ifgreater / ifgreatereq / ifequal(value1, value2): a when true, else b."""
@@ -708,10 +717,14 @@ class Writer:
         # ifgreater(x_k+1, x) — one segment's line per pixel, so float32 rounds as Cycles'
         # lookup does (a sum of clamped segments accumulates rounding over all of them)
         def line(k):
-            x0, s = knots[k], slopes[keep[k]]
+            s = slopes[keep[k]]
             y0 = table[keep[k]]
             if not np.any(s):
                 return _c("vector3", y0)
+            # anchored at x0 as a float32 (what MaterialX reads): a steep segment (slope up to
+            # 255 per unit step) would move by s · (x0 - fl(x0)) otherwise
+            x0 = float(np.float32(knots[k]))
+            y0 = y0 + s * (x0 - knots[k])
             d = self.sub(x, _c("float", x0), f"{node.name}_from{k}")
             return self.add(_c("vector3", y0), self.mul(_c("vector3", s), d, f"{node.name}_slope{k}"),
                             f"{node.name}_line{k}")
@@ -1234,3 +1247,125 @@ def preview_values(tree):
     else:
         out["diffuseColor"] = rgb(u("Color"))
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# Measured: Cycles' Principled against MaterialX's OpenPBR 1.1.1 (docs/interchange.md §5)
+# --------------------------------------------------------------------------------------------
+
+
+def _f0(eta):
+    return ((eta - 1.0) / (eta + 1.0)) ** 2
+
+
+def _ior_from_f0(f):
+    s = math.sqrt(min(max(f, 0.0), 1.0 - 1e-12))
+    return (1.0 + s) / (1.0 - s)
+
+
+def principled_fresnel(cos_d, eta, tint=(1.0, 1.0, 1.0)):
+    """Cycles' Principled dielectric reflection (generalized Schlick with exponent -η):
+    t F0 + (1 - t F0) saturate((F_η - F0) / (1 - F0)): max(F_η, F0) for t = 1."""
+    from .brdf import fresnel_dielectric
+    f0 = _f0(float(eta))
+    s = np.clip((fresnel_dielectric(cos_d, eta) - f0) / (1.0 - f0), 0.0, 1.0)[..., None]
+    t0 = np.asarray(tint, dtype=np.float64) * f0
+    return t0 + (1.0 - t0) * s
+
+
+def openpbr_fresnel(cos_d, eta, tint=(1.0, 1.0, 1.0)):
+    """MaterialX 1.39's dielectric_bsdf reflection: tint · F_η (the tint scales every angle)."""
+    from .brdf import fresnel_dielectric
+    return np.asarray(tint, dtype=np.float64) * fresnel_dielectric(cos_d, eta)[..., None]
+
+
+def hazy_dielectric(ior=1.5, tint=(1.0, 1.0, 1.0), level=0.5, roughness=0.3, haziness=0.5,
+                    haze_extent=5.0, distribution="GGX"):
+    """The lobes and Fresnel index of a layered Principled dielectric as the layer writes its
+    constants: dict(beta, alpha, alpha_wide, eta (the specular's effective η' after the raise and
+    Specular IOR Level), eta_core (the user's, haziness 0), r, r_c)."""
+    from ..core.lobes import describe
+    tint = np.asarray(tint, dtype=np.float64)
+    rc = _f0(ior) * 2.0 * level * tint
+    d = describe("DIELECTRIC", distribution, core_reflectivity=tuple(rc), roughness=roughness,
+                 haziness=haziness, haze_extent=haze_extent, strict=False)
+    m = d.mapping
+    wide = d.wide if d.wide is not None else d.narrow
+    gain = float(np.max(m.reflectivity)) / max(float(np.max(rc)), 1e-30)
+    ior_hazy = _ior_from_f0(_f0(ior) * gain)  # what the layer writes on IOR
+    return dict(beta=float(d.beta), alpha=tuple(map(float, m.alpha)),
+                alpha_wide=(float(wide.alpha_x), float(wide.alpha_y)) if hasattr(wide, "alpha_x")
+                else tuple(map(float, m.alpha_wide)),
+                eta=_ior_from_f0(_f0(ior_hazy) * 2.0 * level), eta_core=_ior_from_f0(_f0(ior) * 2.0 * level),
+                ior_hazy=ior_hazy, r=tuple(map(float, m.reflectivity)), r_c=tuple(map(float, rc)),
+                tint=tuple(map(float, tint)))
+
+
+def fresnel_gap(eta):
+    """max over angles of (F0 - F_η)/F0: where Cycles' max(F_η, F0) lifts the exact Fresnel."""
+    from .brdf import fresnel_dielectric
+    mu = np.linspace(0.0, 1.0, 2001)
+    f0 = _f0(float(eta))
+    return float(np.max(np.maximum(f0 - fresnel_dielectric(mu, eta), 0.0)) / f0)
+
+
+def specular_error(lobes, *, tint=None, n_theta=160, n_phi=48):
+    """brdf.compare of the hazy specular (both lobes, β, single scattering) with MaterialX's
+    Fresnel against Cycles' Principled's; ``lobes``: hazy_dielectric(...)."""
+    from .brdf import Lobe, Lobes, compare
+    tint = lobes["tint"] if tint is None else tint
+    b = lobes["beta"]
+    ls = (Lobe(1.0 - b, *lobes["alpha"]), Lobe(b, *lobes["alpha_wide"]))
+    eta = lobes["eta"]
+    ref = Lobes(ls, lambda c: principled_fresnel(c, eta, tint))
+    got = Lobes(ls, lambda c: openpbr_fresnel(c, eta, tint))
+    return compare(ref, got, min(min(lobes["alpha"]), min(lobes["alpha_wide"])), n_theta=n_theta,
+                   n_phi=n_phi)
+
+
+def materialx_albedo(cos_v, alpha):
+    """MaterialX's GGX directional albedo E(μ, α) for F0 = F90 = 1 (mx_ggx_dir_albedo_analytic)."""
+    x, y = float(cos_v), float(alpha)
+    x2, y2 = x * x, y * y
+    c = np.array([[0.1003, 0.9345, 1.0, 1.0], [-0.6303, -2.323, -1.765, 0.2281],
+                  [9.748, 2.229, 8.263, 15.94], [-2.038, -3.748, 11.53, -55.83],
+                  [29.34, 1.424, 28.96, 13.08], [-8.245, -0.7684, -7.507, 41.26],
+                  [-26.44, 1.436, -36.11, 54.9], [19.99, 0.2913, 15.86, 300.2],
+                  [-5.448, 0.6286, 33.37, -285.1]])
+    terms = np.array([1.0, x, y, x * y, x2, y2, x2 * y, x * y2, x2 * y2])
+    r = terms @ c
+    a, b = np.clip(r[:2] / r[2:], 0.0, 1.0)
+    return float(a + b)
+
+
+def materialx_peak_drift(lobes):
+    """How far a MaterialX renderer moves the hazy material's peak f(n, n) from the haze-free
+    material's (its energy compensation 1 + F (1-E)/E per lobe, E at α = √(α_x α_y), on every
+    microfacet lobe: Cycles' GGX has none, its Multiscatter GGX its own): hazy / haze-free - 1."""
+    def comp(alpha, f):
+        a = math.sqrt(alpha[0] * alpha[1])
+        e = materialx_albedo(1.0, a)
+        return 1.0 + f * (1.0 - e) / e
+    r = _f0(lobes["eta"])
+    rc = _f0(lobes["eta_core"])
+    an, aw, b = lobes["alpha"], lobes["alpha_wide"], lobes["beta"]
+    hazy = r * ((1.0 - b) * comp(an, r) / (an[0] * an[1]) + b * comp(aw, r) / (aw[0] * aw[1]))
+    plain = rc * comp(an, rc) / (an[0] * an[1])
+    return hazy / plain - 1.0
+
+
+def coat_darkening_factor(base_albedo, coat_ior):
+    """The base darkening OpenPBR applies under a full coat ((1 - K)/(1 - E K), K = 1 -
+    (1 - F0)/η², MaterialX's open_pbr_surface; coat_darkening = 0 turns it off — Cycles has
+    none beyond the coat's albedo)."""
+    f0 = _f0(float(coat_ior))
+    k = 1.0 - (1.0 - f0) / (float(coat_ior) ** 2)
+    e = np.asarray(base_albedo, dtype=np.float64)
+    return (1.0 - k) / (1.0 - e * k)
+
+
+def coat_tint_factor(tint, coat_ior, cos_i):
+    """(Cycles' tint^(1/cos θ_t), OpenPBR's constant tint) of the base under a coat at cos θ_i."""
+    ct = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (float(coat_ior) ** 2), 1e-12))
+    t = np.asarray(tint, dtype=np.float64)
+    return t ** (1.0 / ct), t
