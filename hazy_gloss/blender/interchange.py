@@ -4,7 +4,9 @@ fallback that makes Blender's own glTF and USD exporters write the core lobe.
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
 ``materialx.Source`` objects, creates materials from what is imported, and holds the operators
-(File > Export / Import, the material context menu).
+(File > Export / Import, the material context menu).  A material with a haze layer (Make Hazy)
+becomes a snapshot of its node tree (:func:`tree_snapshot`), which interchange/layered.py
+writes node by node (docs/interchange.md §5).
 
 **Export fallback** (:func:`add_export_fallback`).  Blender's glTF exporter takes the first
 Principled BSDF linked to the *active* Material Output (a Mix of two Metallic BSDFs gives it
@@ -22,6 +24,9 @@ fallback adds, with built-in nodes only:
   dedicated output for that renderer, which keeps winning;
 - and, for dielectrics, recreates the add-on's two Principled lobes after the fallback so the
   fallback is the first Principled in the node list (the USD preview's choice).
+
+A haze layer's fallback is the user's own BSDF at haziness 0 (:func:`_layer_fallback`): a copy
+of the core with the user's values and links of the inputs the layer owns.
 
 Renders are unchanged (tests/blender/test_interchange.py compares Cycles and EEVEE pixels);
 :func:`remove_export_fallback` restores the previous active output.  The nodes carry the add-on's

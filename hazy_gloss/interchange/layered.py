@@ -1279,26 +1279,40 @@ def openpbr_fresnel(cos_d, eta, tint=(1.0, 1.0, 1.0)):
     return np.asarray(tint, dtype=np.float64) * fresnel_dielectric(cos_d, eta)[..., None]
 
 
+def layer_part(rc, roughness=0.3, haziness=0.5, haze_extent=5.0, distribution="GGX", lobe=None,
+               tint=None, anisotropy=0.0):
+    """One part of a layer as the layer maps its constants (blender/layer.py _mapping: kind
+    DIELECTRIC for Principled parts, ``lobe`` "F82_TINT" for a metal part, "COAT" for the coat):
+    dict(beta, alpha, alpha_wide, r, r_c)."""
+    from ..core.lobes import describe
+    ms = None
+    if lobe is not None and distribution == "MULTI_GGX":
+        ms = dict(lobe=lobe)
+        if tint is not None:
+            ms["tint"] = tuple(np.broadcast_to(np.asarray(tint, float), 3))
+    rc = tuple(float(x) for x in np.broadcast_to(np.asarray(rc, float), 3))
+    d = describe("DIELECTRIC", distribution, core_reflectivity=rc, roughness=roughness,
+                 anisotropy=anisotropy, haziness=haziness, haze_extent=haze_extent,
+                 anisotropic=anisotropy != 0.0, strict=False, multiscatter=ms)
+    m = d.mapping
+    return dict(beta=float(d.beta), alpha=tuple(map(float, m.alpha)),
+                alpha_wide=tuple(map(float, m.alpha_wide)), r=tuple(map(float, m.reflectivity)),
+                r_c=rc)
+
+
 def hazy_dielectric(ior=1.5, tint=(1.0, 1.0, 1.0), level=0.5, roughness=0.3, haziness=0.5,
                     haze_extent=5.0, distribution="GGX"):
-    """The lobes and Fresnel index of a layered Principled dielectric as the layer writes its
-    constants: dict(beta, alpha, alpha_wide, eta (the specular's effective η' after the raise and
-    Specular IOR Level), eta_core (the user's, haziness 0), r, r_c)."""
-    from ..core.lobes import describe
+    """A layered Principled dielectric as the layer writes its constants: layer_part's lobes with
+    eta (the specular's effective η' after the raise and Specular IOR Level), eta_core (the
+    user's, haziness 0), ior_hazy (what the layer writes on IOR) and tint."""
     tint = np.asarray(tint, dtype=np.float64)
     rc = _f0(ior) * 2.0 * level * tint
-    d = describe("DIELECTRIC", distribution, core_reflectivity=tuple(rc), roughness=roughness,
-                 haziness=haziness, haze_extent=haze_extent, strict=False)
-    m = d.mapping
-    wide = d.wide if d.wide is not None else d.narrow
-    gain = float(np.max(m.reflectivity)) / max(float(np.max(rc)), 1e-30)
-    ior_hazy = _ior_from_f0(_f0(ior) * gain)  # what the layer writes on IOR
-    return dict(beta=float(d.beta), alpha=tuple(map(float, m.alpha)),
-                alpha_wide=(float(wide.alpha_x), float(wide.alpha_y)) if hasattr(wide, "alpha_x")
-                else tuple(map(float, m.alpha_wide)),
-                eta=_ior_from_f0(_f0(ior_hazy) * 2.0 * level), eta_core=_ior_from_f0(_f0(ior) * 2.0 * level),
-                ior_hazy=ior_hazy, r=tuple(map(float, m.reflectivity)), r_c=tuple(map(float, rc)),
-                tint=tuple(map(float, tint)))
+    part = layer_part(rc, roughness, haziness, haze_extent, distribution)
+    gain = max(part["r"]) / max(float(np.max(rc)), 1e-30)
+    ior_hazy = _ior_from_f0(_f0(ior) * gain)
+    part.update(eta=_ior_from_f0(_f0(ior_hazy) * 2.0 * level), eta_core=_ior_from_f0(_f0(ior) * 2.0 * level),
+                ior_hazy=ior_hazy, tint=tuple(map(float, tint)))
+    return part
 
 
 def fresnel_gap(eta):
@@ -1338,17 +1352,19 @@ def materialx_albedo(cos_v, alpha):
     return float(a + b)
 
 
-def materialx_peak_drift(lobes):
-    """How far a MaterialX renderer moves the hazy material's peak f(n, n) from the haze-free
-    material's (its energy compensation 1 + F (1-E)/E per lobe, E at α = √(α_x α_y), on every
-    microfacet lobe: Cycles' GGX has none, its Multiscatter GGX its own): hazy / haze-free - 1."""
+def materialx_peak_drift(part):
+    """How far a MaterialX renderer moves the hazy part's peak f(n, n) from the haze-free one's:
+    its reference shaders compensate every GGX lobe by 1 + F (1-E)/E (E: mx_ggx_dir_albedo at
+    μ = 1, α = √(α_x α_y)), Cycles' GGX not at all and its Multiscatter GGX its own way (which
+    the layer's mapping follows).  ``part``: layer_part / hazy_dielectric.  hazy / haze-free - 1
+    (the max channel)."""
     def comp(alpha, f):
         a = math.sqrt(alpha[0] * alpha[1])
         e = materialx_albedo(1.0, a)
         return 1.0 + f * (1.0 - e) / e
-    r = _f0(lobes["eta"])
-    rc = _f0(lobes["eta_core"])
-    an, aw, b = lobes["alpha"], lobes["alpha_wide"], lobes["beta"]
+    ch = int(np.argmax(part["r_c"]))
+    r, rc = part["r"][ch], part["r_c"][ch]
+    an, aw, b = part["alpha"], part["alpha_wide"], part["beta"]
     hazy = r * ((1.0 - b) * comp(an, r) / (an[0] * an[1]) + b * comp(aw, r) / (aw[0] * aw[1]))
     plain = rc * comp(an, rc) / (an[0] * an[1])
     return hazy / plain - 1.0

@@ -456,7 +456,7 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
         worst[k] = float(err.max())
     f0 = lambda e: ((e - 1.0) / (e + 1.0)) ** 2  # noqa: E731
     worst["F0"] = float(np.max(np.abs(f0(mxv["ior"].astype(np.float64)) / f0(got["ior"]) - 1.0)))
-    record("layer_mtlx_node_math", {distribution: worst, "materialx_nodes": len(ng.getNodes())})
+    record("layer_mtlx_node_math", {distribution: dict(worst, materialx_nodes=len(ng.getNodes()))})
     # float32 rounding of a chain of hundreds of operations (Multiscatter GGX: ~2000 nodes)
     # in Cycles and in the evaluator, in another order
     assert worst["wide"] <= 1e-6 and worst["beta"] <= 2e-6, worst
@@ -504,6 +504,16 @@ def test_baked_layer_exports_its_maps(env, tmp_path):
                 assert os.path.normpath(os.path.join(str(tmp_path), up.getInputValue("file"))) == f
                 checked += 1
     assert checked >= 2
+    # its export fallback is the user's BSDF at haziness 0: the PBR maps, not the baked ones
+    env.api.add_export_fallback(mat)
+    fb = env.ix.material.ours(tree)["Export fallback"]
+    baked_names = set(baked.values())
+    for key in ("Base Color", "Roughness", "Metallic", "IOR"):
+        s = fb.inputs[key]
+        if s.is_linked:
+            src = s.links[0].from_node
+            assert not (src.bl_idname == "ShaderNodeTexImage" and src.image.name in baked_names), key
+    assert fb.inputs["Roughness"].links[0].from_node.image.filepath.endswith("roughness.exr")
 
 
 # --------------------------------------------------------------------------------------------
