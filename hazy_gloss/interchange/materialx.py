@@ -408,7 +408,11 @@ def _layered(doc, src, taken, directory, flavour):
         notes.append("a haze layer is written as its own network (OpenPBR 1.1.1 surfaces mixed by "
                      "β) whatever the flavour")
     name = valid_name(src.name, taken)
-    g, w = layered.graph_of(src.layer, name, notes, directory=directory)
+    try:
+        g, w = layered.graph_of(src.layer, name, notes, directory=directory)
+    except (KeyError, NotImplementedError, RecursionError, TypeError) as exc:
+        raise ValueError(f"{src.name}: its haze layer's network could not be written "
+                         f"({type(exc).__name__}: {exc})") from exc
     doc.graphs[g.name] = g
     taken.add(g.name)
     attrs = {f"{_ATTR}_name": src.name, f"{_ATTR}_version": K.INTERCHANGE_VERSION,

@@ -759,10 +759,13 @@ def test_haze_updates_keep_the_fallback_outputs(env, tmp_path):
         assert np.array_equal(with_fb, without), (change, float(np.abs(with_fb - without).max()))
         env.api.add_export_fallback(mat)
         assert _tree_signature(mat) == sig
-    env.api.remove_haze(mat)
-    user_out = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
-                    and not env.ix.material.is_ours(n))
-    assert _feeds(user_out.inputs["Surface"]) == b
+    env.api.remove_haze(mat)  # takes the fallback with it: the tree is the user's again
+    assert not env.ix.has_export_fallback(mat)
+    outs = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    assert len(outs) == 1 and outs[0].is_active_output and _feeds(outs[0].inputs["Surface"]) == b
+    assert not env.ix.material.ours(mat.node_tree)
+    env.api.make_hazy(mat, haziness=0.3)  # and Make Hazy finds the user's BSDF again
+    assert env.layer.find_core(mat.node_tree) == b
 
 
 def test_fallback_follows_edits_of_the_core(env, tmp_path):
