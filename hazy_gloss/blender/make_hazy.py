@@ -242,9 +242,13 @@ def remove_haze(mat):
     if problem is not None:
         return "ERROR", problem, []
     core = layer.find_core(mat.node_tree)
+    from . import interchange
+    notes = []
+    if interchange.remove_export_fallback(mat):  # the user's output active again, as before
+        notes.append("the export fallback was removed too (the material is no longer hazy)")
     layer.remove(mat)
     where = f" from its {core.bl_label} “{core.name}”" if core is not None else ""
-    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", []
+    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes
 
 
 # --------------------------------------------------------------------------------------------

@@ -396,6 +396,8 @@ def update_material(mat, **changes):
                              f"haze set here)")
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
+        from . import sync
+        sync.refresh_fallback(mat)  # owned inputs the user edited are adopted: the fallback too
         return next(iter(maps.values()), None), []
     p = read_parameters(mat)
     if p is None:

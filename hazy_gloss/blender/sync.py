@@ -41,7 +41,19 @@ def sync(mat, *, force=False):
         properties.last_error[key] = plain_message(exc)
         layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
+    refresh_fallback(mat)
     return True
+
+
+def refresh_fallback(mat):
+    """An export fallback (blender/interchange.py) is the user's BSDF at haziness 0: it follows
+    the core's edits too."""
+    from . import interchange
+    if interchange.FALLBACK_STAMP in mat:
+        try:
+            interchange.refresh_export_fallback(mat)
+        except ValueError as exc:
+            properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent
