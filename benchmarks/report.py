@@ -29,6 +29,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_eevee", "perf_eevee.py"),
     ("perf_maps", "perf_maps.py"),
     ("perf_mapping", "perf_mapping.py"),
+    ("perf_layer", "perf_layer.py"),
 )
 
 
@@ -36,8 +37,10 @@ def run_section(name, script):
     log = C.OUT / f"{name}.log"
     t0 = time.perf_counter()
     with open(log, "w") as fh:
+        env = dict(os.environ, HG_REPORT_SECTION="1")  # sections leave the docs to this script
         proc = subprocess.Popen([sys.executable, "-u", str(C.HERE / script)], cwd=str(C.ROOT),
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                env=env)
         for line in proc.stdout:
             fh.write(line)
             if line.startswith("["):
@@ -122,6 +125,12 @@ def texture_driven(pm):
             "(api.convert_maps); keep the in-shader group for procedural or animated inputs.")
 
 
+def layer_section(md):
+    """benchmarks/perf_layer.py's section between its markers (run alone, it replaces them)."""
+    import perf_layer
+    return f"{perf_layer.BEGIN}\n{md.rstrip()}\n{perf_layer.END}\n"
+
+
 def main():
     started = datetime.datetime.now(datetime.timezone.utc)
     info = C.machine()
@@ -153,7 +162,8 @@ def main():
                        frag["perf_eevee"], frag["perf_maps"],
                        "## 4." + frag["perf_cycles"].split("## 4.", 1)[1].rstrip() + "\n\n"
                        + texture_driven(C.read_json("perf_maps")) + "\n",
-                       frag["perf_mapping"]])
+                       frag["perf_mapping"],
+                       layer_section(frag["perf_layer"])])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
         "Where the paper's formulas are numerically delicate, how large the error of each "

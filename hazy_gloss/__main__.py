@@ -212,7 +212,7 @@ def _run_convert(args, signals):
     if args.blend and os.path.exists(args.blend) and not os.path.isfile(args.blend):
         return _error(f"--blend {args.blend}: not a file")
     try:
-        import bpy  # noqa: F401  (the conversion reads and writes images through Blender)
+        from .blender import cli  # imports bpy (the conversion reads and writes images with it)
     except ImportError as exc:
         return _error(f"bpy is not importable ({exc}); install the bpy module or run inside "
                       "Blender", K.EXIT_NO_BPY)
@@ -223,15 +223,12 @@ def _run_convert(args, signals):
     try:
         if pbr:
             if args.blend and os.path.isfile(args.blend):
-                import bpy
-                bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+                cli.open_blend(args.blend)
             result = api.convert_maps(inputs, args.out, smoothness=args.smoothness,
                                       distribution=args.distribution, prefix=args.prefix,
                                       exr_codec=args.exr_codec, name=args.name)
             if args.blend:
-                import bpy
-                result.material.use_fake_user = True
-                bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.blend))
+                cli.save_blend(args.blend, keep=(result.material,))
         else:
             result = api.convert_maps(inputs, args.out, kind=args.kind,
                                       smoothness=args.smoothness, distribution=args.distribution,
@@ -296,7 +293,7 @@ def _fail(prog, msg, code=2):
 
 def _need_bpy(prog):
     try:
-        import bpy  # noqa: F401
+        from .blender import cli  # noqa: F401  (imports bpy)
     except ImportError as exc:
         return _fail(prog, f"bpy is not importable ({exc}); install the bpy module or run "
                            f"inside Blender", 3)
@@ -304,8 +301,8 @@ def _need_bpy(prog):
 
 
 def _open_blend(path):
-    import bpy
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+    from .blender import cli
+    cli.open_blend(path)
 
 
 def _export(args):
@@ -358,15 +355,15 @@ def _import(args):
         rc = _need_bpy(prog)
         if rc is not None:
             return rc
-        import bpy
         from . import api
-        bpy.ops.wm.read_homefile(use_empty=True)
+        from .blender import cli
+        cli.empty_file()
         try:
             res = api.import_materialx(os.path.abspath(args.path))
         except (ValueError, RuntimeError, OSError) as exc:
             return _fail(prog, str(exc))
         found = res.report
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.blend))
+        cli.save_blend(args.blend)
     else:
         try:
             found = _read_any(args.path)
@@ -398,12 +395,8 @@ def _engines(args):
         if rc is not None:
             return rc
         _open_blend(args.path)
-        import bpy
-        from .blender import material
-        for m in bpy.data.materials:
-            p = material.read_parameters(m)
-            if p is not None:
-                params[m.name] = p
+        from .blender import cli
+        params = cli.hazy_parameters()
     else:
         for im in _read_any(args.path):
             if im.parameters is not None:

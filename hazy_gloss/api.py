@@ -202,7 +202,10 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     material of the file) to
     one MaterialX 1.39 document at ``path``.  ``flavour`` "eq1" (default): each material an
     exact Eq. 1 graph of the standard pbr library; "openpbr_1.2": open_pbr_surface 1.2 with
-    specular_haze (approximate; the error is in the notes).  Needs no extra package; with the
+    specular_haze (approximate; the error is in the notes).  A material with a haze layer
+    (:func:`make_hazy`) is written as its own network whatever the flavour: each BSDF of the
+    layer an open_pbr_surface (or pbr BSDF) with its socket values, mixed by β as the tree mixes
+    them, its textures and node math included (docs/interchange.md §5).  Needs no extra package; with the
     ``materialx`` package installed the file is validated (``report.validated``).
     Returns a report: ``.path``, ``.materials`` [(name, MaterialX name, notes)], ``.validated``
     (True/False, None without the package), ``.validation``, ``.notes``, ``.skipped``."""
@@ -231,7 +234,9 @@ def export_usd(materials=None, path="", *, preview=True):
 
 def add_export_fallback(mat):
     """Make Blender's own glTF and USD exporters write this hazy material's core lobe (its
-    look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes."""
+    look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes.
+    A material with a haze layer gets the user's own BSDF at haziness 0 (its values and links,
+    the metallic map included); the notes say when Blender's USD preview takes another node."""
     from .blender import interchange as _ix
     _material.check_material(mat, "add_export_fallback")
     return _ix.add_export_fallback(mat)

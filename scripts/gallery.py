@@ -7,6 +7,7 @@ materials without and with their haze layer), rendered with Cycles.
     .venv/bin/python scripts/gallery.py --rows haziness --out docs/img/sweep_haziness.png
     .venv/bin/python scripts/gallery.py --rows extent --out docs/img/sweep_extent.png
     .venv/bin/python scripts/gallery.py --rows looks --out docs/img/looks.png
+    .venv/bin/python scripts/gallery.py --rows layer --out docs/img/layer.png
 
 Runs on the bpy module; loads the add-on the way scripts do (repo root on sys.path).
 """
@@ -177,6 +178,20 @@ def looks_rows(api):
             ([f"{look.name}, hazy" for look in LOOKS.values()], hazy)]
 
 
+def layer_rows(api):
+    """Haze as a layer on Principled materials (docs/user-guide.md): the coat's haziness on car
+    paint, and Keep Body Colour on a red plastic."""
+    coats = (0.0, 0.2, 0.4, 0.6, 0.8)
+    paint = [api.create_look("CAR_PAINT", f"Car paint coat {h}", haziness=0.0, coat_haziness=h)
+             for h in coats]
+    body = [("0", 0.0, False), ("0.1", 0.1, False), ("0.1, body kept", 0.1, True),
+            ("0.3", 0.3, False), ("0.3, body kept", 0.3, True)]
+    plastic = [api.create_look("GLOSSY_PLASTIC", f"Plastic {label}", haziness=h,
+                               keep_body_colour=keep) for label, h, keep in body]
+    return [([f"coat haziness {h:g}" for h in coats], paint),
+            ([f"haziness {label}" for label, _, _ in body], plastic)]
+
+
 def sweep_rows(api, which):
     """Parameter sweeps for the docs (paper Figures 4 and 8)."""
     from hazy_gloss.blender.nodes.builder import TreeBuilder
@@ -225,7 +240,7 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
     scene = bpy.context.scene
     studio(scene)
     spheres = (gallery_rows(api) if rows == "gallery" else looks_rows(api) if rows == "looks"
-               else sweep_rows(api, rows))
+               else layer_rows(api) if rows == "layer" else sweep_rows(api, rows))
     sphere_rows(scene, spheres)
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
@@ -253,7 +268,8 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(REPO, "out", "gallery.png"))
     ap.add_argument("--samples", type=int, default=48)
     ap.add_argument("--scale", type=float, default=1.0)
-    ap.add_argument("--rows", choices=("gallery", "looks", "haziness", "extent"), default="gallery",
+    ap.add_argument("--rows", choices=("gallery", "looks", "layer", "haziness", "extent"),
+                    default="gallery",
                     help="the gallery, or a parameter sweep for the docs")
     args = ap.parse_args(argv)
     seconds = render(args.out, args.samples, args.scale, args.rows)

@@ -1,5 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Node counts of lean (constant) vs in-shader-mapping materials, as a Markdown table.
+"""Node counts of lean (constant) vs in-shader-mapping materials, and of haze layers on
+Principled materials; writes the tables into docs/node-groups.md (between the "node-counts"
+markers) and prints them.
 
     .venv/bin/python scripts/node_counts.py
 """
@@ -27,6 +29,62 @@ def count(mat):
     return inner(mat.node_tree)
 
 
+def layer_rows(api):
+    """Nodes a haze layer adds to a Principled material, by material (BSDFs, mixes, math)."""
+    import numpy as np
+    rows = []
+
+    def principled(**inputs):
+        from hazy_gloss.blender import compat
+        mat = compat.new_material("layer")
+        b = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+        b.distribution = inputs.pop("distribution", "GGX")
+        for k, v in inputs.items():
+            b.inputs[k].default_value = v
+        return mat, b
+
+    def texture(mat, b, name, grey=True):
+        img = bpy.data.images.new(name, 4, 4, float_buffer=True)
+        img.pixels.foreach_set(np.full(64, 0.3, np.float32))
+        t = mat.node_tree.nodes.new("ShaderNodeTexImage")
+        t.image = img
+        mat.node_tree.links.new(t.outputs["Color"], b.inputs[name])
+
+    cases = []
+    mat, b = principled(**{"Base Color": (0.5, 0.1, 0.05, 1.0)})
+    cases.append(("plastic", mat, dict(haziness=0.1)))
+    mat, b = principled(**{"Base Color": (0.5, 0.1, 0.05, 1.0)})
+    cases.append(("plastic, Keep Body Colour", mat, dict(haziness=0.1, keep_body_colour=True)))
+    mat, b = principled(**{"Metallic": 1.0})
+    cases.append(("metal", mat, dict(haziness=0.5)))
+    mat, b = principled(**{"Metallic": 1.0, "Anisotropic": 0.5})
+    cases.append(("metal, anisotropic halo", mat, dict(haziness=0.5, haze_extent=(8.0, 2.0))))
+    mat, b = principled(**{"Metallic": 1.0, "Coat Weight": 1.0})
+    cases.append(("car paint (metal, hazy coat)", mat, dict(haziness=0.3, coat_haziness=0.4)))
+    mat, b = principled()
+    texture(mat, b, "Metallic")
+    cases.append(("metallic map", mat, dict(haziness=0.5)))
+    mat, b = principled()
+    texture(mat, b, "Roughness")
+    cases.append(("plastic, roughness map", mat, dict(haziness=0.1)))
+    mat, b = principled(**{"Metallic": 1.0})
+    texture(mat, b, "Base Color")
+    texture(mat, b, "Roughness")
+    cases.append(("metal, base colour + roughness maps", mat, dict(haziness=0.5)))
+    mat, b = principled(distribution="MULTI_GGX", **{"Metallic": 1.0})
+    texture(mat, b, "Roughness")
+    cases.append(("metal, roughness map, Multiscatter GGX", mat, dict(haziness=0.5)))
+    for label, mat, haze in cases:
+        before = count(mat)
+        api.make_hazy(mat, **haze)
+        nodes = [n for n in mat.node_tree.nodes if api.is_ours(n)]
+        bsdfs = sum(n.bl_idname == "ShaderNodeBsdfPrincipled" for n in nodes)
+        mixes = sum(n.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader") for n in nodes)
+        rows.append(f"| {label} | {before} | {count(mat) - before} | {bsdfs} | {mixes} | "
+                    f"{len(nodes) - bsdfs - mixes} |")
+    return rows
+
+
 def main():
     hazy_gloss.register()
     from hazy_gloss import api
@@ -41,12 +99,27 @@ def main():
             p = dict(base, kind=kind, **extra)
             lean = count(api.create_material("lean", **p))
             shader = count(api.create_material("shader", shader_mapping=True, **p))
-            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} |")
-    print(f"Blender {bpy.app.version_string}; nodes counted include the output node and every node"
-          " inside node groups.\n")
-    print("| kind | configuration | lean (constants) | in-shader mapping |")
-    print("|---|---|---:|---:|")
-    print("\n".join(rows))
+            ms = count(api.create_material("shader ms", shader_mapping=True, distribution="MULTI_GGX", **p))
+            rows.append(f"| {kind.lower()} | {label} | {lean} | {shader} | {ms} |")
+    lines = [f"Blender {bpy.app.version_string}; nodes counted include the output node and every "
+             "node inside node groups.", "",
+             "| kind | configuration | lean (constants) | in-shader mapping | in-shader, Multiscatter GGX |",
+             "|---|---|---:|---:|---:|"] + rows
+    lines += ["", "A haze layer (Make Hazy) on a Principled material: what it adds (copies of the "
+              "BSDF, mixes, node math and the nodes body colour reads):", "",
+              "| material | its nodes | added | BSDF copies | mixes | math and other |",
+              "|---|---:|---:|---:|---:|---:|"] + layer_rows(api)
+    text = "\n".join(lines)
+    print(text)
+    doc = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs",
+                       "node-groups.md")
+    with open(doc, encoding="utf-8") as fh:
+        old = fh.read()
+    a, b = "<!-- node-counts -->", "<!-- /node-counts -->"
+    if a in old and b in old:
+        new = old[:old.index(a) + len(a)] + "\n" + text + "\n" + old[old.index(b):]
+        with open(doc, "w", encoding="utf-8") as fh:
+            fh.write(new)
 
 
 if __name__ == "__main__":

@@ -128,6 +128,13 @@ def _link_map(tree, bsdf, name, img, vector, interpolation, nodes):
     return tex
 
 
+def _alpha_of(img):
+    w, h = img.size
+    px = np.empty(w * h * img.channels, np.float32)
+    img.pixels.foreach_get(px)
+    return px.reshape(h, w, img.channels)[..., -1].copy()
+
+
 def _datablock(src, label):
     """An Image datablock for a map given as a path or a datablock (arrays: a packed image)."""
     if isinstance(src, bpy.types.Image):
@@ -267,11 +274,30 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             if nm_ not in plan.base:
                 plan.base[nm_] = layer._current(bsdf.inputs[nm_])
         flat, g, graph_sources, _ = layer.output_keys(plan)
+        warnings.extend(plan.notes)
         feeds = {f"in:{PBR_MAPS[k][0]}": arrays[k] for k in arrays if k in PBR_MAPS}
         for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y"):
             src = key if key in arrays else "haze_extent" if key.startswith("haze_extent_") else None
             if src in arrays:
                 feeds[f"haze:{key}"] = arrays[src]
+        for n, sock in graph_sources.items():  # the user's own image textures are maps too
+            if n in feeds or not n.startswith("in:") or sock is None:
+                continue
+            node = sock.node
+            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and \
+                    sock.identifier in ("Color", "Alpha") and not node.inputs["Vector"].is_linked:
+                colour = g.inputs[n].vector
+                a = _Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
+                            else "data", node.image)
+                a.check()
+                v = a.read(None, warnings)
+                if sock.identifier == "Alpha":
+                    v = _alpha_of(node.image)
+                if v.shape[:2] != (h, w):
+                    raise ConversionError(f"“{node.name}” ({node.image.name}, linked into "
+                                          f"{n[3:]}) is {v.shape[1]}x{v.shape[0]}, the set "
+                                          f"{w}x{h}: give {n[3:]} as a map of the set's size")
+                feeds[n] = v
         missing = [n for n in graph_sources if n not in feeds]
         if missing:
             names = ", ".join(n[3:] for n in missing)
@@ -310,8 +336,9 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         txn.commit()
         images_out = {k: _image_for(p) for k, p in paths.items()}
         baked = {k: images_out[first[id(e)]] for k, e in live.items()}
-        layer.apply(mat, haze, core=bsdf, baked=dict(maps=baked, vector=vector,
-                                                    interpolation=interpolation))
+        layer.apply(mat, haze, core=bsdf, baked=dict(
+            maps=baked, vector=vector, interpolation=interpolation,
+            sources=sorted(k for k in graph_sources if k.startswith("in:"))))
     except BaseException as exc:
         if writer is not None:
             writer.close()

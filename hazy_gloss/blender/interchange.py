@@ -4,7 +4,9 @@ fallback that makes Blender's own glTF and USD exporters write the core lobe.
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
 ``materialx.Source`` objects, creates materials from what is imported, and holds the operators
-(File > Export / Import, the material context menu).
+(File > Export / Import, the material context menu).  A material with a haze layer (Make Hazy)
+becomes a snapshot of its node tree (:func:`tree_snapshot`), which interchange/layered.py
+writes node by node (docs/interchange.md §5).
 
 **Export fallback** (:func:`add_export_fallback`).  Blender's glTF exporter takes the first
 Principled BSDF linked to the *active* Material Output (a Mix of two Metallic BSDFs gives it
@@ -23,6 +25,9 @@ fallback adds, with built-in nodes only:
 - and, for dielectrics, recreates the add-on's two Principled lobes after the fallback so the
   fallback is the first Principled in the node list (the USD preview's choice).
 
+A haze layer's fallback is the user's own BSDF at haziness 0 (:func:`_layer_fallback`): a copy
+of the core with the user's values and links of the inputs the layer owns.
+
 Renders are unchanged (tests/blender/test_interchange.py compares Cycles and EEVEE pixels);
 :func:`remove_export_fallback` restores the previous active output.  The nodes carry the add-on's
 roles, so a rebuild of the material (blender/material.apply) removes them: call
@@ -32,12 +37,13 @@ refreshes the values).
 import os
 
 import bpy
+import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
-from ..interchange import engines, materialx, usd
+from ..interchange import engines, layered, materialx, usd
 from . import compat, material, stamp
 from .context import plain_message, target_material
 
@@ -71,12 +77,103 @@ def _tangent_kind(tree):
     return f"RADIAL_{t.axis}"
 
 
+_NODE_PROPS = ("operation", "use_clamp", "data_type", "blend_type", "clamp_factor", "clamp_result",
+               "factor_mode", "distribution", "fresnel_type", "subsurface_method", "interpolation",
+               "extension", "projection", "target", "direction_type", "axis", "uv_map", "space",
+               "mode", "clamp_type")
+
+
+def _socket_value(sock):
+    v = getattr(sock, "default_value", None)
+    if v is None or isinstance(v, str):
+        return None
+    if hasattr(v, "__len__"):
+        return tuple(float(x) for x in v)
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None
+
+
+def _snap_socket(sock, is_input):
+    link = None
+    if is_input and sock.is_linked:
+        lk = sock.links[0]
+        if getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
+            link = (lk.from_node.name, lk.from_socket.identifier)
+    return layered.Socket(sock.identifier, sock.name, sock.type, _socket_value(sock), link,
+                          bool(getattr(sock, "enabled", True)),
+                          bool(not is_input and sock.is_linked), sock.node.name)
+
+
+def _image_info(img):
+    if img is None:
+        return None
+    info = dict(name=img.name, source=img.source, packed=img.packed_file is not None,
+                colorspace=img.colorspace_settings.name,
+                is_data=bool(getattr(img.colorspace_settings, "is_data", False)), path=None)
+    raw = img.filepath_raw or img.filepath
+    if raw and img.source in ("FILE", "TILED", "SEQUENCE", "MOVIE"):
+        path = os.path.normpath(bpy.path.abspath(raw, library=img.library))
+        if img.source == "TILED" or os.path.isfile(path):
+            info["path"] = path
+    return info
+
+
+def tree_snapshot(mat):
+    """The node tree of ``mat`` as interchange.layered.Tree (plain values, no bpy), with the
+    haze layer's state."""
+    tree = mat.node_tree
+    from . import layer as _layer
+    state = _layer.layer_state(mat) or {}
+    core = _layer.find_core(tree, state.get("core"))
+    nodes = {}
+    for n in tree.nodes:
+        if n.bl_idname in ("NodeFrame",):
+            continue
+        props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
+        props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
+        b = layered.BNode(n.name, n.bl_idname, [_snap_socket(x, True) for x in n.inputs],
+                          [_snap_socket(x, False) for x in n.outputs], props, n.label,
+                          material.role(n),
+                          core is not None and n == core, bool(n.mute))
+        if n.bl_idname == "ShaderNodeTexImage":
+            b.image = _image_info(n.image)
+        if n.bl_idname == "ShaderNodeValToRGB":
+            r = n.color_ramp
+            b.ramp = dict(color_mode=r.color_mode, interpolation=r.interpolation,
+                          elements=[(float(e.position), tuple(float(c) for c in e.color))
+                                    for e in r.elements])
+        if b.core:
+            b.base = {k: dict(v) for k, v in state.get("base", {}).items()}
+        nodes[n.name] = b
+    outs = [n for n in tree.nodes if n.bl_idname == _OUTPUT]
+    used = _engine_output(outs, "CYCLES")
+    lay = {}
+    if state:
+        h = _layer.haze_of(mat)
+        lay = dict(core=core.name if core is not None else None,
+                   core_type=_layer.core_type(core) if core is not None else None,
+                   haze={k: (list(v) if isinstance(v, tuple) else v) for k, v in h.items()},
+                   baked=bool(state.get("baked")), live_math=bool(state.get("math")),
+                   nodes=sorted(r for r in material.ours(tree) if r.startswith("layer ")))
+        if core is not None:
+            plan = _layer.Plan(core, h, dict(state.get("base", {})))
+            lay.update(parts=list(plan.parts), coat=bool(plan.coat), split=bool(plan.split),
+                       owned=plan.owned())
+    return layered.Tree(mat.name, nodes, used.name if used is not None else None, lay)
+
+
 def source_of(mat):
     """(materialx.Source or None, reason) for one Blender material."""
     p = material.read_parameters(mat)
     if p is not None and p.get("layered"):
-        return None, (f"“{mat.name}” is a haze layer on its own BSDF: not exported yet (export "
-                      f"a material made with New Hazy Material)")
+        if mat.node_tree is None:
+            return None, f"“{mat.name}” has no node tree"
+        snap = tree_snapshot(mat)
+        if snap.output is None:
+            return None, f"“{mat.name}” has no Material Output"
+        return materialx.Source(mat.name, layer=snap), ""
     if p is not None:
         src = materialx.Source(mat.name, parameters=p)
         if p["shader_mapping"] and mat.node_tree is not None:
@@ -402,7 +499,8 @@ def _relink(tree, s):
 def _make_first_bsdf(tree, fallback):
     """Make ``fallback`` the first Principled/Diffuse BSDF of the node list by recreating the
     add-on's BSDF nodes that precede it (remove all, then create the fallback, then them).
-    Returns (fallback node, notes)."""
+    The user's own nodes are never recreated (a script's reference to a removed node points at
+    freed memory): when one comes first, a note says so.  Returns (fallback node, notes)."""
     nodes = list(tree.nodes)
     idx = nodes.index(fallback)
     before = [n for n in nodes[:idx] if n.bl_idname in _USD_FIRST]
@@ -429,12 +527,7 @@ def has_export_fallback(mat):
     return tree is not None and _role_node(tree, K.FALLBACK_ROLE) is not None
 
 
-def add_export_fallback(mat):
-    """Give a hazy material a single-surface fallback that Blender's glTF and USD exporters
-    pick up (the core lobe: the material at haziness 0), without changing what Cycles and
-    EEVEE render.  Idempotent (a second call refreshes the values); undone by
-    :func:`remove_export_fallback`.  Returns a list of notes.  Raises ValueError for a
-    material that is not hazy (or is driven by converted maps: not supported yet)."""
+def _check_fallback_material(mat):
     if mat is None or getattr(mat, "node_tree", None) is None:
         raise ValueError("no material with a node tree")
     if mat.library is not None:
@@ -450,23 +543,23 @@ def add_export_fallback(mat):
             raise ValueError(f"{mat.name!r} is driven by converted maps: the export fallback "
                              f"needs a hazy material with constant parameters")
         raise ValueError(f"{mat.name!r} is not a hazy material")
-    tree = mat.node_tree
-    notes = []
-    c = engines.core_surface(p, materialx.lobes_of)
+    return p
+
+
+def _render_outputs(mat, tree):
+    """Step 1: the renderers keep what they used (a dedicated output per target).  Returns
+    (the reference output, the user's outputs)."""
     mine = material.ours(tree)
     user_outs = [n for n in _outputs(tree) if not material.is_ours(n)]
     if not user_outs:
         raise ValueError(f"{mat.name!r} has no Material Output")
-    x_out = mine.get(K.FALLBACK_OUTPUT_ROLE)
-    fresh = x_out is None
-    if fresh:
+    if mine.get(K.FALLBACK_OUTPUT_ROLE) is None:
         previous = next((n for n in user_outs if n.is_active_output), user_outs[0])
         mat[FALLBACK_STAMP] = {"version": 1, "active": previous.name}
     ref = tree.nodes.get(_fallback_active(mat)) if FALLBACK_STAMP in mat else None
     if ref is None or material.is_ours(ref):
         ref = user_outs[0]
     loc = ref.location
-    # 1. the renderers keep what they used: a dedicated output per target
     for i, target in enumerate(_RENDER_TARGETS):
         role = f"{K.RENDER_OUTPUT_ROLE} {target.capitalize()}"
         ours_t = mine.get(role)
@@ -481,29 +574,24 @@ def add_export_fallback(mat):
                           (loc.x, loc.y - 300.0 * (i + 1)))
             ours_t.target = target
         _copy_output_links(tree, used, ours_t)
-    # 2. the fallback surface and the active "All" output the exporters read
+    return ref, user_outs
+
+
+def _fallback_node(tree, loc):
+    mine = material.ours(tree)
     fb = mine.get(K.FALLBACK_ROLE)
     if fb is None or fb.bl_idname != _PRINCIPLED:
         if fb is not None:
             tree.nodes.remove(fb)
         fb = _new(tree, _PRINCIPLED, K.FALLBACK_ROLE, "Export fallback (core lobe)",
                   (loc.x - 300.0, loc.y - 900.0))
-    _set_fallback_values(fb, c, p["kind"])
-    mine = material.ours(tree)
-    narrow = mine.get("Narrow lobe")
-    _link_like(tree, fb, narrow, ("Normal", "Tangent"))
-    tangent = mine.get("Tangent")
-    if narrow is None and tangent is not None and c["anisotropy"] is not None:  # in-shader group
-        for link in list(fb.inputs["Tangent"].links):
-            tree.links.remove(link)
-        tree.links.new(tangent.outputs[0], fb.inputs["Tangent"])
-    if p["shader_mapping"]:
-        textured = material.UserLinks(tree).textured_inputs
-        if textured:
-            notes.append(f"textures linked into {', '.join(textured)} are not in the fallback "
-                         f"(it uses the stamped constants)")
-    fb, more = _make_first_bsdf(tree, fb)
-    notes += more
+    return fb
+
+
+def _export_output(tree, fb, ref, user_outs):
+    """Step 2: the active "All" output the exporters read, fed by the fallback."""
+    loc = ref.location
+    x_out = material.ours(tree).get(K.FALLBACK_OUTPUT_ROLE)
     if x_out is None:
         x_out = _new(tree, _OUTPUT, K.FALLBACK_OUTPUT_ROLE, "Export (glTF / USD)",
                      (loc.x, loc.y - 900.0))
@@ -522,10 +610,186 @@ def add_export_fallback(mat):
                 if s.is_linked:
                     tree.links.new(s.links[0].from_socket, d)
     x_out.is_active_output = True
+
+
+def add_export_fallback(mat):
+    """Give a hazy material a single-surface fallback that Blender's glTF and USD exporters
+    pick up (the core lobe: the material at haziness 0), without changing what Cycles and
+    EEVEE render.  Idempotent (a second call refreshes the values); undone by
+    :func:`remove_export_fallback`.  Returns a list of notes.  Raises ValueError for a
+    material that is not hazy (or is driven by converted maps: not supported yet).
+
+    A material with a haze layer (Make Hazy) gets the user's own BSDF at haziness 0: a
+    Principled copy of the core with the user's values and links of the inputs the layer owns
+    (:func:`_layer_fallback`)."""
+    p = _check_fallback_material(mat)
+    if p.get("layered"):
+        return _layer_fallback(mat)
+    tree = mat.node_tree
+    notes = []
+    c = engines.core_surface(p, materialx.lobes_of)
+    ref, user_outs = _render_outputs(mat, tree)
+    loc = ref.location
+    fb = _fallback_node(tree, loc)
+    _set_fallback_values(fb, c, p["kind"])
+    mine = material.ours(tree)
+    narrow = mine.get("Narrow lobe")
+    _link_like(tree, fb, narrow, ("Normal", "Tangent"))
+    tangent = mine.get("Tangent")
+    if narrow is None and tangent is not None and c["anisotropy"] is not None:  # in-shader group
+        for link in list(fb.inputs["Tangent"].links):
+            tree.links.remove(link)
+        tree.links.new(tangent.outputs[0], fb.inputs["Tangent"])
+    if p["shader_mapping"]:
+        textured = material.UserLinks(tree).textured_inputs
+        if textured:
+            notes.append(f"textures linked into {', '.join(textured)} are not in the fallback "
+                         f"(it uses the stamped constants)")
+    fb, more = _make_first_bsdf(tree, fb)
+    notes += more
+    _export_output(tree, fb, ref, user_outs)
     if p["kind"] == "CONDUCTOR":
         notes.append("glTF and USD preview get the core lobe as a metal with F0 = r_c (the "
                      "edge tint survives only as the Principled Specular Tint)")
     return notes
+
+
+# -- haze layers -----------------------------------------------------------------------------
+
+
+def _put(tree, sock, value=None, source=None):
+    """Set ``sock`` to ``value`` or link it from ``source`` (a socket), dropping other links."""
+    if sock is None:
+        return
+    if source is not None:
+        if not (sock.is_linked and sock.links[0].from_socket == source):
+            for link in list(sock.links):
+                tree.links.remove(link)
+            tree.links.new(source, sock)
+        return
+    for link in list(sock.links):
+        tree.links.remove(link)
+    if value is not None and hasattr(sock, "default_value"):
+        from .nodes.builder import socket_value
+        v = socket_value(sock, value)
+        cur = sock.default_value
+        if (tuple(cur) if hasattr(cur, "__len__") else cur) != v:
+            sock.default_value = v
+
+
+def _user_input(tree, core, base, name):
+    """(value, source socket or None) of the core's input ``name`` as the user set it: the
+    stamped user value or link of an input the layer owns, else what the core holds now."""
+    from . import layer as _layer
+    sock = core.inputs.get(name)
+    b = base.get(name)
+    if b is not None:
+        src = _layer._resolve(tree, b["link"]) if "link" in b else None
+        val = b.get("value", _socket_value(sock) if sock is not None else None)
+        return val, src
+    if sock is None:
+        return None, None
+    src = sock.links[0].from_socket if sock.is_linked else None
+    if src is not None and (material.is_ours(src.node) and
+                            (material.role(src.node) or "").startswith("layer ")):
+        src = None  # a layer node (cannot happen for inputs the layer does not own)
+    return _socket_value(sock), src
+
+
+def _layer_fallback(mat):
+    """The export fallback of a layered material: the user's BSDF at haziness 0 (coat
+    haziness 0 too).  For a Principled core, a copy of it with every value and link, the
+    owned inputs (IOR, Base Color, Metallic, Coat IOR, ...) given the user's own values or
+    links back; for a Metallic or Glossy core, a metallic Principled with its colour,
+    roughness and anisotropy."""
+    from . import layer as _layer
+    tree = mat.node_tree
+    state = _layer.layer_state(mat) or {}
+    core = _layer.find_core(tree, state.get("core"))
+    if core is None:
+        raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
+    base = dict(state.get("base", {}))
+    notes = []
+    ref, user_outs = _render_outputs(mat, tree)
+    fb = _fallback_node(tree, ref.location)
+    fb.label = "Export fallback (your BSDF at haziness 0)"
+    skip = {"Weight"}
+    if core.bl_idname == _PRINCIPLED:
+        for prop in ("distribution", "subsurface_method"):
+            if getattr(fb, prop) != getattr(core, prop):
+                setattr(fb, prop, getattr(core, prop))
+        for sock in fb.inputs:
+            if sock.name in skip or core.inputs.get(sock.name) is None:
+                continue
+            val, src = _user_input(tree, core, base, sock.name)
+            _put(tree, sock, val, src)
+    else:
+        _metal_fallback(tree, fb, core, base, notes)
+    first = next((n for n in tree.nodes if n.bl_idname in _USD_FIRST), None)
+    if first is not None and first != fb:
+        what = ("the layer's core: the narrow lobe, with the inputs the haze raises"
+                if first == core else "not the fallback")
+        notes.append(f"Blender's USD exporter takes the first Principled / Diffuse BSDF of the "
+                     f"node list for its UsdPreviewSurface: “{first.name}”, {what}. Its MaterialX "
+                     f"network (the USD export option) and glTF get the fallback")
+    _export_output(tree, fb, ref, user_outs)
+    return notes
+
+
+def _metal_fallback(tree, fb, core, base, notes):
+    """A metallic Principled for a Metallic / Glossy core (F82: Base Color and Edge Tint are
+    Principled's metal F82 model; Physical Conductor: r and the F82 tint of its Fresnel;
+    Glossy: Color as F0, tint 1)."""
+    from ..core import conventions, gulbrandsen_inverse
+    from ..interchange.brdf import fresnel_conductor
+    u = lambda name: _user_input(tree, core, base, name)  # noqa: E731
+    dist = core.distribution if core.distribution in ("GGX", "MULTI_GGX") else "GGX"
+    if core.distribution != dist:
+        notes.append(f"the Principled fallback has no {core.distribution.title()}: GGX")
+    fb.distribution = dist
+    _put(tree, fb.inputs["Metallic"], 1.0)
+    for name in ("Normal", "Tangent"):
+        _put(tree, fb.inputs[name], None, u(name)[1])
+    _put(tree, fb.inputs["Roughness"], *u("Roughness"))
+    glossy = core.bl_idname != "ShaderNodeBsdfMetallic"
+    if glossy:
+        _put(tree, fb.inputs["Base Color"], *u("Color"))
+        _put(tree, fb.inputs["Specular Tint"], (1.0, 1.0, 1.0, 1.0))
+        (a, a_src), (rot, rot_src) = u("Anisotropy"), u("Rotation")
+        if a_src is not None or rot_src is not None:
+            notes.append("the Glossy BSDF's linked anisotropy is not in the fallback")
+            a, rot = 0.0, 0.0
+        r = float(u("Roughness")[0])
+        ax, ay = layered.glossy_alpha(r, a)
+        if ax != ay:
+            rough, ratio, swap = conventions.lobe_from_alpha(ax, ay)
+            a = float(conventions.metallic_anisotropy(ratio))
+            rot = float(rot) + (0.25 if swap else 0.0)
+        else:
+            a = 0.0
+        _put(tree, fb.inputs["Anisotropic"], a)
+        _put(tree, fb.inputs["Anisotropic Rotation"], rot)
+        notes.append("glTF and USD get the Glossy BSDF as a metal with F0 = Color (a Glossy lobe "
+                     "has no Fresnel; the metal brightens towards grazing angles)")
+        return
+    _put(tree, fb.inputs["Anisotropic"], *u("Anisotropy"))
+    _put(tree, fb.inputs["Anisotropic Rotation"], *u("Rotation"))
+    if core.fresnel_type == "PHYSICAL_CONDUCTOR":
+        (eta, e_src), (kap, k_src) = u("IOR"), u("Extinction")
+        if e_src is not None or k_src is not None:
+            notes.append("the Physical Conductor's linked IOR / Extinction are not in the fallback")
+        eta = np.maximum(np.asarray(eta, float)[:3], 0.0)
+        kap = np.maximum(np.asarray(kap, float)[:3], 0.0)
+        r, _ = gulbrandsen_inverse(eta, kap)
+        r = np.clip(np.nan_to_num(r), 0.0, 1.0)
+        tint, _ = engines.f82_tint_fit(lambda c: fresnel_conductor(c, eta, kap), r)
+        _put(tree, fb.inputs["Base Color"], tuple(r) + (1.0,))
+        _put(tree, fb.inputs["Specular Tint"], tuple(tint) + (1.0,))
+        notes.append("glTF and USD get the Physical Conductor as Principled's F82 metal (F0 = r, "
+                     "the tint matching its Fresnel at 82°)")
+    else:
+        _put(tree, fb.inputs["Base Color"], *u("Base Color"))
+        _put(tree, fb.inputs["Specular Tint"], *u("Edge Tint"))
 
 
 def remove_export_fallback(mat):

@@ -30,7 +30,7 @@ import numpy as np
 from .. import constants as K
 from . import compat
 from ..core import gulbrandsen_inverse
-from ..core import node_math, thin_film
+from ..core import body_colour, node_math, thin_film
 from ..core.graph import Graph
 from ..core.lobes import describe
 from ..core.parameters import HAZE_DEFAULTS
@@ -193,8 +193,18 @@ class Plan:
         lx, ly = haze["haze_extent"]
         self.anisotropic = on and (a.linked or a.value != 0.0 or lx != ly)
         self.maps = tuple(n for n in HAZE_MAPS if _haze_value(haze, n) == TEXTURE)
-        self.film = _film(self) if self.type == "PRINCIPLED" and self.parts else None
+        self.film = _film(self) if self.parts and (self.type == "PRINCIPLED" or (
+            self.type == "METALLIC" and self.parts == ("METAL",))) else None
         self.notes = []  # what values() could not make exact, in plain words
+        self.body = bool(haze.get("keep_body_colour")) and "DIELECTRIC" in self.parts and \
+            self.film is None and not self.maps and not any(
+                self.inp(n).linked for n in ("Roughness", "IOR", "Specular Tint",
+                                             "Specular IOR Level", "Anisotropic"))
+        self.facing = None  # the Layer Weight Facing socket body colour reads (set by apply)
+        if haze.get("keep_body_colour") and "DIELECTRIC" in self.parts and not self.body:
+            self.notes.append("Keep Body Colour needs constant Roughness, IOR, Specular Tint, "
+                              "Specular IOR Level and Anisotropic, no thin film and no haze "
+                              "maps: not applied")
 
     @property
     def active(self):
@@ -214,6 +224,8 @@ class Plan:
                       "GLOSSY": ["Color"]}[first]
             if self.film is not None and "DIELECTRIC" in self.parts:
                 names.append("Specular Tint")  # a film's peak needs the tint too
+            if self.body and "Base Color" not in names:
+                names.append("Base Color")  # keep body colour: base c(μ) under the haze
             if self.split:
                 names.append("Metallic")
         if self.coat:
@@ -226,17 +238,20 @@ class Plan:
         linked = tuple(sorted(s.name for s in self.core.inputs if _source(s) is not None
                               and not ownership.is_ours(_source(s).node)))
         return repr((self.type, self.parts, self.coat, self.anisotropic,
-                     self.haze["smoothness"] is not None, linked, self.maps,
+                     self.haze["smoothness"] is not None, linked, self.maps, self.body,
                      tuple(sorted(k for k, v in self.base.items() if "link" in v))))
 
 
 def _film(plan):
     """(thickness, film IOR) of an active constant thin film whose part inputs are constants
     (the peak then follows the film exactly, core.thin_film), else None."""
+    if plan.core.inputs.get("Thin Film Thickness") is None:  # a Metallic BSDF before 5.0
+        return None
     t, n = plan.inp("Thin Film Thickness"), plan.inp("Thin Film IOR")
     if t.linked or n.linked or not thin_film.film_active(t.value):
         return None
-    names = ["Base Color", "Specular Tint", "IOR", "Specular IOR Level", "Roughness"]
+    names = (["Base Color", "Specular Tint", "IOR", "Specular IOR Level", "Roughness"]
+             if plan.type == "PRINCIPLED" else ["Base Color", "Edge Tint", "Roughness"])
     if any(plan.inp(nm).linked for nm in names):
         return None
     return float(t.value), float(n.value)
@@ -312,8 +327,11 @@ def _mapping(plan, g, x, kind, rc, edge_tint, rough, aniso, rot, haziness, exten
     src = dict(core_reflectivity=rc, edge_tint=edge_tint, roughness=rough, anisotropy=aniso,
                rotation=rot, haziness=haziness, haze_extent_x=extent[0], haze_extent_y=extent[1],
                smoothness=smooth)
+    ms = None
+    if dist == "MULTI_GGX":  # Cycles' energy factor in node math too (core.node_multiscatter)
+        ms = lobe or {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGACY": "LEGACY"}[kind]
     return node_math.mapping(g, src, kind=kind, anisotropic=anisotropic, smooth=smooth is not None,
-                             distribution=dist), None
+                             distribution=dist, multiscatter=ms, tint=tint), None
 
 
 def values(plan):
@@ -358,8 +376,9 @@ def values(plan):
         film = plan.film if part in ("DIELECTRIC", "METAL") else None
         if film is not None:  # the film's interference sets the peak: map from it (thin_film)
             base = np.asarray(plan.inp("Base Color").value, float)
-            tint = np.asarray(plan.inp("Specular Tint").value, float)
-            ior, lvl = float(plan.inp("IOR").value), float(plan.inp("Specular IOR Level").value)
+            tint = np.asarray(plan.inp(tint_name).value, float)
+            if part == "DIELECTRIC":
+                ior, lvl = float(plan.inp("IOR").value), float(plan.inp("Specular IOR Level").value)
             if part == "METAL":
                 rc = g.const(tuple(thin_film.metal_reflectance(base, tint, *film)))
             else:
@@ -401,6 +420,8 @@ def values(plan):
             own["IOR"], own["Extinction"] = m["ior"], m["extinction"]
         elif part == "METAL":
             own["Base Color"] = m["reflectivity"]
+        if plan.body and part == "DIELECTRIC" and mp is not None:
+            own["Base Color"] = _body_colour(plan, g, x, mp, own["IOR"], dist)
         if plan.split:
             own["Metallic"] = g.const(1.0 if part == "METAL" else 0.0)
         for wide in (False, True):
@@ -414,13 +435,16 @@ def values(plan):
             for name, e in w.items():
                 writes[((part, wide), name)] = e
         mixes[f"Mix {part.lower()}"] = m["beta"]
+    if "facing" in g.inputs:
+        sources["facing"] = plan.facing
     if plan.split:
         mixes["Mix metallic"] = x("Metallic")
     if plan.coat:
         f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
+        # the coat is always energy-compensated GGX (bsdf_coat_setup): its own correction
         mc, mp = _mapping(plan, g, x, "DIELECTRIC", f0c, g.const(0.0), x("Coat Roughness"),
                           g.const(0.0), g.const(0.0), hz("coat_haziness"),
-                          (hz("coat_haze_extent"),) * 2, None, "GGX", False)
+                          (hz("coat_haze_extent"),) * 2, None, "MULTI_GGX", False, lobe="COAT")
         if mp is not None:
             maps["COAT"] = mp
         gain = g.div(mc["reflectivity_max"], g.maximum(mc["core_max"], 1e-30))
@@ -428,6 +452,37 @@ def values(plan):
         writes[("coat wide", "Coat Roughness")] = mc["roughness_wide"]
         mixes["Mix coat"] = mc["beta"]
     return g, writes, mixes, sources, maps
+
+
+def _body_colour(plan, g, x, m, ior_hazy, dist):
+    """Base Color = min(base c(f), 1), c fitted in the Layer Weight Facing f (core.body_colour):
+    the diffuse under the hazy dielectric as it was under the user's (Cycles attenuates it by
+    the specular layer's albedo, which haze raises)."""
+    base = x("Base Color", True)
+    bright = plan.inp("Base Color").value if not base.is_const else base.value
+    tint = plan.inp("Specular Tint").value
+    bc = body_colour.compensation(
+        m.alpha, float(plan.inp("IOR").value), float(ior_hazy.value), float(m.beta), m.alpha_wide,
+        base_color=np.asarray(bright, float)[:3] if base.is_const else (1.0, 1.0, 1.0),
+        tint=np.asarray(tint, float)[:3], level=float(plan.inp("Specular IOR Level").value),
+        distribution=dist)
+    note = bc.warning()
+    if note:
+        plan.notes.append(note)
+    a = np.asarray(bc.coefficients, np.float64)
+    f = g.input("facing")
+    if bc.grey:  # Horner: p <- p f + a[k]
+        p = g.const(float(a[-1, 0]))
+        for k in range(a.shape[0] - 2, -1, -1):
+            p = g.math("MULTIPLY_ADD", p, f, float(a[k, 0]))
+        c = g.vmath("SCALE", base, p)
+    else:
+        fv = g.combine(f, f, f)
+        p = g.const(tuple(a[-1]))
+        for k in range(a.shape[0] - 2, -1, -1):
+            p = g.vmath("MULTIPLY_ADD", p, fv, tuple(a[k]))
+        c = g.vmath("MULTIPLY", base, p)
+    return g.vmath("MINIMUM", c, (1.0, 1.0, 1.0))
 
 
 def slot_writes(plan, writes, slot):
@@ -638,7 +693,8 @@ def _baked_from_state(tree, state):
         if img is not None:
             maps[ast.literal_eval(k)] = img
     vec = _resolve(tree, b["vector"]) if b.get("vector") else None
-    return dict(maps=maps, vector=vec, interpolation=b.get("interpolation", "Linear"))
+    return dict(maps=maps, vector=vec, interpolation=b.get("interpolation", "Linear"))  # (no
+    #   "sources": apply compares the stamp's with what the layer reads now)
 
 
 def _apply(mat, haze, core, baked):
@@ -648,6 +704,8 @@ def _apply(mat, haze, core, baked):
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone, so its Hazy Gloss layer cannot "
                          f"be updated: Remove Haze and Make Hazy again")
+    # the core as the layer left it: its copies need no sync (a haze-only update)
+    followed = FINGERPRINTS.get(mat.session_uid) == fingerprint(core)
     base = _adopt(core, state)
     plan = Plan(core, haze, base)
     animated = compat.animated_paths(tree)
@@ -660,14 +718,28 @@ def _apply(mat, haze, core, baked):
                                  f"through a Value node instead, then add haze")
             base[name] = _current(core.inputs[name])
     plan = Plan(core, haze, base)
-    for name in [n for n in base if n not in plan.owned()]:  # no longer owned: give them back
-        _restore(core, name, base.pop(name))
-    key = plan.key()
-    flat, g, sources, maps = output_keys(plan)
+    returned = [n for n in base if n not in plan.owned()]  # no longer owned (given back below)
+    flat, g, sources, maps = output_keys(plan)  # (reads the user's values from base)
     if baked is None:
         baked = _baked_from_state(tree, state)
     baked_maps = dict(baked["maps"]) if baked else {}
     live = {k: e for k, e in flat.items() if k not in baked_maps}
+    unfed = sorted({e.name for e in g.used(live) if e.op == "input" and e.name != "facing"
+                    and sources.get(e.name) is None})
+    read = sorted(k for k in sources if k.startswith("in:"))
+    if baked_maps and "sources" in (state.get("baked") or {}) and baked is not None and \
+            baked.get("sources") is None and read != sorted(state["baked"]["sources"]):
+        unfed = unfed or [n for n in read if n not in state["baked"]["sources"]] or read
+    if unfed:  # (a baked layer whose material changed so that new values depend on the maps)
+        what = ", ".join(n.split(":", 1)[-1] for n in unfed)
+        raise ValueError(f"the layer of {mat.name!r} needs {what} per pixel, which only its "
+                         f"converted maps held: convert the maps again (or Remove Haze)")
+    # nothing above changed the tree; from here on it is updated
+    for name in returned:
+        _restore(core, name, base.pop(name))
+    key = plan.key()
+    if plan.body:  # the view cosine body colour reads: a Layer Weight on the core's normal
+        plan.facing = sources["facing"] = _facing(tree, core)
     signature = str((g.signature(live), sorted((k, _socket_ref(v)) for k, v in sources.items()
                                                if not k.startswith("haze:")),
                      sorted(repr(k) for k in baked_maps)))
@@ -678,9 +750,11 @@ def _apply(mat, haze, core, baked):
     reuse = old_math if same and state.get("signature") == signature and not baked_maps and \
         all(n is not None for n in old_math) else None
     destinations = _destinations(tree, core)
+    keep = plan.facing.node if plan.facing is not None else None
     if not same:
         for n in layer_nodes.values():
-            tree.nodes.remove(n)
+            if n != keep:
+                tree.nodes.remove(n)
     elif reuse is None:
         for n in old_math:
             if n is not None:
@@ -712,7 +786,7 @@ def _apply(mat, haze, core, baked):
             _write(tree, node, name, val)
         if node is core:
             written = {name: _current(core.inputs[name]) for name in w}
-        else:
+        elif not (same and followed):
             sync_node(core, node, skip=set(w))
     current = _layer_nodes(tree)
     for k, val in out.items():
@@ -738,7 +812,8 @@ def _apply(mat, haze, core, baked):
                            if v is not None}}
     if baked_maps:  # (ID properties hold no None)
         b = {"maps": {repr(k): img.name for k, img in baked_maps.items()},
-             "interpolation": baked.get("interpolation", "Linear")}
+             "interpolation": baked.get("interpolation", "Linear"),
+             "sources": baked.get("sources") or read}  # what the maps were computed from
         if baked.get("vector") is not None:
             b["vector"] = _socket_ref(baked["vector"])
         d["layer"]["baked"] = b
@@ -746,6 +821,25 @@ def _apply(mat, haze, core, baked):
     mat[K.STAMP] = d
     FINGERPRINTS[mat.session_uid] = fingerprint(core)
     return maps
+
+
+def _facing(tree, core):
+    node = _layer_nodes(tree).get(_ROLE + "facing")
+    if node is None:
+        node = tree.nodes.new("ShaderNodeLayerWeight")
+        node.name = f"{K.NODE_PREFIX} {_ROLE}facing"
+        node[K.ROLE] = _ROLE + "facing"
+        node.label = "Hazy Gloss view cosine"
+        node.hide = True
+        node.location = (core.location.x - 520.0, core.location.y + 80.0)
+    node.inputs["Blend"].default_value = 0.5
+    normal = _source(core.inputs["Normal"])
+    if normal is not None:
+        if not _linked_from(node.inputs["Normal"], normal):
+            _new_link(tree, normal, node.inputs["Normal"])
+    elif node.inputs["Normal"].is_linked:
+        _unlink(tree, node.inputs["Normal"])
+    return node.outputs["Facing"]
 
 
 def _existing(tree, plan):
@@ -911,16 +1005,34 @@ def read(mat):
     return p
 
 
+_SUMMARIES = {}
+
+
 def summary(mat):
     """What the panel shows of a layered material: the core, the plan, the constant parts'
     HazeMappings by part ("COAT" for the coat), whether node math varies them per pixel, and the
-    number of BSDF nodes the layer renders.  Raises ValueError (one line) when the layer's stamp
+    number of BSDF nodes the layer renders.  Cached until the stamp or the core changes (the
+    panel draws it many times a second).  Raises ValueError (one line) when the layer's stamp
     is damaged or its core is gone."""
     from . import stamp as _stamp_module
     state = layer_state(mat) or {}
     problem = _stamp_module.layer_problem(mat, state.get("problems", []))
     if problem is not None:
         raise _stamp_module.StampError(problem)
+    core = find_core(mat.node_tree, state.get("core"))
+    key = (repr(state), fingerprint(core) if core is not None else None)
+    hit = _SUMMARIES.get(mat.session_uid)
+    if hit is not None and hit[0] == key:  # fresh node references (undo replaces them)
+        hit[1]["core"] = hit[1]["plan"].core = core
+        return hit[1]
+    out = _summary(mat, state)
+    _SUMMARIES[mat.session_uid] = (key, out)
+    if len(_SUMMARIES) > 64:
+        _SUMMARIES.pop(next(iter(_SUMMARIES)))
+    return out
+
+
+def _summary(mat, state):
     core = find_core(mat.node_tree, state.get("core"))
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
@@ -930,5 +1042,6 @@ def summary(mat):
                          f"Remove Haze")
     plan = Plan(core, haze_of(mat), dict(state.get("base", {})))
     _, _, _, sources, maps = values(plan)
-    return dict(core=core, plan=plan, maps=maps, textured=sorted(k[3:] for k in sources),
+    return dict(core=core, plan=plan, maps=maps,
+                textured=sorted(k[3:] for k in sources if k.startswith("in:")),
                 bsdfs=len(plan.slots()) if plan.active else 1)

@@ -248,6 +248,9 @@ def remove_haze(mat):
         notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
                      "could not restore keep the values the layer gave them")
     core = layer.find_core(mat.node_tree, state.get("core"))
+    from . import interchange
+    if interchange.remove_export_fallback(mat):  # the user's output active again, as before
+        notes.append("the export fallback was removed too (the material is no longer hazy)")
     layer.remove(mat)
     where = f" from its {core.bl_label} “{core.name}”" if core is not None else ""
     return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes

@@ -838,6 +838,8 @@ def update_material(mat, **changes):
             raise stamp.StampError(problem)
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
+        from . import sync
+        sync.refresh_fallback(mat)  # owned inputs the user edited are adopted: the fallback too
         return next(iter(maps.values()), None), []
     unknown = {k: v for k, v in changes.items() if k not in PARAMETERS}
     if unknown:

@@ -53,7 +53,7 @@ DISTRIBUTION_ITEMS = (
     ("GGX", "GGX", "GGX microfacets (all kinds)", 0),
     ("BECKMANN", "Beckmann", "Beckmann microfacets (conductor and legacy)", 1),
     ("MULTI_GGX", "Multiscatter GGX", "GGX with multiple-scattering energy compensation "
-     "(the peak ratio uses the single-scattering GGX peak)", 2),
+     "(β and r corrected so the peak stays invariant)", 2),
     ("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "Ashikhmin-Shirley lobes (legacy only)", 3),
 )
 TANGENT_ITEMS = (

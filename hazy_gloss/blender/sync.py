@@ -55,9 +55,11 @@ def sync(mat, *, force=False):
         return False
     try:
         layer.apply(mat, layer.haze_of(mat), core=core)  # records the new fingerprint
-    except (ValueError, TypeError) as exc:
+    except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
         properties.last_error[key] = plain_message(exc)
+        layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
+    refresh_fallback(mat)
     return True
 
 
@@ -81,6 +83,17 @@ def _baked_gaps(mat, state, core):
     plan = layer.Plan(core, layer.haze_of(mat), dict(state.get("base", {})))
     flat, _, _, _ = layer.output_keys(plan)
     return [k for k, e in flat.items() if k not in baked["maps"] and _needs_haze_map(e, set())]
+
+
+def refresh_fallback(mat):
+    """An export fallback (blender/interchange.py) is the user's BSDF at haziness 0: it follows
+    the core's edits too."""
+    from . import interchange
+    if interchange.FALLBACK_STAMP in mat:
+        try:
+            interchange.refresh_export_fallback(mat)
+        except ValueError as exc:
+            properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent

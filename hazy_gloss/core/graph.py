@@ -12,6 +12,9 @@ the numpy mapping without rendering.
   non-integer exponent is 0, ``clamp=True`` saturates the result (the Math node's Clamp).
 - MIX(t, a, b) = (1-t) a + t b (the float Mix node): an exact select for t ∈ {0, 1} when both
   branches are finite.
+- RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
+  Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
+  the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).
 - Building folds constants (in float32 with the same semantics, as Cycles' own constant folding
   does) and merges identical sub-expressions, so a graph fed constants emits only the nodes
   that depend on linked inputs, and never two nodes computing the same thing.
@@ -20,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ("Expr", "Graph", "evaluate", "SCALAR_OPS", "VECTOR_OPS")
+__all__ = ("Expr", "Graph", "evaluate", "ramp_table", "SCALAR_OPS", "VECTOR_OPS")
 
 #: Math node operations used here, with their arity.
 SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
@@ -28,14 +31,21 @@ SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD
               "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1}
 #: Vector Math node operations used here (SCALE: vector × scalar).
 VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
-              "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1}
+              "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1, "FLOOR": 1,
+              "DOT_PRODUCT": 2}
+#: Vector Math operations whose result is a scalar (the node's Value output).
+VECTOR_TO_SCALAR = ("DOT_PRODUCT",)
+#: Color Ramp: Blender's table size for the kernel (RAMP_TABLE_SIZE) and its stop limit.
+RAMP_TABLE_SIZE = 256
+RAMP_MAX_STOPS = 32
 
 _F32 = np.float32
 
 
 class Expr:
     """One value of the graph.  ``op``: "input", "const", a Math operation (scalar), "V" + a
-    Vector Math operation, "MIX", "SEPARATE" (one lane of a vector) or "COMBINE"."""
+    Vector Math operation, "MIX", "SEPARATE" (one lane of a vector), "COMBINE" or "RAMP"
+    (``value``: its stops, ((position, (r, g, b)), ...) in float32)."""
 
     __slots__ = ("op", "args", "vector", "clamp", "lane", "name", "value", "label", "index")
 
@@ -107,15 +117,16 @@ class Graph:
         self.nodes.append(e)
         return e
 
-    def _make(self, op, args, *, vector, clamp=False, lane=None, label=None):
+    def _make(self, op, args, *, vector, clamp=False, lane=None, label=None, stops=None):
         args = tuple(self.value(a) for a in args)
         if all(a.is_const for a in args):
             return self.const(_apply(op, [a.value for a in args], [a.vector for a in args],
-                                     clamp=clamp, lane=lane))
-        key = (op, tuple(id(a) for a in args), clamp, lane)
+                                     clamp=clamp, lane=lane, stops=stops))
+        key = (op, tuple(id(a) for a in args), clamp, lane, stops)
         e = self._memo.get(key)
         if e is None:
-            e = self._add(Expr(op, args, vector=vector, clamp=clamp, lane=lane, label=label))
+            e = self._add(Expr(op, args, vector=vector, clamp=clamp, lane=lane, label=label,
+                               value=stops))
             self._memo[key] = e
         elif label and not e.label:
             e.label = label
@@ -186,7 +197,25 @@ class Graph:
         args = [self.value(a) for a in args]
         if op == "SCALE" and args[1].vector:
             raise TypeError("Vector Math SCALE takes a scalar factor")
-        return self._make("V" + op, args, vector=True, label=label)
+        return self._make("V" + op, args, vector=op not in VECTOR_TO_SCALAR, label=label)
+
+    def dot(self, a, b, **kw):
+        """a · b (Vector Math DOT_PRODUCT: a scalar)."""
+        return self.vmath("DOT_PRODUCT", a, b, **kw)
+
+    def ramp(self, x, stops, **kw):
+        """A Color Ramp node (linear interpolation, RGB) read at the scalar ``x``: a vector.
+        ``stops``: up to 32 (position, (r, g, b)) with increasing positions in [0, 1]."""
+        stops = tuple((float(np.float32(p)), tuple(float(np.float32(c)) for c in col))
+                      for p, col in stops)
+        if not 1 <= len(stops) <= RAMP_MAX_STOPS or any(len(c) != 3 for _, c in stops):
+            raise ValueError(f"a ramp has 1 to {RAMP_MAX_STOPS} stops of three values")
+        if any(b[0] < a[0] for a, b in zip(stops, stops[1:])) or not 0 <= stops[0][0] <= stops[-1][0] <= 1:
+            raise ValueError("ramp stops need increasing positions in [0, 1]")
+        x = self.value(x)
+        if x.vector:
+            raise TypeError("a ramp is read at a scalar")
+        return self._make("RAMP", (x,), vector=True, stops=stops, **kw)
 
     def vclamp01(self, v, **kw):
         """A vector clamped to [0, 1] per lane, NaN -> 0 (Vector Math MAXIMUM, MINIMUM: cheaper
@@ -232,7 +261,8 @@ class Graph:
         rows = []
         for e in order:
             args = tuple(("c", a.vector) if a.is_const else pos[a.index] for a in e.args)
-            rows.append((e.op, e.name, e.vector, e.clamp, e.lane, args))
+            rows.append((e.op, e.name, e.vector, e.clamp, e.lane, args,
+                         len(e.value) if e.op == "RAMP" else None))
         outs = tuple(("c",) if e.is_const else pos[e.index] for e in _flatten(outputs))
         return hash((tuple(rows), outs))
 
@@ -287,6 +317,7 @@ _SCALAR = {
     "COMPARE": lambda a, b, c: ((a == b) | (np.abs(a - b) <= np.maximum(c, np.finfo(_F32).eps))
                                 ).astype(_F32),
     "ABSOLUTE": np.abs,
+    "FLOOR": np.floor,
 }
 
 
@@ -294,11 +325,59 @@ def _saturate(x):
     return np.minimum(np.maximum(np.nan_to_num(x, nan=0.0), _F32(0)), _F32(1)).astype(_F32)
 
 
-def _apply(op, vals, vector_args, *, clamp=False, lane=None):
+def ramp_table(stops):
+    """The RAMP_TABLE_SIZE x 3 float32 table Blender hands Cycles for a linear RGB Color Ramp:
+    BKE_colorband_evaluate at (float)i / (size - 1) — constant before the first and after the
+    last stop, else mfac·right + fac·left with fac = (in - right.pos)/(left.pos - right.pos)."""
+    pos = np.array([p for p, _ in stops], _F32)
+    col = np.array([c for _, c in stops], _F32)
+    out = np.empty((RAMP_TABLE_SIZE, 3), _F32)
+    for i in range(RAMP_TABLE_SIZE):
+        t = _F32(i) / _F32(RAMP_TABLE_SIZE - 1)
+        if len(pos) == 1 or t <= pos[0]:
+            out[i] = col[0]
+            continue
+        a = int(np.searchsorted(pos, t, side="right"))  # first stop with pos > t
+        if a == len(pos):
+            out[i] = col[-1]
+            continue
+        right, left = a, a - 1
+        if pos[left] != pos[right]:
+            fac = (t - pos[right]) / (pos[left] - pos[right])
+        else:
+            fac = _F32(0)
+        out[i] = (_F32(1) - fac) * col[right] + fac * col[left]
+    return out
+
+
+def _ramp_lookup(table, f):
+    """kernel/svm/ramp.h rgb_ramp_lookup without extrapolation: f saturated (NaN -> 0)."""
+    n = len(table)
+    f = _saturate(f) * _F32(n - 1)
+    i = np.clip(f.astype(np.int64), 0, n - 1)
+    t = (f - i.astype(_F32)).astype(_F32)
+    a = table[i]
+    b = table[np.minimum(i + 1, n - 1)]
+    return np.where((t > 0)[..., None], (_F32(1) - t)[..., None] * a + t[..., None] * b, a).astype(_F32)
+
+
+_RAMP_CACHE = {}
+
+
+def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
     """One operation on float32 values; ``vector_args`` says which operands are vectors
     (S + (3,)) — scalar operands of a vector operation are broadcast over the lanes."""
     vals = [np.asarray(v, dtype=_F32) for v in vals]
     with np.errstate(all="ignore"):
+        if op == "RAMP":
+            table = _RAMP_CACHE.get(stops)
+            if table is None:
+                table = _RAMP_CACHE.setdefault(stops, ramp_table(stops))
+            return _ramp_lookup(table, vals[0])
+        if op == "VDOT_PRODUCT":
+            a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
+                                         for v, is_vec in zip(vals, vector_args)))
+            return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2], _F32)
         if op == "SEPARATE":
             out = vals[0][..., lane]
         elif op == "COMBINE":
@@ -313,6 +392,8 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None):
                 out = vals[0] * vals[1]
             else:
                 out = _SCALAR[op[1:] if op.startswith("V") else op](*vals)
+            if op.startswith("V") and out.shape[-1:] != (3,):  # scalar operands only: (f, f, f)
+                out = np.broadcast_to(out, out.shape[:-1] + (3,))
     out = np.asarray(out, dtype=_F32)
     return _saturate(out) if clamp else out
 
@@ -336,7 +417,8 @@ def evaluate(outputs, inputs):
             cache[e.index] = np.asarray(inputs[e.name], dtype=_F32)
         else:
             cache[e.index] = _apply(e.op, [val(a) for a in e.args], [a.vector for a in e.args],
-                                    clamp=e.clamp, lane=e.lane)
+                                    clamp=e.clamp, lane=e.lane,
+                                    stops=e.value if e.op == "RAMP" else None)
 
     def out(o):
         if isinstance(o, dict):

@@ -38,16 +38,17 @@ from . import cycles_ggx_tables as _tables
 from .mapping import HazeMapping, _haze_terms, dielectric_ior, gulbrandsen_ior
 
 __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness_index",
-           "albedo_normal", "albedo_average", "single_scatter_albedo", "energy_scale",
+           "albedo_normal", "albedo_average", "single_scatter_albedo", "fss_dielectric_exact",
+           "energy_scale",
            "peak_ratio", "correct_mapping", "peak_factor")
 
 #: Newest Blender whose Cycles this module reproduces; later versions are assumed to match it.
 LATEST = (5, 3)
 #: Fresnel modes of :func:`single_scatter_albedo` (how each node computes F_ss).
-FRESNELS = ("CONDUCTOR", "F82_TINT", "F82", "DIELECTRIC", "CONSTANT")
+FRESNELS = ("CONDUCTOR", "F82_TINT", "F82", "DIELECTRIC", "DIELECTRIC_EXACT", "CONSTANT")
 #: Lobe types of :func:`correct_mapping`: which node draws the two lobes and how its Fresnel
 #: follows from the mapping's reflectivity r.
-LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY")
+LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
 
 _E_MU1 = np.asarray(_tables.E_MU1, np.float32).astype(np.float64)
 _EAVG = {"V4": np.asarray(_tables.EAVG_V4, np.float32).astype(np.float64),
@@ -198,6 +199,15 @@ def fss_dielectric(ior, f0=None, specular_tint=1.0):
     return _mix(tinted, 1.0, s[..., None])
 
 
+def fss_dielectric_exact(ior):
+    """Lobes with the exact dielectric Fresnel: the Principled BSDF's coat (bsdf_coat_setup ->
+    bsdf_microfacet_setup_fresnel_dielectric, the same in 4.5, 5.2 and 5.3: always energy
+    preserving, whatever the node's distribution): F_ss = fresnel_dielectric_Fss(η), the fit
+    itself (not saturated, below F0(η) for η ≳ 3000), with η = max(Coat IOR, 1) as the
+    closure code clamps it.  Grey (one value per texel)."""
+    return _dielectric_fss_fit(np.maximum(np.asarray(ior, np.float64), 1.0))
+
+
 def fss_constant(colour):
     """Glossy BSDF (bsdf_microfacet_setup_fresnel_constant): F_ss = max(Color, 0)."""
     return np.maximum(np.asarray(colour, np.float64), 0.0)
@@ -213,6 +223,8 @@ def single_scatter_albedo(fresnel, *, version=None, **params):
                           = f82 (what Cycles fits to any Fresnel it averages this way)
             "DIELECTRIC"  ior (...), specular_tint (..., 3) [, f0 = F0(ior)]: Principled
                           dielectric specular at IOR Level 0.5
+            "DIELECTRIC_EXACT"  ior (...): the Principled coat (exact dielectric Fresnel),
+                          F_ss = fresnel_dielectric_Fss(η), grey
             "CONSTANT"    colour (..., 3): Glossy BSDF"""
     f = str(fresnel).upper()
     if f == "CONDUCTOR":
@@ -224,6 +236,8 @@ def single_scatter_albedo(fresnel, *, version=None, **params):
         return _f82_fss(f0, 7.0 / (_F5 * _F) * (_mix(f0, 1.0, _F5) - np.asarray(params["f82"], np.float64)))
     if f == "DIELECTRIC":
         return fss_dielectric(params["ior"], params.get("f0"), params.get("specular_tint", 1.0))
+    if f == "DIELECTRIC_EXACT":
+        return fss_dielectric_exact(params["ior"])
     if f == "CONSTANT":
         return fss_constant(params["colour"])
     raise ValueError(f"fresnel must be one of {', '.join(FRESNELS)}; got {fresnel!r}")
@@ -336,6 +350,11 @@ class _Texels:
             eta = dielectric_ior(np.minimum(r_hat, 1.0 - _OMR_MIN), omr_hat)
             s = np.clip((_dielectric_fss_fit(eta) - r_hat) / omr_hat, 0.0, 1.0)
             f = r + s * omr
+            return f, f
+        if self.lobe == "COAT":  # Coat IOR from r̂ (F0(η) = r̂, white tint): F_ss = fit(η)
+            omr_hat = np.maximum(omr_hat, _OMR_MIN)
+            eta = dielectric_ior(np.minimum(r_hat, 1.0 - _OMR_MIN), omr_hat)
+            f = np.broadcast_to(_dielectric_fss_fit(eta), np.shape(r))
             return f, f
         return (1.0 - beta) * r, beta * r  # LEGACY: the Glossy colours
 
@@ -457,6 +476,10 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
                   Edge Tint / Specular Tint colour, kept as given)
       DIELECTRIC  Principled dielectric lobes, IOR (1+√r̂)/(1-√r̂), Specular Tint r / r̂
       LEGACY      Glossy BSDFs with colours (1-β) r and β r, added
+      COAT        Principled coats (Coat Weight 1, white Coat Tint) of two BSDFs mixed by β:
+                  Coat IOR (1+√r̂)/(1-√r̂), exact dielectric Fresnel, F_ss = fresnel_dielectric_Fss
+                  (Cycles draws the coat with Multiscatter GGX's factor whatever the node's
+                  distribution); r_c must be grey (F0 of the Coat IOR), r is grey
     Returns a HazeMapping whose β, r (and η, κ, dielectric IOR, Glossy weights, r̂, k̂_h) give
     every channel, at normal incidence, the peak of the haze-free material (the same lobe type,
     one lobe, F(0) = r_c):
@@ -472,6 +495,11 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
     Newton on monotone 1-D equations, vectorised over texels; fields keep the mapping's dtype."""
     lobe = _check_lobe(lobe)
     ver = cycles_version(version)
+    if lobe == "COAT":
+        rc_c = np.asarray(mapping.core_reflectivity, np.float64)
+        if np.any(np.ptp(np.reshape(rc_c, (-1, 3)), axis=-1) > 0):
+            raise ValueError("correct_mapping: a COAT lobe has a grey core reflectivity (F0 of "
+                             "the Coat IOR); got a coloured one")
     dtype = np.asarray(mapping.beta).dtype
     shape = np.shape(mapping.beta)
     n = int(np.prod(shape, dtype=np.int64))
@@ -632,6 +660,8 @@ def _solve(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
     steps = max(steps, it)
     omr = np.where(short, 0.0, omr)
     np.put_along_axis(omr, m[:, None], omr_hat[:, None], -1)
+    if lobe == "COAT":  # one Coat IOR: every channel is the max channel (equal up to rounding)
+        omr = np.repeat(omr_hat[:, None], 3, -1)
     r = 1.0 - omr
 
     b = beta[:, None]

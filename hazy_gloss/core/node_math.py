@@ -27,9 +27,22 @@ _TINY = 1.0 - K.ONE_MINUS_ULP32  # 2^-23: 1 - r is kept >= this (r <= 1 - ε)
 _DIV_MIN = 1e-30
 
 
-def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
+#: The Multiscatter GGX lobe type each kind draws (multiscatter=True).
+MULTISCATTER_LOBE = {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGACY": "LEGACY"}
+
+
+def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatter=None,
+            tint=None, version=None, iterations=None):
     """The physical parameters of Eq. 1 from perceptual inputs ``src`` (name -> Expr or number;
-    see INPUTS).  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
+    see INPUTS).
+
+    ``multiscatter``: None (the single-scatter mapping), True (the lobe type of ``kind``) or a
+    lobe type of core.multiscatter.correct_mapping — "CONDUCTOR", "F82_TINT" (Base Color r,
+    ``tint`` the Specular / Edge Tint colour), "DIELECTRIC", "LEGACY", "COAT" (kind DIELECTRIC,
+    grey r_c = F0 of the Coat IOR): β and r keep the peak under Cycles' Multiscatter GGX energy
+    factor (core.node_multiscatter; ``version`` picks the Cycles reproduced, None = the running
+    Blender; ``iterations`` overrides its Newton step counts).  Independent of
+    ``distribution``, whose p is GGX's for MULTI_GGX: the coat is always energy preserving.  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
     rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity,
     reflectivity_max (r̂), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
     (dielectric) or colour_narrow + colour_wide (legacy)."""
@@ -101,6 +114,28 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
     # -- Eq. 5 with the core's chroma, and 1 - r per channel without cancellation ---------------
     r, omr_v, chroma = reflectivity(g, rc, rc_max, r_hat, omr_hat)
     out["reflectivity"] = r
+    out["chroma"] = chroma
+    if multiscatter:  # Multiscatter GGX: β, r from (*) (docs/mapping.md §11), 1 - r by subtraction
+        from .node_multiscatter import correct
+        lobe = MULTISCATTER_LOBE[kind] if multiscatter is True else str(multiscatter).upper()
+        if smooth:  # β_h keeps its meaning: the Bézier's share k̂_h / k̂_7 of Eq. 7's bound
+            k7 = g.minimum(g.div(rc_max, g.maximum(p, _DIV_MIN)), g.div(g.sub(1.0, rc_max), g.maximum(q, _DIV_MIN)))
+            bh_ms = g.div(kh, k7)
+        else:
+            bh_ms = bh
+        # roughness index x = (α_x α_y)^¼ of each lobe (Cycles' table coordinate)
+        x_n = g.sqrt(gm) if anisotropic else rough
+        wx_, wy_ = out["alpha_wide"]
+        x_w = g.sqrt(g.sqrt(g.mul(wx_, wy_))) if anisotropic else g.sqrt(wx_)
+        ms = correct(g, out, lobe=lobe, rc=rc, p=p, x_n=x_n, x_w=x_w, haziness=bh_ms,
+                     edge_tint=src.get("edge_tint"), tint=tint, version=version,
+                     iterations=iterations)
+        out.update(ms)
+        beta, r, r_hat = ms["beta"], ms["reflectivity"], ms["reflectivity_max"]
+        omr_hat = g.maximum(g.sub(1.0, r_hat), _TINY)
+        omr_v = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, r), _TINY)
+        r = g.vmath("MINIMUM", r, K.ONE_MINUS_ULP32)
+        chroma = g.vmath("DIVIDE", ms["reflectivity"], r_hat)
 
     if kind == "CONDUCTOR":
         out["ior"], out["extinction"] = gulbrandsen(g, r, omr_v, src["edge_tint"])
@@ -108,7 +143,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX"):
         sq = g.add(g.sqrt(r_hat), 1.0)
         out["ior"] = g.div(g.mul(sq, sq), g.maximum(omr_hat, _TINY), label="η = (1+√r̂)/(1-√r̂)")
         out["specular_tint"] = chroma  # black where r_c = 0 (r̂ = 0 there: it does not matter)
-    else:
+    elif "colour_narrow" not in out:
         out["colour_narrow"] = g.vmath("SCALE", r, g.sub(1.0, beta), label="k_n = (1-β) r")
         out["colour_wide"] = g.vmath("SCALE", r, beta, label="k_w = β r")
 

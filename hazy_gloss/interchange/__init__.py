@@ -4,6 +4,9 @@
 - :mod:`.materialx` writes each hazy material as an exact Eq. 1 graph of the MaterialX 1.39
   standard ``pbr`` library (xml.etree: the ``materialx`` package is not needed) and reads such
   graphs back, also foreign two-lobe mixes and OpenPBR 1.2 surfaces with specular_haze;
+- :mod:`.layered` writes a material with a haze layer (Make Hazy) as its own network:
+  OpenPBR surfaces / pbr BSDFs mixed by β as the Blender tree mixes them, textures and the
+  layer's node math included;
 - :mod:`.usd` writes the same network as UsdShade (usd-core's ``pxr``, only when installed) with
   a UsdPreviewSurface of the core lobe, and reads it back;
 - :mod:`.engines` gives the closest Unity StackLit / Unreal Substrate / Filament / OpenPBR 1.2

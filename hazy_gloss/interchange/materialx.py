@@ -106,6 +106,8 @@ class Source:
     tangent: str = "UV_MAP"
     filtertype: str = "linear"
     notes: list = field(default_factory=list)
+    #: a material with a haze layer (Make Hazy): its node tree, interchange.layered.Tree
+    layer: object = None
 
 
 @dataclass
@@ -398,6 +400,29 @@ def _add_material(doc, name, label, shader, attrs):
     return mat
 
 
+def _layered(doc, src, taken, directory, flavour):
+    """A haze layer: the Blender tree as OpenPBR surfaces / pbr BSDFs and mixes (layered.py)."""
+    from . import layered
+    notes = list(src.notes)
+    if flavour != "eq1":
+        notes.append("a haze layer is written as its own network (OpenPBR 1.1.1 surfaces mixed by "
+                     "β) whatever the flavour")
+    name = valid_name(src.name, taken)
+    try:
+        g, w = layered.graph_of(src.layer, name, notes, directory=directory)
+    except (KeyError, NotImplementedError, RecursionError, TypeError) as exc:
+        raise ValueError(f"{src.name}: its haze layer's network could not be written "
+                         f"({type(exc).__name__}: {exc})") from exc
+    doc.graphs[g.name] = g
+    taken.add(g.name)
+    attrs = {f"{_ATTR}_name": src.name, f"{_ATTR}_version": K.INTERCHANGE_VERSION,
+             f"{_ATTR}_flavour": "layer", f"{_ATTR}_layer": layered.layer_record(src.layer)}
+    mat = Node(name, "surfacematerial", "material", attrs=attrs)
+    mat.set("surfaceshader", "surfaceshader", nodegraph=g.name, output="out")
+    doc.nodes[name] = mat
+    return name, notes
+
+
 def _eq1(doc, src, taken, directory):
     notes = list(src.notes)
     name = valid_name(src.name, taken)
@@ -542,6 +567,11 @@ def build_document(sources, flavour="eq1", *, directory=None, embed_openpbr_12=T
                            "Targets OpenPBR 1.2 (dev_1.2, unreleased): open_pbr_surface "
                            "version 1.2 with specular_haze / specular_haze_spread; the nodedef "
                            "is embedded (a subset, implemented with OpenPBR 1.1.1)."))
+    if any(getattr(src, "layer", None) is not None for src in sources):
+        doc.comments.append(
+            "Materials with a haze layer (hazygloss_flavour layer) are the artist's own network: "
+            "each BSDF of the layer an open_pbr_surface (OpenPBR 1.1.1) or a pbr BSDF, mixed by "
+            "beta as the Blender tree mixes them (docs/interchange.md section 5).")
     if flavour == "openpbr_1.2":
         doc.attrs[f"{_ATTR}_flavour"] = "openpbr_1.2"
         if embed_openpbr_12:
@@ -549,7 +579,9 @@ def build_document(sources, flavour="eq1", *, directory=None, embed_openpbr_12=T
     taken = set()
     done = []
     for src in sources:
-        if flavour == "eq1":
+        if src.layer is not None:
+            name, notes = _layered(doc, src, taken, directory, flavour)
+        elif flavour == "eq1":
             name, notes = _eq1(doc, src, taken, directory)
         else:
             name, notes = _openpbr(doc, src, taken, measure)
@@ -1159,6 +1191,11 @@ def recognise(doc, *, use_stored=True):
     out = []
     for mat in doc.materials():
         label = mat.attrs.get(f"{_ATTR}_name") or mat.name
+        if mat.attrs.get(f"{_ATTR}_flavour") == "layer":
+            out.append(ImportedMaterial(label, None, False, "hazy_gloss layer", [
+                "a haze layer on the artist's own BSDF (OpenPBR surfaces mixed by β): importing "
+                "it back as a layered material is not supported yet"]))
+            continue
         k, shader, g = doc.resolve(mat.inputs.get("surfaceshader"))
         if k != "node":
             out.append(ImportedMaterial(label, None, False, "", ["no surface shader"]))

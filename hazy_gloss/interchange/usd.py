@@ -123,6 +123,10 @@ def _material(stage, path, doc, mat_node, src, preview):
             key = k[len(_ATTR) + 1:]
             record[key] = json.loads(v) if key in ("parameters", "maps", "openpbr_error") else v
     prim.SetCustomDataByKey(_ATTR, json.dumps(record, sort_keys=True))
+    if mat_node.inputs["surfaceshader"].nodegraph:  # a haze layer: the whole network in NG
+        _layer_network(stage, path, mat, doc.graphs[mat_node.inputs["surfaceshader"].nodegraph])
+        _layer_extras(stage, path, mat, src, preview)
+        return mat
     shader_node = doc.nodes[mat_node.inputs["surfaceshader"].nodename]
     graph = doc.graphs[shader_node.inputs["bsdf"].nodegraph]
     ng = UsdShade.NodeGraph.Define(stage, f"{path}/NG")
@@ -170,6 +174,61 @@ def _material(stage, path, doc, mat_node, src, preview):
                 pv.CreateInput("opacity", T.Float).Set(1.0 - float(c["transmission"]))
             mat.CreateSurfaceOutput().ConnectToSource(pv.CreateOutput("surface", T.Token))
     return mat
+
+
+def _layer_network(stage, path, mat, graph):
+    """A layered material's NodeGraph (interchange/layered.py): one Shader per node, info:id its
+    nodedef, every output "out" (the nodedefs' name), the Material's mtlx:surface from NG.out."""
+    from pxr import Sdf, UsdShade
+    ng = UsdShade.NodeGraph.Define(stage, f"{path}/NG")
+    shaders = {}
+    for n in graph.nodes.values():
+        sh = UsdShade.Shader.Define(stage, f"{path}/NG/{n.name}")
+        sh.CreateIdAttr(n.nodedef or _nodedef(n))
+        shaders[n.name] = (sh, _output(sh, n), n)
+    for sh, _, n in shaders.values():
+        for inp in n.inputs.values():
+            i = _shader_input(sh, inp)
+            if inp.nodename:
+                i.ConnectToSource(shaders[inp.nodename][1])
+    out = graph.outputs["out"]
+    ng_out = ng.CreateOutput("out", Sdf.ValueTypeNames.Token)
+    ng_out.SetRenderType("surfaceshader")
+    ng_out.ConnectToSource(shaders[out.nodename][1])
+    mat.CreateSurfaceOutput("mtlx").ConnectToSource(ng_out)
+    for k, v in graph.attrs.items():
+        ng.GetPrim().SetCustomDataByKey(k, str(v))
+
+
+def _layer_extras(stage, path, mat, src, preview):
+    """userProperties and the UsdPreviewSurface of a layered material: the user's BSDF at
+    haziness 0 (its own values; textures are not in the preview)."""
+    from pxr import Sdf, UsdShade
+    from . import layered
+    T = Sdf.ValueTypeNames
+    prim = mat.GetPrim()
+    lay = src.layer.layer or {}
+    prim.CreateAttribute("userProperties:hazy_gloss:layered", T.Bool, custom=True).Set(True)
+    prim.CreateAttribute("userProperties:hazy_gloss:core_type", T.String, custom=True).Set(
+        str(lay.get("core_type")))
+    haze = lay.get("haze", {})
+    for k in ("haziness", "coat_haziness"):
+        v = haze.get(k)
+        if isinstance(v, (int, float)):
+            prim.CreateAttribute(f"userProperties:hazy_gloss:{k}", T.Double, custom=True).Set(float(v))
+    if not preview:
+        return
+    c = layered.preview_values(src.layer)
+    if c is None:
+        return
+    pv = UsdShade.Shader.Define(stage, f"{path}/preview_core")
+    pv.CreateIdAttr("UsdPreviewSurface")
+    for k in ("metallic", "roughness", "ior", "clearcoat", "clearcoatRoughness", "opacity"):
+        pv.CreateInput(k, T.Float).Set(float(c[k]))
+    pv.CreateInput("diffuseColor", T.Color3f).Set(tuple(float(x) for x in c["diffuseColor"]))
+    if any(c["emissiveColor"]):
+        pv.CreateInput("emissiveColor", T.Color3f).Set(tuple(float(x) for x in c["emissiveColor"]))
+    mat.CreateSurfaceOutput().ConnectToSource(pv.CreateOutput("surface", T.Token))
 
 
 def write(sources, path, *, preview=True, bind=None):

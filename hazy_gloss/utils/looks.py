@@ -53,10 +53,16 @@ _LIST = (
          dict(haziness=0.7, haze_extent=(10.0, 2.0)),
          textures=("radial_tangent",)),
     Look("WORN_PLASTIC", "Worn Plastic",
-         "Blue plastic, polished in places and dulled in others; a little haze, body colour kept",
+         "Blue plastic, polished in places and dulled in others: a little haze on a textured "
+         "roughness (the haze mapping runs per pixel)",
          {"Base Color": (0.05, 0.16, 0.5, 1.0), "Roughness": 0.3},
-         dict(haziness=0.08, haze_extent=6.0, keep_body_colour=True),
+         dict(haziness=0.08, haze_extent=6.0),
          textures=("worn_roughness",)),
+    Look("GLOSSY_PLASTIC", "Glossy Plastic",
+         "Red plastic with a soft halo around its highlights; the body colour kept under the "
+         "haze (Keep Body Colour)",
+         {"Base Color": (0.5, 0.04, 0.03, 1.0), "Roughness": 0.12},
+         dict(haziness=0.1, haze_extent=6.0, keep_body_colour=True)),
 )
 
 #: id -> Look, in menu order.

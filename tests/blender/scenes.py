@@ -477,12 +477,14 @@ PASSES = {
     "diffuse_color": ("use_pass_diffuse_color", ("Diffuse Color", "DiffCol")),
     "emission": ("use_pass_emit", ("Emission", "Emit")),
     "transmission_direct": ("use_pass_transmission_direct", ("Transmission Direct", "TransDir")),
+    "normal": ("use_pass_normal", ("Normal",)),
 }
 
 
 def render_passes(read_exr, names=("combined",), *, path=None):
     """Render the current scene to a multilayer EXR and return {name: (H, W, 3) float64} for the
-    pass ``names`` (keys of :data:`PASSES`) plus "alpha" (H, W).  Cycles' direct passes hold
+    pass ``names`` (keys of :data:`PASSES`; "normal" is the world-space shading normal) plus
+    "alpha" (H, W).  Cycles' direct passes hold
     the light without the BSDF's colour: "glossy" (glossy direct x glossy colour) and "diffuse"
     are what the combined pass adds up.  ``read_exr`` is an EXR reader
     ``path -> {channel: (H, W)}`` (hazy_gloss.exr.read_exr; the harness does not import it)."""
@@ -521,7 +523,8 @@ def render_passes(read_exr, names=("combined",), *, path=None):
         exr = PASSES[name][1]
         keys = [k for k in ch if k.split(".")[-2] in exr]
         by = {k.split(".")[-1]: ch[k] for k in keys}
-        out[name] = np.stack([by["R"], by["G"], by["B"]], axis=-1).astype(np.float64)
+        xyz = ("X", "Y", "Z") if "X" in by else ("R", "G", "B")  # vector passes: X, Y, Z
+        out[name] = np.stack([by[c] for c in xyz], axis=-1).astype(np.float64)
     for light in ("glossy", "diffuse"):
         if light in names:
             out[light] = out[f"{light}_direct"] * out[f"{light}_color"]

@@ -210,3 +210,31 @@ def test_operator_converts_a_library_folder(env, tmp_path):
         assert mat.use_fake_user
     assert env.layer.layer_state(rusty)["base"]["Metallic"].get("link")  # metallic map kept
     assert os.path.isdir(tmp_path / "maps" / "Wood049")
+
+
+def test_baked_layer_after_an_edit_that_needs_new_maps(env, tmp_path):
+    """The user links a new texture into an input the baked maps depend on: the layer cannot
+    follow without converting again; it says so (one line) and leaves the tree as it was."""
+    res = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "out"), name="Set")
+    mat = res.material
+    core = env.layer.find_core(mat.node_tree)
+    noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
+    mat.node_tree.links.new(noise.outputs["Color"], core.inputs["Specular Tint"])
+    sig = L.signature(mat)
+    assert env.api.sync_haze(mat) is False
+    props = importlib.import_module(env.api.__name__.rsplit(".", 1)[0] + ".blender.properties")
+    assert "convert the maps again" in props.error_for(mat)
+    assert L.signature(mat) == sig
+
+
+def test_converting_again_replaces_the_baked_layer(env, tmp_path):
+    """A second conversion into the same material (another set: no metallic or haze map now)
+    is fine: the metallic image the material still has linked is read as a map too."""
+    res = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "a"), name="Again")
+    mat = res.material
+    paths = pbr_set(tmp_path, haze=False)
+    del paths["metallic"]
+    paths["haziness"] = 0.3
+    res2 = env.api.convert_maps(paths, str(tmp_path / "b"), material=mat)
+    assert res2.material == mat and env.layer.is_baked(mat)
+    assert "beta_metal" in res2  # the material's own metallic texture still splits it

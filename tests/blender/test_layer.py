@@ -294,7 +294,12 @@ def test_haziness_zero_is_the_original(env, name):
     after = render_for(env, name, mat)
     err = rel_diff(before["combined"], after["combined"])
     alpha = float(np.abs(before["alpha"] - after["alpha"]).max())
-    record("layer_haziness0", {name: dict(max_rel=err, alpha=alpha)})
+    b, a = before["combined"], after["combined"]
+    record("layer_haziness0", {name: dict(
+        max_rel=err, alpha=alpha, peak_before=float(b.max()), peak_after=float(a.max()),
+        mean_before=float(b.mean()), mean_after=float(a.mean()),
+        transparent_before=float((before["alpha"] < 0.5).mean()),
+        transparent_after=float((after["alpha"] < 0.5).mean()))})
     assert err <= 1e-5 and alpha <= 1e-6, (err, alpha)
 
 
@@ -354,20 +359,57 @@ PEAK = {
                                                      "Roughness": 0.2})[0],
     "textured roughness dielectric": lambda: textured_roughness(),
     "metal, Multiscatter GGX": multiscatter_metal,
+    "Metallic BSDF (F82) with thin film": lambda: metallic_film(),
     "dielectric with thin film": lambda: principled(
         "Film Dielectric", **{"Base Color": (0.05, 0.05, 0.05, 1.0), "Roughness": 0.25,
                               "Thin Film Thickness": 320.0, "Thin Film IOR": 1.6})[0],
+    "textured roughness dielectric, Multiscatter GGX": lambda: textured_roughness("MULTI_GGX"),
+    "textured metal, Multiscatter GGX": lambda: textured_metal("MULTI_GGX"),
+    "coat with textured roughness": lambda: textured_coat(),
     "dielectric, Multiscatter GGX": lambda: principled(
         "MS Dielectric", distribution="MULTI_GGX", **{"Base Color": (0.3, 0.3, 0.3, 1.0),
                                                        "Roughness": 0.3})[0],
 }
 
 
-def textured_roughness():
-    mat, b = principled("Textured Roughness", **{"Base Color": (0.5, 0.2, 0.1, 1.0), "IOR": 1.5})
+def metallic_film():
+    mat = metallic_node("F82")
+    n = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfMetallic")
+    if "Thin Film Thickness" not in n.inputs:
+        pytest.skip("the Metallic BSDF has no thin film before Blender 5.0")
+    n.inputs["Thin Film Thickness"].default_value = 380.0
+    n.inputs["Thin Film IOR"].default_value = 1.45
+    return mat
+
+
+def textured_roughness(distribution="GGX"):
+    mat, b = principled("Textured Roughness", distribution=distribution,
+                        **{"Base Color": (0.5, 0.2, 0.1, 1.0), "IOR": 1.5})
     rng = np.random.default_rng(4)
     tex = window_image(mat.node_tree, image("rough", grey(rng.uniform(0.1, 0.5, (4, 4)))))
     mat.node_tree.links.new(tex.outputs["Color"], b.inputs["Roughness"])
+    return mat
+
+
+def textured_metal(distribution="GGX"):
+    mat, b = principled("Textured Metal", distribution=distribution, **{"Metallic": 1.0})
+    rng = np.random.default_rng(5)
+    px = np.concatenate([rng.uniform(0.3, 0.95, (4, 4, 3)), np.ones((4, 4, 1))], -1)
+    col = window_image(mat.node_tree, image("metal colour", px))
+    rough = window_image(mat.node_tree, image("metal rough", grey(rng.uniform(0.15, 0.5, (4, 4)))))
+    mat.node_tree.links.new(col.outputs["Color"], b.inputs["Base Color"])
+    mat.node_tree.links.new(rough.outputs["Color"], b.inputs["Roughness"])
+    return mat
+
+
+def textured_coat():
+    """Only the coat reflects; its roughness is a texture (node math for the coat's haze)."""
+    mat, b = principled("Textured Coat", **{"Base Color": (0.0, 0.0, 0.0, 1.0),
+                                            "Specular IOR Level": 0.0, "Coat Weight": 1.0,
+                                            "Coat IOR": 1.5})
+    rng = np.random.default_rng(6)
+    tex = window_image(mat.node_tree, image("coat rough", grey(rng.uniform(0.05, 0.3, (4, 4)))))
+    mat.node_tree.links.new(tex.outputs["Color"], b.inputs["Coat Roughness"])
     return mat
 
 
@@ -385,7 +427,8 @@ def test_peak_is_invariant(env, name):
     before = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
     # a film on a dielectric reaches r ~ 0.5 at most (0.9 cannot keep the peak: a note says so)
     haziness = 0.3 if "film" in name and "dielectric" in name else 0.9
-    env.api.update_material(mat, haziness=haziness, haze_extent=(8.0, 3.0))
+    env.api.update_material(mat, haziness=haziness, haze_extent=(8.0, 3.0),
+                            coat_haziness=0.8 if name == "coat with textured roughness" else 0.0)
     after = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
     err = rel_diff(before, after)
     record("layer_peak", {name: err})
@@ -621,3 +664,53 @@ def test_picks_the_bsdf_and_names_the_others(env):
     env.api.make_hazy(mat, node=glossy.name, haziness=0.3)
     assert env.layer.find_core(tree) == glossy
     assert env.api.read_parameters(mat)["kind"] == "LEGACY"
+
+
+# --------------------------------------------------------------------------------------------
+# 5. Keep body colour
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("view", [(0.0, 0.0), (40.0, 180.0), (70.0, 180.0)])
+def test_keep_body_colour(env, view):
+    """Haze raises a dielectric's reflectivity, which darkens the diffuse under it; Keep Body
+    Colour brightens the base colour by c(μ) so the diffuse pass stays what it was (to the
+    fit's error), where the base has room to get brighter."""
+    def plastic():
+        return principled("Red Plastic", **{"Base Color": (0.5, 0.1, 0.05, 1.0), "Roughness": 0.3})[0]
+    light = (30.0, 0.0)
+    orig = render(env, plastic(), light, view, passes=("diffuse",))["diffuse"]
+    hazy = plastic()
+    make_hazy(env, hazy, haziness=0.3)
+    dark = render(env, hazy, light, view, passes=("diffuse",))["diffuse"]
+    kept = plastic()
+    make_hazy(env, kept, haziness=0.3, keep_body_colour=True)
+    keep = render(env, kept, light, view, passes=("diffuse",))["diffuse"]
+    darkening = 1.0 - float(dark[4, 4, 0] / orig[4, 4, 0])
+    residual = float(np.abs(keep[4, 4] / orig[4, 4] - 1.0).max())
+    record("layer_body_colour", {f"view {view[0]:g}": dict(darkening=darkening, kept=residual)})
+    assert darkening > 0.03, darkening
+    assert residual <= 1.5e-2, residual
+    # the peak is untouched by the compensation (specular only)
+    peak = lambda m: render(env, m, (0.0, 0.0), passes=("glossy",))["glossy"]  # noqa: E731
+    assert rel_diff(peak(hazy), peak(kept)) <= 1e-5
+
+
+def test_keep_body_colour_says_what_it_cannot_keep(env):
+    mat, _ = principled("White", **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.3})
+    make_hazy(env, mat, haziness=0.5, keep_body_colour=True)
+    notes = " ".join(env.layer.summary(mat)["plan"].notes)
+    assert "too bright to keep" in notes and "darker" in notes
+
+
+@pytest.mark.parametrize("name", ["emissive plastic", "leaf (alpha texture)", "fabric (sheen)"])
+def test_what_haze_does_not_touch_renders_as_before(env, name):
+    """With haze on, the emission pass and the alpha (cut-out) are exactly the original's."""
+    mat = MATERIALS[name]()
+    before = render(env, mat, passes=("combined", "emission"), transparent=True)
+    make_hazy(env, mat, haziness=0.5, haze_extent=6.0)
+    after = render(env, mat, passes=("combined", "emission"), transparent=True)
+    emission = float(np.abs(before["emission"] - after["emission"]).max())
+    alpha = float(np.abs(before["alpha"] - after["alpha"]).max())
+    record("layer_untouched", {name: dict(emission=emission, alpha=alpha)})
+    assert emission <= 1e-6 * max(1.0, float(before["emission"].max())) and alpha == 0.0

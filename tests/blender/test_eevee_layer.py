@@ -1,0 +1,235 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The EEVEE-only simplification of a haze layer (blender.eevee_layer, issue 13 item 7).
+
+What is checked: the EEVEE output leaves the user's nodes and Cycles' image alone and goes away
+cleanly; its one BSDF's lobes have the peak-preserving roughness 1/α_f² = (1-β)/α_n² + β/α_w²
+(computed here from the layer's node values); Cycles renders that folded lobe with the layer's
+peak; and EEVEE renders it without the closure-selection noise the full layer has when its
+core has a coat (measured: 1 TAA sample against 16)."""
+import importlib
+import math
+from types import SimpleNamespace
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from measurements import record
+from test_layer import car_paint, glossy_node, in_a_mix, metallic_map, metallic_node, principled
+
+
+@pytest.fixture
+def env(hg, clean_file):
+    def mod(name):
+        return importlib.import_module(f"{hg.__name__}.{name}")
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), E=mod("blender.eevee_layer"),
+                           ownership=mod("blender.nodes.ownership"))
+
+
+def dielectric():
+    return principled("Dielectric", **{"Base Color": (0.05, 0.12, 0.35, 1.0), "Roughness": 0.2})[0]
+
+
+def metal():
+    return principled("Metal", **{"Metallic": 1.0, "Base Color": (0.9, 0.6, 0.3, 1.0),
+                                  "Roughness": 0.25})[0]
+
+
+def coated_metallic_map():
+    return metallic_map("Coated Metallic Map", **{"Coat Weight": 1.0, "Coat Roughness": 0.1})
+
+
+MATERIALS = {  # name -> (builder, haze, EEVEE picks closures at random without the output)
+    "dielectric": (dielectric, dict(haziness=0.6), False),
+    "metal": (metal, dict(haziness=0.6), False),
+    "metallic map": (metallic_map, dict(haziness=0.6), False),
+    "car paint, hazy base and coat": (car_paint, dict(haziness=0.5, coat_haziness=0.6), True),
+    "car paint, hazy coat only": (car_paint, dict(coat_haziness=0.6), True),
+    "car paint, hazy base only": (car_paint, dict(haziness=0.5), True),
+    "metallic map under a hazy coat": (coated_metallic_map, dict(haziness=0.6, coat_haziness=0.5),
+                                       True),
+    "plastic in a Mix Shader": (in_a_mix, dict(haziness=0.5), False),
+    "Glossy BSDF": (glossy_node, dict(haziness=0.5), False),
+    "Metallic BSDF (physical)": (lambda: metallic_node("PHYSICAL_CONDUCTOR"), dict(haziness=0.5),
+                                 False),
+}
+
+
+def snapshot(mat, ours):
+    """Every node that is not the EEVEE output's (name, type, settings, unlinked values) and
+    every link between two such nodes."""
+    keep = lambda n: not (ours(n) or "").startswith("layer eevee ")  # noqa: E731
+    nodes = []
+    for n in sorted(mat.node_tree.nodes, key=lambda n: n.name):
+        if not keep(n):
+            continue
+        vals = []
+        for s in n.inputs:
+            if not s.is_linked and hasattr(s, "default_value"):
+                v = s.default_value
+                vals.append((s.identifier, tuple(v) if hasattr(v, "__len__") else v))
+        props = tuple(getattr(n, p, None) for p in ("distribution", "fresnel_type", "target",
+                                                    "is_active_output"))
+        nodes.append((n.name, n.bl_idname, tuple(vals), props))
+    links = sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name,
+                    l.to_socket.identifier) for l in mat.node_tree.links
+                   if keep(l.from_node) and keep(l.to_node))
+    return nodes, links
+
+
+def render(mat, engine="CYCLES", samples=1, light=(30.0, 0.0), view=(0.0, 0.0), res=(8, 8)):
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    if engine == "EEVEE":
+        scenes.eevee_setup(samples=samples, resolution=res)
+    else:
+        scenes.setup_render("CYCLES", samples=1, resolution=res, bounces=0)
+    scenes.flat_plane_scene(mat, light_dir=light, view_dir=view)
+    return scenes.render_exr()[..., :3].astype(np.float64)
+
+
+@pytest.mark.parametrize("name", list(MATERIALS))
+def test_eevee_output_keeps_the_user_tree_and_cycles(env, name):
+    build, haze, noisy = MATERIALS[name]
+    mat = build()
+    env.api.make_hazy(mat, **haze)
+    assert env.E.needs_eevee_output(mat)[0] == noisy
+    before = snapshot(mat, env.ownership.role)
+    cycles = render(mat)
+    auto = env.E.add_eevee_output(mat)
+    assert auto["added"] == noisy, auto
+    info = env.E.add_eevee_output(mat, mode="always")  # replaces the "auto" one
+    assert info["added"], info
+    ours = env.E.eevee_nodes(mat.node_tree)
+    outs = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    assert [n.target for n in outs if n in ours.values()] == ["EEVEE"]
+    assert sum(n.bl_idname in ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfMetallic",
+                               "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
+               for n in ours.values()) == 1  # one BSDF for EEVEE
+    assert len(ours) == info["nodes"]
+    assert snapshot(mat, env.ownership.role) == before  # nothing of the user's or the layer's
+    assert np.array_equal(render(mat), cycles)  # Cycles renders the user's output as before
+    assert env.E.sync_eevee_output(mat)
+    assert len(env.E.eevee_nodes(mat.node_tree)) == info["nodes"]
+    assert env.E.remove_eevee_output(mat)
+    assert not env.E.eevee_nodes(mat.node_tree) and not env.E.has_eevee_output(mat)
+    assert snapshot(mat, env.ownership.role) == before
+    assert not env.E.remove_eevee_output(mat)
+
+
+def _value(sock):
+    v = sock.default_value
+    return float(v)
+
+
+def test_folded_roughness_keeps_the_peak(env):
+    """The EEVEE BSDF's Roughness and Coat Roughness are the single lobes whose GGX peak
+    F(0)/(π α²) equals the layer's (1 - β) F(0)/(π α_n²) + β F(0)/(π α_w²), from the layer's
+    own node values; and Cycles renders that folded BSDF with the layer's peak."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
+    env.E.add_eevee_output(mat)
+    nodes = env.ownership.ours(mat.node_tree)
+    core = env.layer.find_core(mat.node_tree)
+    folded = nodes["layer eevee bsdf"]
+
+    def peak_alpha(beta, r_n, r_w):
+        a_n, a_w = r_n ** 2, r_w ** 2
+        return 1.0 / math.sqrt((1.0 - beta) / a_n ** 2 + beta / a_w ** 2)
+
+    beta = _value(nodes["layer Mix metal"].inputs[0])
+    want = peak_alpha(beta, _value(core.inputs["Roughness"]),
+                      _value(nodes["layer metal wide"].inputs["Roughness"]))
+    assert _value(folded.inputs["Roughness"]) ** 2 == pytest.approx(want, rel=1e-5)
+    beta_c = _value(nodes["layer Mix coat"].inputs[0])
+    want_c = peak_alpha(beta_c, _value(core.inputs["Coat Roughness"]),
+                        _value(nodes["layer metal narrow coat wide"].inputs["Coat Roughness"]))
+    assert _value(folded.inputs["Coat Roughness"]) ** 2 == pytest.approx(want_c, rel=1e-5)
+    assert _value(folded.inputs["Coat IOR"]) == pytest.approx(_value(core.inputs["Coat IOR"]))
+    assert tuple(folded.inputs["Base Color"].default_value) == \
+        pytest.approx(tuple(core.inputs["Base Color"].default_value))
+
+
+@pytest.mark.parametrize("name", ["dielectric", "metal"])
+def test_cycles_peak_of_the_folded_lobe(env, name):
+    """Rendered in Cycles (light, view and normal aligned: every pixel is the peak), the EEVEE
+    output's folded BSDF gives the layer's peak (a GGX lobe without Cycles' energy
+    compensation: exact up to float32)."""
+    mat = MATERIALS[name][0]()
+    env.api.make_hazy(mat, **MATERIALS[name][1])
+    env.E.add_eevee_output(mat, mode="always")
+    peak = dict(light=(0.0, 0.0), view=(0.0, 0.0))
+    layered = render(mat, **peak)
+    # let Cycles render the EEVEE output: the user's output for EEVEE only, ours for all
+    user = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
+                and n.target == "ALL")
+    user.target = "EEVEE"
+    env.E.eevee_nodes(mat.node_tree)["layer eevee output"].target = "ALL"
+    folded = render(mat, **peak)
+    err = float(np.abs(folded - layered).max() / np.abs(layered).max())
+    record("eevee_layer", {f"{name}: Cycles peak, folded / layered - 1": err})
+    assert layered.max() > 0.1
+    assert err <= 1e-5, err
+
+
+def test_eevee_folded_tree_has_no_closure_noise(env):
+    """The car paint with a hazy base and coat in EEVEE (flat plane, sun): the full layer's
+    pixels scatter (EEVEE keeps one of the narrow and wide lobes that share a reflection bin per
+    pixel), the EEVEE output's do not.  Noise = RMS over pixels of (1 TAA sample - 16 samples)
+    relative to the mean."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
+    res = (24, 24)
+
+    def noise():
+        one = render(mat, "EEVEE", 1, res=res)
+        many = render(mat, "EEVEE", 16, res=res)
+        return float(np.sqrt(np.mean((one - many) ** 2)) / many.mean()), many
+
+    full, full16 = noise()
+    env.E.add_eevee_output(mat)
+    folded, folded16 = noise()
+    env.E.remove_eevee_output(mat)
+    original = car_paint()
+    orig16 = render(original, "EEVEE", 16, res=res)
+    record("eevee_layer", {"car paint EEVEE noise (1 vs 16 TAA samples)":
+                           dict(full_layer=full, eevee_output=folded),
+                           "car paint EEVEE mean, 16 samples": dict(
+                               full_layer=float(full16.mean()), eevee_output=float(folded16.mean()),
+                               original=float(orig16.mean()))})
+    assert full > 0.05, full  # the layer's closure noise is there (else this test means nothing)
+    assert folded < 0.01, folded
+
+
+def test_auto_refuses_and_layer_rebuilds_remove_it(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
+    tree = mat.node_tree
+    # a user EEVEE output is the user's choice: nothing is added
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "EEVEE"
+    info = env.E.add_eevee_output(mat)
+    assert not info["added"] and "EEVEE output of its own" in info["reason"]
+    tree.nodes.remove(out)
+    assert env.E.add_eevee_output(mat)["added"]
+    # the layer rebuilds (its structure changes): every "layer ..." node goes, ours too, and
+    # EEVEE renders the full layer again; sync brings the output back (the request is stamped)
+    env.api.update_material(mat, coat_haziness=0.0)
+    assert not env.E.has_eevee_output(mat)
+    assert env.E.requested_mode(mat) == "auto"
+    assert env.E.sync_eevee_output(mat)  # base haze under the coat is still noisy
+    assert env.E.has_eevee_output(mat)
+    # a request for a material that does not need it: kept, nothing built until it does
+    plain = dielectric()
+    env.api.make_hazy(plain, haziness=0.5)
+    assert not env.E.add_eevee_output(plain)["added"]
+    assert not env.E.sync_eevee_output(plain) and env.E.requested_mode(plain) == "auto"
+    env.E.remove_eevee_output(plain)
+    assert env.E.requested_mode(plain) is None
+    env.api.remove_haze(mat)
+    assert not env.E.eevee_nodes(tree) and env.E.requested_mode(mat) is None
+    with pytest.raises(ValueError, match="no haze layer"):
+        env.E.add_eevee_output(mat)
+    with pytest.raises(ValueError, match="mode must be"):
+        env.E.add_eevee_output(car_paint(), mode="sometimes")
