@@ -96,18 +96,22 @@ def update_material(mat, **changes):
     Values the user changed in the node editor on the add-on's nodes are read back first (the
     group's inputs of an in-shader material; a lean tree through the inverse haze mapping); what
     cannot be read back is replaced, with a UserWarning naming it."""
-    return update_material_links(mat, **changes)[0]
+    return _update(mat, changes)[0]
 
 
 def update_material_links(mat, **changes):
     """:func:`update_material`, also returning the group inputs whose links had to be dropped
     because the new configuration has no such input (e.g. Edge Tint of a dielectric)."""
+    return _update(mat, changes)
+
+
+def _update(mat, changes):
     out = _material.update_material(mat, **changes)
     replaced = _material.REPLACED.get(mat.session_uid)
     if replaced:
         import warnings
         warnings.warn(f"{mat.name}: replaced node-editor edits the haze parameters cannot "
-                      f"represent: {', '.join(replaced)}", UserWarning, stacklevel=2)
+                      f"represent: {', '.join(replaced)}", UserWarning, stacklevel=3)
     return out
 
 

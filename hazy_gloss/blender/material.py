@@ -28,7 +28,8 @@ from ..core.lobes import describe
 from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise, normalise_haze
 from . import compat, layer, stamp
 from .nodes.builder import TreeBuilder, socket_value
-from .nodes.groups import GROUP_VERSION, ensure_group
+from .nodes import groups
+from .nodes.groups import ensure_group
 from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
 from .nodes.ownership import is_ours, output_node, ours, role  # noqa: F401  (re-exported)
 
@@ -364,13 +365,7 @@ class Write(NamedTuple):
 def group_fits(ng, p, anisotropic):
     """Whether the node group ``ng`` is the add-on's group for ``p``'s configuration (by its
     stamp, so a group the user renamed still fits)."""
-    if ng is None or ng.library is not None:
-        return False
-    g = stamp.group(ng, K.GROUP_STAMP) or {}
-    return (g.get("version") == GROUP_VERSION and g.get("kind") == p["kind"]
-            and g.get("distribution") == p["distribution"]
-            and bool(g.get("anisotropic")) == bool(anisotropic)
-            and bool(g.get("smooth")) == (p["smoothness"] is not None))
+    return groups.fits(ng, p["kind"], p["distribution"], anisotropic, p["smoothness"] is not None)
 
 
 def writes(mat, p, d):
@@ -577,15 +572,16 @@ def _tangent_of(mat, p):
     return "UV_MAP" if t.direction_type == "UV_MAP" else f"RADIAL_{t.axis}"
 
 
-def _lobe_alpha(node, kind, anisotropic, rotation):
-    """(α_x, α_y, rotation) of one lean lobe in its node's convention, long axis along x."""
-    rough = float(np.clip(node.inputs["Roughness"].default_value, 0.0, 1.0))
+def _lobe_alpha(value, lobe, kind, anisotropic, rotation):
+    """(α_x, α_y, rotation) of one lean lobe in its node's convention, long axis along x
+    (``value(role, input)`` reads the lobe's inputs)."""
+    rough = float(np.clip(value(lobe, "Roughness"), 0.0, 1.0))
     if not anisotropic:
         a = rough * rough
         return a, a, rotation
     a_name, r_name = ANISO_INPUTS[kind]
-    aniso = float(node.inputs[a_name].default_value)
-    rot = float(node.inputs[r_name].default_value)
+    aniso = float(value(lobe, a_name))
+    rot = float(value(lobe, r_name))
     if kind == "LEGACY":  # Glossy: a in [-0.99, 0.99], a < 0 stretches along x
         a = float(np.clip(aniso, -0.99, 0.99))
         k = 1.0 - abs(a)
@@ -599,26 +595,32 @@ def _lobe_alpha(node, kind, anisotropic, rotation):
     return ax, ay, rot
 
 
-def _adopt_lean(mat, p, d, edits):
+def _other_lobe(lobe):
+    return "Wide lobe" if lobe == "Narrow lobe" else "Narrow lobe"
+
+
+def _adopt_lean(mat, p, d, edits, pending=()):
     """p with a lean tree's values read back through the inverse haze mapping
     (core.inverse_haze_mapping), or None when they are not a hazy material's (the lobes no
     longer share one Fresnel term, a Glossy colour pair has no single β, ...).  A value shared
     by both lobes (the Fresnel inputs, a dielectric's base, the distribution) that the user
-    changed on one lobe is taken as the new shared value."""
+    changed on one lobe is taken as the new shared value.  ``pending``: edits not tried here,
+    read as the add-on wrote them."""
     kind = p["kind"]
     mine = ours(mat.node_tree)
     narrow, wide = mine["Narrow lobe"], mine.get("Wide lobe")
-    mix = mine.get("Lobe mix")
     edited = {(e.role, e.name): e.now for e in edits}
+    held = {(e.role, e.name): e.was for e in pending}
 
     def value(node_role, name):
-        node = mine[node_role]
         if (node_role, name) in edited:
             return edited[(node_role, name)]
-        other = "Wide lobe" if node_role == "Narrow lobe" else "Narrow lobe"
-        if name in _SHARED[kind] and (other, name) in edited:
-            return edited[(other, name)]
-        v = node.inputs[name].default_value
+        if name in _SHARED[kind] and (_other_lobe(node_role), name) in edited:
+            return edited[(_other_lobe(node_role), name)]
+        if (node_role, name) in held:
+            v = held[(node_role, name)]
+            return tuple(float(x) for x in v)[:3] if isinstance(v, (list, tuple)) else float(v)
+        v = mine[node_role].inputs[name].default_value
         return tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
 
     dist = edited.get(("Narrow lobe", "distribution")) or \
@@ -626,11 +628,11 @@ def _adopt_lean(mat, p, d, edits):
     if dist not in K.NODE_DISTRIBUTIONS[kind] or dist == "MULTI_GGX":
         return None  # Multiscatter GGX: Cycles' energy factor is not inverted here
     aniso = bool(d.anisotropic)
-    ax, ay, rot = _lobe_alpha(narrow, kind, aniso, p["rotation"])
+    ax, ay, rot = _lobe_alpha(value, "Narrow lobe", kind, aniso, p["rotation"])
     rough = (ax * ay) ** 0.25
     anisotropy = float(metallic_anisotropy(ay / ax)) if aniso and ax > 0 else 0.0
     if wide is not None:
-        wx, wy, wrot = _lobe_alpha(wide, kind, aniso, p["rotation"])
+        wx, wy, wrot = _lobe_alpha(value, "Wide lobe", kind, aniso, p["rotation"])
         turn = (wrot - rot) % 0.5
         if aniso and abs(turn - 0.25) < 1e-4:
             wx, wy = wy, wx
@@ -643,13 +645,13 @@ def _adopt_lean(mat, p, d, edits):
         if narrow.fresnel_type != "PHYSICAL_CONDUCTOR":
             return None
         kw = dict(ior=value("Narrow lobe", "IOR"), extinction=value("Narrow lobe", "Extinction"))
-        beta = float(mix.inputs["Fac"].default_value) if wide is not None else 0.0
+        beta = float(value("Lobe mix", "Fac")) if wide is not None else 0.0
     elif kind == "DIELECTRIC":
         ior = float(value("Narrow lobe", "IOR"))
         f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 if ior != -1.0 else 1.0
         tint = np.asarray(value("Narrow lobe", "Specular Tint"), float)[:3]
         kw = dict(reflectivity=np.clip(f0 * tint, 0.0, 1.0))
-        beta = float(mix.inputs["Fac"].default_value) if wide is not None else 0.0
+        beta = float(value("Lobe mix", "Fac")) if wide is not None else 0.0
     else:
         k_n = np.asarray(value("Narrow lobe", "Color"), float)[:3]
         k_w = np.asarray(value("Wide lobe", "Color"), float)[:3] if wide is not None else 0 * k_n
@@ -665,7 +667,7 @@ def _adopt_lean(mat, p, d, edits):
     q = dict(p, distribution=dist, roughness=rough, anisotropy=anisotropy, rotation=rot % 1.0,
              core_reflectivity=tuple(float(x) for x in np.clip(inv.core_reflectivity, 0, 1)),
              haziness=float(np.clip(inv.haziness, 0.0, K.MAX_HAZINESS)),
-             haze_extent=tuple(float(x) for x in inv.haze_extent), tangent=_tangent_of(mat, p))
+             haze_extent=tuple(float(x) for x in inv.haze_extent))
     if not aniso:
         q["rotation"] = p["rotation"]
     if kind == "CONDUCTOR":
@@ -684,9 +686,10 @@ _SHARED = {"CONDUCTOR": ("IOR", "Extinction"),
            "LEGACY": ()}
 
 
-def _matches(mat, q, edits):
-    """Whether parameters ``q`` write back what the nodes hold (the edited values where the
-    user set them, shared values following the lobe the user edited)."""
+def _matches(mat, q, edits, pending=()):
+    """``q`` normalised when it writes back what the nodes hold (the edited values where the
+    user set them, shared values following the lobe the user edited; the ``pending`` edits,
+    not tried here, are not compared), else None."""
     try:
         q = normalise(q, explicit=())
         dq = lobes_for(q)
@@ -697,21 +700,20 @@ def _matches(mat, q, edits):
         return None
     mine = ours(mat.node_tree)
     edited = {(e.role, e.name): e.now for e in edits}
-    kind = q["kind"]
+    skipped = {(e.role, e.name) for e in pending}
+    lean = not q["shader_mapping"]
     for w in ws:
+        if (w.role, w.name) in skipped:
+            continue
         node = mine.get(w.role)
         now = _current(node, w) if node is not None else None
         if (w.role, w.name) in edited:
             now = edited[(w.role, w.name)]
-        elif w.name in _SHARED.get(kind, ()) and not q["shader_mapping"]:
-            other = "Wide lobe" if w.role == "Narrow lobe" else "Narrow lobe"
-            now = edited.get((other, w.name), now)
+        elif lean and (w.name in _SHARED.get(q["kind"], ()) or (w.attr and w.name == "distribution")):
+            now = edited.get((_other_lobe(w.role), w.name), now)
         if now is None:
             continue
         want = w.value if w.attr else socket_value(node.inputs[w.name], w.value)
-        if w.attr and w.name == "distribution" and (w.role, w.name) not in edited:
-            other = "Wide lobe" if w.role == "Narrow lobe" else "Narrow lobe"
-            now = edited.get((other, w.name), now)
         if _differs(now, want):
             return None
     return q
@@ -720,32 +722,34 @@ def _matches(mat, q, edits):
 def adopt_edits(mat, p=None, edits=None):
     """(parameters, replaced): the stamped parameters with the user's node-editor edits read
     back (in-shader: the group inputs are the perceptual parameters; lean: the inverse haze
-    mapping, kept only when the result writes back what the nodes hold), and the edits that
-    could not be read back (they are replaced by the next change), as [Edit]."""
+    mapping), each kept only when the result writes back what the nodes hold, and the edits
+    that could not be read back (they are replaced by the next change), as [Edit].  When not
+    all of them read together, one at a time: an edit that does not read does not take the
+    others with it."""
     p = p or read_parameters(mat)
     edits = node_edits(mat, p) if edits is None else edits
     if not edits:
         return p, []
     d = lobes_for(p)
-    tangent_edits = [e for e in edits if e.role == "Tangent"]
-    base = dict(p, tangent=_tangent_of(mat, p)) if tangent_edits else dict(p)
-    if p["shader_mapping"]:
-        q = _matches(mat, _adopt_group(base, edits), edits)
-        if q is not None:
-            return q, []
-        kept, replaced = dict(base), []  # one by one: keep what reads, replace the rest
-        for e in edits:
-            trial = _matches(mat, _adopt_group(kept, [e]), [e])
-            if trial is not None and e.role != "Tangent":
-                kept = trial
-            elif e.role != "Tangent":
-                replaced.append(e)
-        return normalise(kept, explicit=()), replaced
-    q = _adopt_lean(mat, base, d, edits)
-    q = _matches(mat, q, edits) if q is not None else None
+    base = dict(p, tangent=_tangent_of(mat, p))  # a Tangent node's settings are the tangent
+
+    def read(trial, pending):
+        if p["shader_mapping"]:
+            q = _adopt_group(base, trial)
+        else:
+            q = _adopt_lean(mat, base, d, trial, pending)
+        return _matches(mat, q, trial, pending) if q is not None else None
+
+    q = read(edits, [])
     if q is not None:
         return q, []
-    return p, edits
+    kept = []
+    for e in edits:
+        if read(kept + [e], [x for x in edits if x not in kept and x is not e]) is not None:
+            kept.append(e)
+    replaced = [e for e in edits if e not in kept]
+    q = read(kept, replaced) if kept else None
+    return (q, replaced) if q is not None else (p, edits)
 
 
 def adopt_node_edits(mat):

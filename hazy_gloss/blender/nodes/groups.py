@@ -156,8 +156,21 @@ def build_group(ng, kind, distribution, anisotropic, smooth):
     return m
 
 
+def fits(ng, kind, distribution="GGX", anisotropic=False, smooth=False):
+    """Whether ``ng`` is the add-on's current group for this configuration, by its stamp (so a
+    group the user renamed, F2 on a group node, still is)."""
+    if ng is None or ng.library is not None:
+        return False
+    g = stamp.group(ng, K.GROUP_STAMP) or {}
+    return (g.get("version") == GROUP_VERSION and g.get("kind") == kind
+            and g.get("distribution") == distribution
+            and bool(g.get("anisotropic")) == bool(anisotropic)
+            and bool(g.get("smooth")) == bool(smooth))
+
+
 def ensure_group(kind, distribution="GGX", anisotropic=False, smooth=False):
-    """The group for this configuration, built on first use and rebuilt when outdated."""
+    """The group for this configuration, built on first use and rebuilt when outdated.  Found
+    by its name, else by its stamp: a group the user renamed is taken, not copied."""
     check_kind(kind, distribution)
     name = group_name(kind, distribution, anisotropic, smooth)
     ng = bpy.data.node_groups.get(name)
@@ -165,6 +178,10 @@ def ensure_group(kind, distribution="GGX", anisotropic=False, smooth=False):
             (stamp.group(ng, K.GROUP_STAMP) or {}).get("version") == GROUP_VERSION:
         return ng
     if ng is None:
+        renamed = next((g for g in bpy.data.node_groups
+                        if fits(g, kind, distribution, anisotropic, smooth)), None)
+        if renamed is not None:
+            return renamed
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
     elif ng.library:
         return ng
