@@ -85,6 +85,11 @@ def _names(edits, most=3):
     return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")
 
 
+#: (material, parameters, edits) -> the edits adopt_edits replaces: the panel draws many times
+#: a second, the inverse mapping runs once per edit that does not read.
+_REPLACED = {}
+
+
 def node_edit_notes(mat, p):
     """[(text, icon)] about the user's node-editor edits of the add-on's nodes that are not in
     the parameters yet (the depsgraph handler reads them back right after the edit; a material
@@ -93,7 +98,12 @@ def node_edit_notes(mat, p):
         edits = material.node_edits(mat, p)
         if not edits:
             return []
-        _, replaced = material.adopt_edits(mat, p, edits)
+        key = (mat.session_uid, repr(p), repr(edits))
+        replaced = _REPLACED.get(key)
+        if replaced is None:
+            replaced = _REPLACED[key] = material.adopt_edits(mat, p, edits)[1]
+            if len(_REPLACED) > 64:
+                _REPLACED.pop(next(iter(_REPLACED)))
     except (ValueError, TypeError):
         return []
     out = []
