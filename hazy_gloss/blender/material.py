@@ -397,7 +397,7 @@ def update_material(mat, **changes):
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
         from . import sync
-        sync.refresh_fallback(mat)  # owned inputs the user edited are adopted: the fallback too
+        sync.refresh_derived(mat)  # the export fallback and the EEVEE output follow
         return next(iter(maps.values()), None), []
     p = read_parameters(mat)
     if p is None:

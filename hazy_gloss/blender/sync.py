@@ -41,19 +41,22 @@ def sync(mat, *, force=False):
         properties.last_error[key] = plain_message(exc)
         layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
-    refresh_fallback(mat)
+    refresh_derived(mat)
     return True
 
 
-def refresh_fallback(mat):
-    """An export fallback (blender/interchange.py) is the user's BSDF at haziness 0: it follows
-    the core's edits too."""
-    from . import interchange
-    if interchange.FALLBACK_STAMP in mat:
-        try:
+def refresh_derived(mat):
+    """What is built from a layer follows it after every layer.apply: the export fallback
+    (blender/interchange.py, the user's BSDF at haziness 0) and the EEVEE-only output
+    (blender/eevee_layer.py, when one was asked for).  Problems go to the panel, never up."""
+    from . import eevee_layer, interchange
+    try:
+        if interchange.FALLBACK_STAMP in mat:
             interchange.refresh_export_fallback(mat)
-        except ValueError as exc:
-            properties.last_error[mat.session_uid] = plain_message(exc)
+        if eevee_layer.requested_mode(mat) is not None:
+            eevee_layer.sync_eevee_output(mat)
+    except ValueError as exc:
+        properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent
