@@ -77,6 +77,24 @@ def remove_haze(mat):
     return status == "FINISHED"
 
 
+def add_eevee_output(mat, mode="auto"):
+    """Give the layered ``mat`` an EEVEE-only output: one BSDF with each layer's narrow and wide
+    lobes folded into one that keeps its peak (docs/mapping.md §12), for noise-free EEVEE
+    previews; Cycles keeps rendering the full layer.  ``mode`` "auto" builds it only where EEVEE
+    would otherwise pick lobes at random (a Principled core with a coat), "always" for any
+    layer.  The request is kept: the output follows every later change of the layer.  Returns
+    ``{"added": bool, "reason": str, "nodes": int}``; raises ValueError when ``mat`` has no layer."""
+    from .blender import eevee_layer as _eevee
+    return _eevee.add_eevee_output(mat, mode=mode)
+
+
+def remove_eevee_output(mat):
+    """Take the EEVEE-only output off ``mat`` (EEVEE renders the full layer again).  Returns
+    whether there was one."""
+    from .blender import eevee_layer as _eevee
+    return _eevee.remove_eevee_output(mat)
+
+
 def sync_haze(mat):
     """Bring ``mat``'s haze layer up to date after its BSDF was edited, or read a lean /
     in-shader material's node-editor edits back into its parameters (a handler does this for
@@ -191,7 +209,9 @@ def strict_settings():
     return _props.strict_settings()
 
 
-__all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze", "update_material", "update_material_links", "read_parameters",
+__all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze",
+           "add_eevee_output", "remove_eevee_output", "update_material", "update_material_links",
+           "read_parameters",
            "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
            "last_error", "strict_settings", "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
 

@@ -87,13 +87,14 @@ def requested_mode(mat):
     """The mode :func:`add_eevee_output` was last asked for on ``mat`` (kept in the material's
     stamp, which the layer keeps when it rebuilds and drops on Remove Haze), or None."""
     d = mat.get(K.STAMP)
-    e = d.get(STAMP_KEY) if d is not None else None
-    return e.get("mode") if e is not None else None
+    e = d.get(STAMP_KEY) if hasattr(d, "get") else None
+    mode = e.get("mode") if hasattr(e, "get") else None
+    return mode if mode in MODES else None  # a damaged request is no request
 
 
 def _set_request(mat, mode):
     d = mat.get(K.STAMP)
-    if d is None:
+    if not hasattr(d, "get"):
         return
     d = d.to_dict() if hasattr(d, "to_dict") else dict(d)
     if mode is None:

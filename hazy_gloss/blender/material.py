@@ -843,7 +843,7 @@ def update_material(mat, **changes):
         h = normalise_haze(changes, layer.haze_of(mat))
         maps = layer.apply(mat, h)
         from . import sync
-        sync.refresh_fallback(mat)  # owned inputs the user edited are adopted: the fallback too
+        sync.refresh_derived(mat)  # the export fallback and the EEVEE output follow
         return next(iter(maps.values()), None), []
     unknown = {k: v for k, v in changes.items() if k not in PARAMETERS}
     if unknown:

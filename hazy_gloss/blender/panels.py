@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core.parameters import is_anisotropic
-from . import layer, material, plots, preferences, properties, stamp
+from . import eevee_layer, layer, material, plots, preferences, properties, stamp
 from .context import edit_problem, maps_problem, plain_message, target_material
 from .menus import draw_recomposite_operators
 
@@ -409,6 +409,9 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         if "DIELECTRIC" in plan.parts or not plan.parts:
             body.prop(hg, "keep_body_colour")
 
+    if plan.active:
+        draw_eevee(body, mat, hg)
+
     warns = layer_warnings(info, context)
     if warns:
         box = col.box()
@@ -424,6 +427,26 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         if not info["maps"] and plan.active:
             panel.label(text="Varies per pixel (textured inputs)", icon="TEXTURE")
     col.operator("hazy_gloss.remove_haze", icon="X")
+
+
+def draw_eevee(layout, mat, hg):
+    """The EEVEE-only simplification (blender/eevee_layer.py): the choice, and whether it is
+    in effect here and why."""
+    box = layout.box().column()
+    box.use_property_split = True
+    box.use_property_decorate = False
+    box.prop(hg, "eevee_output")
+    try:
+        noisy, why = eevee_layer.needs_eevee_output(mat)
+    except ValueError:
+        return
+    built = eevee_layer.has_eevee_output(mat)
+    if built:
+        box.label(text="EEVEE renders one folded BSDF (same peak, a single lobe's halo)",
+                  icon="CHECKMARK")
+    elif noisy:
+        box.label(text="EEVEE picks between narrow and wide lobes at random here (coat): "
+                  "noisy at few TAA samples", icon="INFO")
 
 
 def _context_material(context):

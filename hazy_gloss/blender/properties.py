@@ -35,7 +35,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from .. import constants as K
 from ..core.parameters import HAZE_DEFAULTS, normalise
-from . import material
+from . import eevee_layer, material
 from .context import edit_problem, plain_message
 
 PROPERTY_NAME = "hazy_gloss_settings"
@@ -346,6 +346,32 @@ def _set_bool(key):
     return set_
 
 
+EEVEE_ITEMS = (("FULL", "Full Layer", "EEVEE renders the layer's lobes as Cycles does (a "
+                 "coated layer is noisy at few TAA samples)"),
+               ("AUTO", "Simplify Where Noisy", "A folded EEVEE-only output where EEVEE would "
+                "pick lobes at random (a Principled BSDF with a coat)"),
+               ("ALWAYS", "Always Simplify", "A folded EEVEE-only output for any layer (one "
+                "BSDF to shade in EEVEE)"))
+
+
+def _get_eevee(self):
+    mode = eevee_layer.requested_mode(self.id_data)
+    return {"auto": 1, "always": 2}.get(mode, 0)
+
+
+def _set_eevee(self, value):
+    mat = self.id_data
+    try:
+        if value == 0:
+            eevee_layer.remove_eevee_output(mat)
+        else:
+            eevee_layer.add_eevee_output(mat, mode=("auto", "always")[value - 1])
+        last_error.pop(mat.session_uid, None)
+    except ValueError as exc:
+        last_error[mat.session_uid] = plain_message(exc)
+        print(f"Hazy Gloss: {mat.name}: {last_error[mat.session_uid]}")
+
+
 _NO_ANIM = set()  # rebuilding node trees per frame is not what anyone wants (and farms
 #                   without the add-on would not do it): parameters are not animatable
 
@@ -442,6 +468,11 @@ class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
                     "colour stays what it was (haze raises the reflectivity, which lets less "
                     "light reach the base); where a colour cannot get brighter, the rest is "
                     "reported")
+    eevee_output: EnumProperty(
+        name="EEVEE", items=EEVEE_ITEMS, get=_get_eevee, set=_set_eevee, options=_NO_ANIM,
+        description="An EEVEE-only output with each layer's two lobes folded into one that keeps "
+                    "its peak: noise-free EEVEE previews of a coated layer; Cycles renders the "
+                    "full layer either way")
     # plain stored UI state
     edge_tint_memory: FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0), options={"HIDDEN"})
     smoothness_memory: FloatProperty(default=2.0, min=K.MIN_SMOOTHNESS, options={"HIDDEN"})

@@ -4,9 +4,10 @@ or setting, in the node editor, the Properties editor, a driver or a script), th
 and node math are brought up to date.
 
 A ``depsgraph_update_post`` handler (persistent across file loads) sees which materials were
-updated; for a lean or in-shader one it reads the user's node-editor edits of the add-on's nodes
-back into the stamp (material.adopt_node_edits); for a layered one whose core changed since the layer last wrote it (a fingerprint of
-the core's inputs, links and settings), :func:`sync` reruns the layer with its stamped haze.
+updated; for a lean or in-shader one it reads the user's node-editor edits of the add-on's
+nodes back into the stamp (material.adopt_node_edits); for a layered one whose core changed
+since the layer last wrote it (a fingerprint of the core's inputs, links and settings),
+:func:`sync` reruns the layer with its stamped haze.
 The layer's own writes change the fingerprint only once: the handler then finds it unchanged
 and stops.  Scripts that edit a material no object uses (no depsgraph update) call
 ``api.sync_haze(mat)``; rendering an edited material syncs it first (the render's depsgraph
@@ -59,7 +60,7 @@ def sync(mat, *, force=False):
         properties.last_error[key] = plain_message(exc)
         layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
-    refresh_fallback(mat)
+    refresh_derived(mat)
     return True
 
 
@@ -85,15 +86,18 @@ def _baked_gaps(mat, state, core):
     return [k for k, e in flat.items() if k not in baked["maps"] and _needs_haze_map(e, set())]
 
 
-def refresh_fallback(mat):
-    """An export fallback (blender/interchange.py) is the user's BSDF at haziness 0: it follows
-    the core's edits too."""
-    from . import interchange
-    if interchange.FALLBACK_STAMP in mat:
-        try:
+def refresh_derived(mat):
+    """What is built from a layer follows it after every layer.apply: the export fallback
+    (blender/interchange.py, the user's BSDF at haziness 0) and the EEVEE-only output
+    (blender/eevee_layer.py, when one was asked for).  Problems go to the panel, never up."""
+    from . import eevee_layer, interchange
+    try:
+        if interchange.FALLBACK_STAMP in mat:
             interchange.refresh_export_fallback(mat)
-        except ValueError as exc:
-            properties.last_error[mat.session_uid] = plain_message(exc)
+        if eevee_layer.requested_mode(mat) is not None:
+            eevee_layer.sync_eevee_output(mat)
+    except ValueError as exc:
+        properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent

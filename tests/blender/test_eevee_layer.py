@@ -233,3 +233,35 @@ def test_auto_refuses_and_layer_rebuilds_remove_it(env):
         env.E.add_eevee_output(mat)
     with pytest.raises(ValueError, match="mode must be"):
         env.E.add_eevee_output(car_paint(), mode="sometimes")
+
+
+def test_the_output_follows_the_layer_and_the_panel(env, hg):
+    """Asked for once (api or the panel's EEVEE setting), the EEVEE output follows every later
+    change: a haze change through update_material (values in place) and a core edit synced
+    by the handler's sync() rebuild it with the new folded roughness; "Full Layer" removes it."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
+    assert env.api.add_eevee_output(mat)["added"]
+    folded = lambda: env.ownership.ours(mat.node_tree)["layer eevee bsdf"]  # noqa: E731
+    r0 = _value(folded().inputs["Roughness"])
+    env.api.update_material(mat, haziness=0.8)
+    assert env.E.has_eevee_output(mat)
+    r1 = _value(folded().inputs["Roughness"])
+    assert r1 > r0 * 1.01  # more haze: a wider folded lobe
+    core = env.layer.find_core(mat.node_tree)
+    core.inputs["Roughness"].default_value = 0.5  # the user edits the core
+    sync = importlib.import_module(f"{hg.__name__}.blender.sync")
+    assert sync.sync(mat)
+    assert _value(folded().inputs["Roughness"]) > r1 * 1.2
+    settings = mat.hazy_gloss_settings
+    assert settings.eevee_output == "AUTO"
+    settings.eevee_output = "FULL"
+    assert not env.E.has_eevee_output(mat) and env.E.requested_mode(mat) is None
+    settings.eevee_output = "ALWAYS"
+    assert env.E.has_eevee_output(mat) and env.E.requested_mode(mat) == "always"
+    assert env.api.remove_eevee_output(mat) and settings.eevee_output == "FULL"
+    mat["hazy_gloss"]["eevee"] = [1.0]  # a damaged request
+    assert env.E.requested_mode(mat) is None and settings.eevee_output == "FULL"
+    plain = dielectric()
+    with pytest.raises(ValueError, match="no haze layer"):
+        env.api.add_eevee_output(plain)

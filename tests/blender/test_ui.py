@@ -935,8 +935,13 @@ def test_panels_draw_a_haze_layer(env, case):
     assert "hazy_gloss.remove_haze" in ops_drawn(log)
     text = " ".join(labels(log))
     assert "Haze layer on" in text
+    assert "eevee_output" in drawn  # the EEVEE simplification, with whether it is needed
     if case == "coated metal":
         assert "Metal: β" in text and "Coat: β" in text
+        assert "EEVEE picks between narrow and wide lobes" in text
+        settings(mat).eevee_output = "AUTO"
+        text = " ".join(labels(draw_panel(panels.HAZY_GLOSS_PT_material, fake_context(mat, obj))))
+        assert "EEVEE renders one folded BSDF" in text
     if case == "textured plastic":
         assert "Textured" in text and "per pixel" in text
     # a core slider on a layer is refused with the reason, the material untouched
