@@ -829,6 +829,7 @@ def update_material(mat, **changes):
     """Change some perceptual parameters of a hazy material.  Returns (HazeMapping, group
     inputs whose links had to be dropped because the new configuration has no such input)."""
     check_material(mat, "update_material")
+    REPLACED.pop(mat.session_uid, None)
     if mat.library is not None:
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
     if layer.is_layered(mat):

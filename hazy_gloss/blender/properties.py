@@ -141,13 +141,15 @@ def edit_material(mat, **changes):
         _busy.discard(key)
     timings.append(time.perf_counter() - t0)
     del timings[:-200]
-    replaced = material.REPLACED.get(mat.session_uid)
+    said = []  # one line (the panel shows last_error as one label)
     if dropped:
-        last_error[mat.session_uid] = ("Disconnected (no such input any more): "
-                                     + ", ".join(dropped))
-    elif replaced:
-        last_error[mat.session_uid] = (f"Replaced node-editor edits these parameters cannot "
-                                       f"represent: {', '.join(replaced)} (Ctrl+Z brings them back)")
+        said.append("Disconnected (no such input any more): " + ", ".join(dropped))
+    replaced = material.REPLACED.get(mat.session_uid)
+    if replaced:
+        said.append(f"Replaced node-editor edits these parameters cannot represent: "
+                    f"{', '.join(replaced)} (Ctrl+Z brings them back)")
+    if said:
+        last_error[mat.session_uid] = "; ".join(said)
     else:
         last_error.pop(mat.session_uid, None)
     return m, None
