@@ -485,6 +485,15 @@ def _differs(now, was):
     return bool(np.any(np.abs(a - b) > 1e-6 + 1e-5 * np.abs(b)))
 
 
+def _readable(was, attr):
+    """Whether a value of the stamp's record reads as what the add-on wrote: a setting's name,
+    or a number or list of numbers (anyone can edit the stamp: the rest is not compared)."""
+    if attr:
+        return isinstance(was, str)
+    number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool)  # noqa: E731
+    return number(was) or (isinstance(was, list) and 0 < len(was) <= 4 and all(map(number, was)))
+
+
 class Edit(NamedTuple):
     """A value the user changed in the node editor: the add-on wrote ``was``, the node holds
     ``now``."""
@@ -529,7 +538,7 @@ def node_edits(mat, p=None):
         if isinstance(rec, dict):
             entry = rec.get(w.role)
             was = entry.get(key) if isinstance(entry, dict) else None
-            if was is None or not isinstance(was, (str, int, float, list)):
+            if not _readable(was, w.attr):
                 continue  # not recorded (or a damaged record): nothing to compare with
         else:
             was = w.value if w.attr else socket_value(node.inputs[w.name], w.value)
