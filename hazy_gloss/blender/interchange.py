@@ -535,9 +535,6 @@ def _check_fallback_material(mat):
     if K.RECOMPOSITE_STAMP in mat:
         raise ValueError(f"{mat.name!r} is in recomposite mode: leave it first")
     p = material.read_parameters(mat)
-    if p is not None and p.get("layered"):
-        raise ValueError(f"{mat.name!r} is a haze layer on its own BSDF: the export fallback is "
-                         f"for materials made with New Hazy Material")
     if p is None:
         if K.MAPS_STAMP in mat:
             raise ValueError(f"{mat.name!r} is driven by converted maps: the export fallback "

@@ -283,6 +283,12 @@ def _baked(raw, problems):
                          f"got {_short(interp)}", None))
     else:
         out["interpolation"] = interp
+    sources = raw.get("sources")
+    if isinstance(sources, list) and all(isinstance(n, str) for n in sources):
+        out["sources"] = list(sources)  # what the maps were computed from (stale-map check)
+    elif "sources" in raw:
+        problems.append((f"layer.baked.sources must list the inputs the maps were computed "
+                         f"from, got {_short(sources)} (convert the maps again)", None))
     if "vector" in raw:
         if _ref_ok(raw["vector"]):
             out["vector"] = list(raw["vector"])
