@@ -13,9 +13,9 @@ F2 on the group) and then moves a slider in the panel.  What each group of tests
   IORs: Eq. 1 has one Fresnel term; a haziness of 1) is listed by ``panels.node_edit_notes``
   before the change, in ``properties.last_error`` (one line) after a panel change, and by a
   UserWarning of ``api.update_material`` naming the node and the input.
-- Kept: name, label, frame, width, colour and the location of a single moved node survive a
-  change that sets values and a change that rebuilds the tree (isotropic -> anisotropic, a
-  kind change).
+- Kept: name, label, frame, width, collapse, colour and the location of a single moved node
+  survive a change that sets values and a change that rebuilds the tree (isotropic ->
+  anisotropic, a kind change).
 - Renamed group: renaming the group's node tree (F2 on a group node) or the node keeps the
   panel attached: sliders still set the group's inputs, no second group datablock appears,
   a texture linked into a group input stays linked.
@@ -231,22 +231,24 @@ def test_edit_that_reads_is_kept_beside_one_that_does_not(env, make, edit, named
 
 
 def _dress(tree, n):
-    """Name, label, frame, width, colour and a move of one node (as in the node editor)."""
+    """Name, label, frame, width, collapse, colour and a move of one node (as in the node
+    editor)."""
     frame = tree.nodes.new("NodeFrame")
     frame.name = frame.label = "My frame"
     n.name, n.label = "My core", "Core, polished"
     n.parent = frame
     n.width = 311.0
+    n.hide = True  # collapsed
     n.use_custom_color, n.color = True, (0.8, 0.1, 0.2)
     n.location = (n.location.x + 137.0, n.location.y - 59.0)  # this node alone
-    return dict(name=n.name, label=n.label, parent=frame.name, width=n.width,
+    return dict(name=n.name, label=n.label, parent=frame.name, width=n.width, hide=True,
                 use_custom_color=True, color=tuple(n.color), location=tuple(n.location))
 
 
 def _look(n):
     return dict(name=n.name, label=n.label, parent=n.parent.name if n.parent else None,
-                width=n.width, use_custom_color=n.use_custom_color, color=tuple(n.color),
-                location=tuple(n.location))
+                width=n.width, hide=n.hide, use_custom_color=n.use_custom_color,
+                color=tuple(n.color), location=tuple(n.location))
 
 
 def assert_looks(got, want):
