@@ -97,7 +97,8 @@ class Graph:
         """A constant: a number, or three numbers (a vector)."""
         if isinstance(value, Expr):
             return value
-        arr = np.asarray(value, dtype=_F32)
+        big = np.finfo(_F32).max  # as a float socket holds it (RNA clamps to ±FLT_MAX)
+        arr = np.clip(np.asarray(value, dtype=np.float64), -big, big).astype(_F32)
         vector = arr.size == 3
         if arr.size not in (1, 3):
             raise ValueError(f"a constant is a number or three numbers, got {value!r}")

@@ -264,7 +264,7 @@ class Fuzz:
         self.counts = collections.Counter()  # (material type, attack, driver, outcome)
         self.examples = {}  # (driver, outcome) -> (case, message)
         self.messages = collections.Counter()  # every message that was not "ok"
-        self.cases = 0
+        self.cases = self.planned = 0
         self.seconds = 0.0
         self.slowest = (0.0, None)
         rna = bpy.ops.hazy_gloss.apply_preset.get_rna_type()
@@ -450,6 +450,7 @@ class Fuzz:
         t_start = time.perf_counter()
         bases = base_materials(self.api, self.folder)
         all_cases = cases(bases)[::stride]
+        self.planned = 2 * len(all_cases)  # each case driven, then saved, reloaded and driven
         kept = []
         for i, (typ, attack, case, stamp) in enumerate(all_cases):
             if budget is not None and time.perf_counter() - t_start > budget * 0.75:
