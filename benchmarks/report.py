@@ -30,7 +30,11 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_maps", "perf_maps.py"),
     ("perf_mapping", "perf_mapping.py"),
     ("perf_layer", "perf_layer.py"),
+    ("perf_layer_eevee", "perf_layer_eevee.py"),
 )
+#: HG_REPORT_KEEP=perf_layer_eevee (comma-separated names) keeps a section's previous text and
+#: images in the docs instead of rerunning it (perf_layer_eevee takes ~40 min on 2 cores).
+KEEP = {k for k in os.environ.get("HG_REPORT_KEEP", "").split(",") if k}
 
 
 def run_section(name, script):
@@ -125,10 +129,19 @@ def texture_driven(pm):
             "(api.convert_maps); keep the in-shader group for procedural or animated inputs.")
 
 
-def layer_section(md):
-    """benchmarks/perf_layer.py's section between its markers (run alone, it replaces them)."""
-    import perf_layer
-    return f"{perf_layer.BEGIN}\n{md.rstrip()}\n{perf_layer.END}\n"
+def marked_section(module, md):
+    """A section kept between its script's markers (run alone, the script replaces them)."""
+    mod = __import__(module)
+    return f"{mod.BEGIN}\n{md.rstrip()}\n{mod.END}\n"
+
+
+def kept_section(module):
+    """The previous text of a section in docs/performance.md (HG_REPORT_KEEP), markers included."""
+    mod = __import__(module)
+    text = (C.ROOT / "docs" / "performance.md").read_text()
+    if mod.BEGIN not in text or mod.END not in text:
+        raise SystemExit(f"HG_REPORT_KEEP={module}: docs/performance.md has no previous section")
+    return text[text.index(mod.BEGIN):text.index(mod.END) + len(mod.END)] + "\n"
 
 
 def main():
@@ -141,15 +154,19 @@ def main():
         info["blender"] = "?"
     C.IMG.mkdir(parents=True, exist_ok=True)
     for old in list(C.IMG.glob("perf_*.png")) + list(C.IMG.glob("num_*.png")):
-        old.unlink()
+        if not any(old.name.startswith(k) for k in KEEP):
+            old.unlink()
     seconds = {}
     for name, script in SECTIONS:
+        if name in KEEP:
+            print(f"[report] {name}: kept from the previous run (HG_REPORT_KEEP)", flush=True)
+            continue
         print(f"[report] {name} ...", flush=True)
         seconds[name] = run_section(name, script)
         print(f"[report] {name}: {seconds[name]:.0f} s", flush=True)
     info["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
 
-    frag = {name: (C.OUT / f"{name}.md").read_text() for name, _ in SECTIONS}
+    frag = {name: (C.OUT / f"{name}.md").read_text() for name, _ in SECTIONS if name not in KEEP}
     perf_secs = {k: v for k, v in seconds.items()}
     perf = header(
         "Performance: error against run time", info, perf_secs, started,
@@ -163,7 +180,9 @@ def main():
                        "## 4." + frag["perf_cycles"].split("## 4.", 1)[1].rstrip() + "\n\n"
                        + texture_driven(C.read_json("perf_maps")) + "\n",
                        frag["perf_mapping"],
-                       layer_section(frag["perf_layer"])])
+                       marked_section("perf_layer", frag["perf_layer"])]
+                      + [kept_section(name) if name in KEEP else marked_section(name, frag[name])
+                         for name in ("perf_layer_eevee",)])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
         "Where the paper's formulas are numerically delicate, how large the error of each "
