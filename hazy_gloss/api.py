@@ -85,6 +85,7 @@ def add_eevee_output(mat, mode="auto"):
     layer.  The request is kept: the output follows every later change of the layer.  Returns
     ``{"added": bool, "reason": str, "nodes": int}``; raises ValueError when ``mat`` has no layer."""
     from .blender import eevee_layer as _eevee
+    _material.check_material(mat, "add_eevee_output")
     return _eevee.add_eevee_output(mat, mode=mode)
 
 
@@ -92,6 +93,7 @@ def remove_eevee_output(mat):
     """Take the EEVEE-only output off ``mat`` (EEVEE renders the full layer again).  Returns
     whether there was one."""
     from .blender import eevee_layer as _eevee
+    _material.check_material(mat, "remove_eevee_output")
     return _eevee.remove_eevee_output(mat)
 
 

@@ -268,3 +268,5 @@ def test_the_output_follows_the_layer_and_the_panel(env, hg):
     plain = dielectric()
     with pytest.raises(ValueError, match="no haze layer"):
         env.api.add_eevee_output(plain)
+    with pytest.raises(TypeError, match="look it up"):
+        env.api.add_eevee_output(plain.name)
