@@ -148,7 +148,7 @@ def _ops():
 
 
 def test_enable_disable_cycles_leave_nothing_behind(addon_module):
-    cycles = 20
+    cycles = 50  # the issue-14 campaign's count
     assert addon_utils.check(MODULE_NAME) == (True, True)
     enabled = _rna_snapshot()
     enabled_ours = _ours(enabled[0])
