@@ -136,7 +136,8 @@ def studio(scene):
 
 
 def sphere_rows(scene, rows, *, ortho_scale=5.2):
-    """rows: [(labels, materials)], five per row, laid out top to bottom, camera framing them."""
+    """rows: [(labels, materials)], laid out top to bottom and centred, an orthographic camera
+    ``ortho_scale`` units wide framing them."""
     for r, (labels, mats) in enumerate(rows):
         z = 1.1 * ((len(rows) - 1) / 2 - r)
         for c, (label, mat) in enumerate(zip(labels, mats)):
@@ -145,6 +146,7 @@ def sphere_rows(scene, rows, *, ortho_scale=5.2):
             _label(label, (x, 0.45, z - 0.53), size=0.09)  # behind: not reflected
     cam = bpy.data.cameras.new("HG camera")
     cam.type = "ORTHO"
+    cam.sensor_fit = "HORIZONTAL"  # ortho_scale is the width (AUTO takes the longer side)
     cam.ortho_scale = ortho_scale
     cam_obj = bpy.data.objects.new("HG camera", cam)
     scene.collection.objects.link(cam_obj)
@@ -241,7 +243,8 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
     studio(scene)
     spheres = (gallery_rows(api) if rows == "gallery" else looks_rows(api) if rows == "looks"
                else layer_rows(api) if rows == "layer" else sweep_rows(api, rows))
-    sphere_rows(scene, spheres)
+    width = max(5.2, max(len(mats) for _, mats in spheres) + 0.2)  # scene units, 1 per sphere
+    sphere_rows(scene, spheres, ortho_scale=width)
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
@@ -251,7 +254,7 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
         scene.cycles.denoiser = "OPENIMAGEDENOISE"
     except TypeError:
         scene.cycles.use_denoising = False
-    scene.render.resolution_x = int(1040 * scale)
+    scene.render.resolution_x = int(round(200 * width * scale))  # 200 px per unit
     scene.render.resolution_y = int((140 + 230 * len(spheres)) * scale)
     scene.view_settings.view_transform = "AgX" if "AgX" in [
         i.identifier for i in scene.view_settings.bl_rna.properties["view_transform"].enum_items] else "Filmic"
