@@ -213,9 +213,9 @@ def strict_settings():
 
 __all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze",
            "add_eevee_output", "remove_eevee_output", "update_material", "update_material_links",
-           "read_parameters",
-           "is_hazy", "map_parameters", "lobes_for", "normalise_parameters", "convert_maps",
-           "last_error", "strict_settings", "PARAMETERS", "DEFAULTS", "KINDS", "is_anisotropic")
+           "read_parameters", "is_hazy", "map_parameters", "lobes_for", "normalise_parameters",
+           "convert_maps", "last_error", "strict_settings", "PARAMETERS", "DEFAULTS", "KINDS",
+           "is_anisotropic")
 
 
 # --------------------------------------------------------------------------------------------
