@@ -114,3 +114,4 @@ FILAMENT_CLEARCOAT_F0 = 0.04
 FALLBACK_ROLE = "Export fallback"
 FALLBACK_OUTPUT_ROLE = "Export output"
 RENDER_OUTPUT_ROLE = "Render output"
+EEVEE_OUTPUT_ROLE = "layer eevee output"  # blender/eevee_layer.py's EEVEE-only Material Output

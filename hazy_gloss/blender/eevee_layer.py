@@ -58,7 +58,8 @@ from . import layer
 from .nodes import ownership
 
 ROLE = "layer eevee "
-OUTPUT_ROLE = ROLE + "output"
+OUTPUT_ROLE = K.EEVEE_OUTPUT_ROLE
+assert OUTPUT_ROLE.startswith(ROLE)
 BSDF_ROLE = ROLE + "bsdf"
 MODE_KEY = "hazy_gloss_eevee_mode"
 STAMP_KEY = "eevee"  # in the material's stamp (constants.STAMP): {"mode": ...}
@@ -109,7 +110,15 @@ def remove_eevee_output(mat):
     :func:`sync_eevee_output` does not bring it back).  Returns whether there was one."""
     had = _remove_nodes(mat)
     _set_request(mat, None)
+    _refresh_fallback(mat)
     return had
+
+
+def _refresh_fallback(mat):
+    """An export fallback's EEVEE render output gives way to ours and comes back without it."""
+    from . import interchange
+    if interchange.FALLBACK_STAMP in mat:
+        interchange.refresh_export_fallback(mat)
 
 
 def _plan(mat):
@@ -317,7 +326,7 @@ def _overrides(mat, plan, m):
 def _eevee_output_of_user(tree):
     """The output EEVEE renders now (the user's), or a reason why none can be added."""
     outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
-            and not (ownership.role(n) or "").startswith(ROLE)]
+            and not ownership.is_ours(n)]  # an export fallback's outputs are not the user's
     if any(n.target == "EEVEE" for n in outs):
         return None, "the material already has an EEVEE output of its own"
     alls = [n for n in outs if n.target == "ALL"]
@@ -327,6 +336,14 @@ def _eevee_output_of_user(tree):
 
 
 def add_eevee_output(mat, *, mode="auto"):
+    """Give the layered material ``mat`` an EEVEE-only output (:func:`build_eevee_output`) and
+    bring an export fallback up to date with it."""
+    info = build_eevee_output(mat, mode=mode)
+    _refresh_fallback(mat)
+    return info
+
+
+def build_eevee_output(mat, *, mode="auto"):
     """Give the layered material ``mat`` an EEVEE-only output fed by one BSDF with the layer's
     lobes folded (module docstring).  ``mode``: "auto" builds it only where EEVEE would pick
     between lobes of different roughness at random (a Principled core with a coat, see
@@ -463,4 +480,4 @@ def sync_eevee_output(mat):
     if not layer.is_layered(mat):
         _remove_nodes(mat)
         return False
-    return add_eevee_output(mat, mode=mode)["added"]
+    return build_eevee_output(mat, mode=mode)["added"]

@@ -561,6 +561,8 @@ def _render_outputs(mat, tree):
         role = f"{K.RENDER_OUTPUT_ROLE} {target.capitalize()}"
         ours_t = mine.get(role)
         theirs = [n for n in user_outs if n.target == target]
+        if target == "EEVEE" and mine.get(K.EEVEE_OUTPUT_ROLE) is not None:
+            theirs.append(mine[K.EEVEE_OUTPUT_ROLE])  # the layer's EEVEE-only output
         if theirs:  # the tree has its own output for this renderer: it keeps winning
             if ours_t is not None:
                 tree.nodes.remove(ours_t)

@@ -90,14 +90,24 @@ def refresh_derived(mat):
     """What is built from a layer follows it after every layer.apply: the export fallback
     (blender/interchange.py, the user's BSDF at haziness 0) and the EEVEE-only output
     (blender/eevee_layer.py, when one was asked for).  Problems go to the panel, never up."""
-    from . import eevee_layer, interchange
+    from . import eevee_layer
     try:
-        if interchange.FALLBACK_STAMP in mat:
-            interchange.refresh_export_fallback(mat)
         if eevee_layer.requested_mode(mat) is not None:
             eevee_layer.sync_eevee_output(mat)
     except ValueError as exc:
         properties.last_error[mat.session_uid] = plain_message(exc)
+    refresh_fallback(mat)
+
+
+def refresh_fallback(mat):
+    """The export fallback (if any) after the layer or its EEVEE output changed: its render
+    output for EEVEE gives way to the EEVEE-only output, and comes back without it."""
+    from . import interchange
+    if interchange.FALLBACK_STAMP in mat:
+        try:
+            interchange.refresh_export_fallback(mat)
+        except ValueError as exc:
+            properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent

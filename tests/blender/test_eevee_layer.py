@@ -270,3 +270,24 @@ def test_the_output_follows_the_layer_and_the_panel(env, hg):
         env.api.add_eevee_output(plain)
     with pytest.raises(TypeError, match="look it up"):
         env.api.add_eevee_output(plain.name)
+
+
+def test_with_an_export_fallback(env, hg):
+    """An export fallback and the EEVEE output together: the fallback's EEVEE render output
+    gives way to the EEVEE-only output (else EEVEE would pick between two EEVEE outputs) and
+    comes back when it goes; both follow a haze change; the user's output is untouched."""
+    mat = env.api.create_look("CAR_PAINT")
+    role = env.ownership.role
+    targets = lambda: sorted((role(n) or "user", n.target) for n in mat.node_tree.nodes  # noqa: E731
+                             if n.bl_idname == "ShaderNodeOutputMaterial")
+    env.api.add_export_fallback(mat)
+    assert ("Render output Eevee", "EEVEE") in targets()
+    assert env.api.add_eevee_output(mat)["added"]
+    assert [t for t in targets() if t[1] == "EEVEE"] == [("layer eevee output", "EEVEE")]
+    env.api.update_material(mat, haziness=0.2)  # values in place: a reused Color Ramp is checked
+    assert env.E.has_eevee_output(mat)
+    assert [t for t in targets() if t[1] == "EEVEE"] == [("layer eevee output", "EEVEE")]
+    assert env.api.remove_eevee_output(mat)
+    assert [t for t in targets() if t[1] == "EEVEE"] == [("Render output Eevee", "EEVEE")]
+    env.api.remove_export_fallback(mat)
+    assert targets() == [("user", "ALL")]

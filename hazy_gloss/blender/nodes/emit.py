@@ -2,6 +2,8 @@
 """Emit a :class:`hazy_gloss.core.graph.Graph` as nodes: shader trees (Math, Vector Math,
 Mix, Separate/Combine XYZ, Color Ramp) or compositor trees (scalar Math only: vectors become three lanes,
 selects become arithmetic, colours are split with the compositor's Separate Color)."""
+import numpy as np
+
 from ...core.graph import Expr
 from .. import compat
 
