@@ -251,7 +251,10 @@ def parse_value(text, type_):
     if text is None:
         return None
     if type_ in _VECTOR:
-        return tuple(float(p) for p in text.replace(",", " ").split())
+        v = tuple(float(p) for p in text.replace(",", " ").split())
+        if len(v) != _VECTOR[type_]:
+            raise ValueError(f"{type_} needs {_VECTOR[type_]} numbers, got {len(v)}")
+        return v
     if type_ == "float":
         return float(text)
     if type_ == "integer":
@@ -454,7 +457,14 @@ def write_xml(doc, path):
 
 def _read_input(e):
     t = e.get("type", "")
-    return Input(e.get("name", ""), t, parse_value(e.get("value"), t), e.get("nodename"),
+    try:
+        value = parse_value(e.get("value"), t)
+    except (ValueError, OverflowError):
+        want = (f"{_VECTOR[t]} numbers separated by commas" if t in _VECTOR else
+                "an integer" if t == "integer" else "a number")
+        raise ValueError(f"input {e.get('name', '')!r}: value {e.get('value', '')[:40]!r} is not "
+                         f"{want} (type {t})") from None
+    return Input(e.get("name", ""), t, value, e.get("nodename"),
                  e.get("nodegraph"), e.get("output"), e.get("interfacename"), e.get("colorspace"))
 
 
@@ -463,7 +473,10 @@ def _read_node(e):
     n = Node(e.get("name", ""), e.tag, e.get("type", ""), attrs=attrs)
     for c in e:
         if c.tag == "input":
-            i = _read_input(c)
+            try:
+                i = _read_input(c)
+            except ValueError as exc:
+                raise ValueError(f"<{e.tag} name={e.get('name', '')!r}> {exc}") from None
             n.inputs[i.name] = i
     return n
 
@@ -475,10 +488,23 @@ _SKIP = ("nodedef", "implementation", "typedef", "look", "collection", "geominfo
 def read_xml(path_or_text, *, text=False):
     """Parse a MaterialX document (file path, or the XML itself with ``text=True``).  Includes
     (xi:include) are not followed; nodedefs and implementations are skipped."""
-    root = ET.fromstring(path_or_text) if text else ET.parse(path_or_text).getroot()
+    where = "the document" if text else str(path_or_text)
+    try:
+        root = ET.fromstring(path_or_text) if text else ET.parse(path_or_text).getroot()
+    except ET.ParseError as exc:  # a SyntaxError, not a ValueError: one line, the reader's own
+        raise ValueError(f"{where}: not a well-formed XML file ({exc})") from None
+    except RecursionError:
+        raise ValueError(f"{where}: nested too deeply to be a MaterialX document") from None
     if root.tag != "materialx":
-        raise ValueError(f"not a MaterialX document (root element <{root.tag}>)")
-    doc = Document(attrs=dict(root.attrib), source="" if text else str(path_or_text))
+        raise ValueError(f"{where}: not a MaterialX document (root element <{root.tag}>)")
+    try:
+        return _read_root(root, "" if text else str(path_or_text))
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def _read_root(root, source):
+    doc = Document(attrs=dict(root.attrib), source=source)
     for e in root:
         if not isinstance(e.tag, str) or e.tag in _SKIP:
             continue

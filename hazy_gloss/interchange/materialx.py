@@ -782,13 +782,15 @@ def _lobe_values(ev, node, graph, kind):
 def _close(a, b, rtol=K.INTERCHANGE_RTOL):
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    return bool(np.all(np.abs(a - b) <= rtol * np.maximum(np.abs(a), np.abs(b)) + 1e-12))
+    with np.errstate(invalid="ignore", over="ignore"):  # a damaged file's inf / NaN: not close
+        return bool(np.all(np.abs(a - b) <= rtol * np.maximum(np.abs(a), np.abs(b)) + 1e-12))
 
 
 def _rel(a, b):
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    return float(np.max(np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-300)))
+    with np.errstate(invalid="ignore", over="ignore"):
+        return float(np.max(np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-300)))
 
 
 def _bsdf_structure(ev, node, graph, notes):
@@ -1191,24 +1193,44 @@ def recognise(doc, *, use_stored=True):
     out = []
     for mat in doc.materials():
         label = mat.attrs.get(f"{_ATTR}_name") or mat.name
-        if mat.attrs.get(f"{_ATTR}_flavour") == "layer":
-            out.append(ImportedMaterial(label, None, False, "hazy_gloss layer", [
-                "a haze layer on the artist's own BSDF (OpenPBR surfaces mixed by β): importing "
-                "it back as a layered material is not supported yet"]))
-            continue
-        k, shader, g = doc.resolve(mat.inputs.get("surfaceshader"))
-        if k != "node":
-            out.append(ImportedMaterial(label, None, False, "", ["no surface shader"]))
-            continue
-        if shader.category == "surface":
-            out.append(_recognise_eq1(ev, mat, label, shader, g, use_stored))
-        elif shader.category == "open_pbr_surface":
-            out.append(_recognise_openpbr(ev, mat, label, shader, g, use_stored))
-        else:
-            out.append(ImportedMaterial(label, None, False, "", [
-                f"{shader.category} is not a hazy surface (expected surface with a two-lobe "
-                f"mix, or open_pbr_surface with specular_haze)"]))
+        try:
+            out.append(_checked(_recognise_one(ev, doc, mat, label, use_stored)))
+        except (ValueError, TypeError, IndexError, KeyError, AttributeError, ZeroDivisionError,
+                OverflowError, RecursionError) as exc:  # a damaged material: said, the rest read
+            what = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+            out.append(ImportedMaterial(label, None, False, "", [f"damaged, not imported: {what}"]))
     return out
+
+
+def _checked(im):
+    """Parameters with a non-finite number are no parameters (a damaged document)."""
+    if im.parameters is None:
+        return im
+    for key, v in im.parameters.items():
+        nums = v if isinstance(v, (tuple, list)) else (v,)
+        if any(isinstance(x, (int, float)) and not isinstance(x, bool) and not math.isfinite(x)
+               for x in nums):
+            return ImportedMaterial(im.name, None, False, im.source,
+                                    im.notes + [f"damaged, not imported: {key} is not finite"])
+    return im
+
+
+def _recognise_one(ev, doc, mat, label, use_stored):
+    """ImportedMaterial of one surfacematerial."""
+    if mat.attrs.get(f"{_ATTR}_flavour") == "layer":
+        return ImportedMaterial(label, None, False, "hazy_gloss layer", [
+            "a haze layer on the artist's own BSDF (OpenPBR surfaces mixed by β): importing "
+            "it back as a layered material is not supported yet"])
+    k, shader, g = doc.resolve(mat.inputs.get("surfaceshader"))
+    if k != "node":
+        return ImportedMaterial(label, None, False, "", ["no surface shader"])
+    if shader.category == "surface":
+        return _recognise_eq1(ev, mat, label, shader, g, use_stored)
+    if shader.category == "open_pbr_surface":
+        return _recognise_openpbr(ev, mat, label, shader, g, use_stored)
+    return ImportedMaterial(label, None, False, "", [
+        f"{shader.category} is not a hazy surface (expected surface with a two-lobe "
+        f"mix, or open_pbr_surface with specular_haze)"])
 
 
 def read(path, *, use_stored=True):

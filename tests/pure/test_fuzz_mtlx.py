@@ -1,0 +1,145 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Fuzz of the add-on's MaterialX reader (interchange.materialx.read, behind api.import_materialx
+and the File > Import operator): mutations of one of our own documents.
+
+Outcomes allowed: the materials (each recognised, or not with its reasons; every returned
+parameter finite), or one ValueError line naming the file.  Never another exception, never more
+than CASE_TIME seconds.  Counts go to out/measurements/fuzz_mtlx.json (docs/verification.md)."""
+import collections
+import json
+import math
+import random
+import re
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from hazy_gloss.interchange import materialx as M
+from test_interchange import _sources
+
+OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
+CASE_TIME = 5.0
+VALUES = ("nan", "inf", "-inf", "1e999", "-1", "", "a", "1,2", "0,0,0,0,0", "1e-45", "-0",
+          "1e38,1e38,1e38", "x" * 5000)
+TYPES = ("float", "color3", "vector3", "BSDF", "string", "integer", "bogus")
+BILLION_LAUGHS = ('<?xml version="1.0"?><!DOCTYPE l [<!ENTITY a "lol">'
+                  + "".join(f'<!ENTITY {chr(98 + i)} "{("&" + chr(97 + i) + ";") * 10}">'
+                            for i in range(8))
+                  + ']><materialx version="1.39">&i;</materialx>')
+
+
+def mutations(text, seed=1):
+    """(attack, document text), deterministic."""
+    rng = random.Random(seed)
+    n = len(text)
+    for cut in range(0, n, max(1, n // 300)):
+        yield "truncation", text[:cut]
+    for m in re.finditer(r'value="([^"]*)"', text):
+        for v in VALUES:
+            yield "input values (NaN, inf, overflow, wrong count, garbage)", \
+                text[:m.start(1)] + v + text[m.end(1):]
+    for m in re.finditer(r'(nodename|output|interfacename|nodegraph)="([^"]*)"', text):
+        for v in ("", "nope", m.group(2)):
+            yield "connections (dangling, empty)", text[:m.start(2)] + v + text[m.end(2):]
+    for m in re.finditer(r'type="([^"]*)"', text):
+        for v in TYPES:
+            yield "types", text[:m.start(1)] + v + text[m.end(1):]
+    lines = text.splitlines(True)
+    for i in range(len(lines)):
+        yield "a line deleted", "".join(lines[:i] + lines[i + 1:])
+        yield "a line doubled", "".join(lines[:i] + [lines[i]] + lines[i:])
+    for m in re.finditer(r'<\w+ name="([^"]+)" type="[^"]*"', text):
+        yield "cycles (nodes reading themselves)", \
+            re.sub(r'nodename="[^"]*"', f'nodename="{m.group(1)}"', text, count=3)
+    data = text.encode()
+    for _ in range(400):
+        b = bytearray(data)
+        for _ in range(8):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        yield "byte flips", b.decode("utf-8", "replace")
+    yield "entity expansion (billion laughs)", BILLION_LAUGHS
+
+
+class _Timeout(Exception):
+    pass
+
+
+def _finite(im):
+    for v in (im.parameters or {}).values():
+        for x in (v if isinstance(v, (tuple, list)) else (v,)):
+            if isinstance(x, float) and not math.isfinite(x):
+                return False
+    return True
+
+
+def test_fuzz_materialx_reader(tmp_path):
+    base = M.write(_sources(), tmp_path / "base.mtlx", validate_with_package=False).path
+    text = Path(base).read_text()
+    path = str(tmp_path / "case.mtlx")
+    counts, failures = collections.Counter(), []
+    slowest = 0.0
+
+    def alarm(*_):
+        raise _Timeout()
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    t_all = time.perf_counter()
+    try:
+        for attack, doc in mutations(text):
+            Path(path).write_text(doc)
+            t0 = time.perf_counter()
+            signal.setitimer(signal.ITIMER_REAL, CASE_TIME)
+            try:
+                got = M.read(path)
+                outcome = "read" if all(_finite(im) for im in got) else "non-finite parameters"
+                if outcome == "read" and any(any(n.startswith("damaged") for n in im.notes)
+                                             for im in got):
+                    outcome = "read, a damaged material said"
+            except ValueError as exc:
+                outcome = "ValueError"
+                if "\n" in str(exc) or path not in str(exc):
+                    failures.append(f"{attack}: not one line naming the file: {str(exc)[:200]!r}")
+            except _Timeout:
+                outcome = "hang"
+            except Exception as exc:  # noqa: BLE001  (what the fuzz looks for)
+                outcome = type(exc).__name__
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+            slowest = max(slowest, time.perf_counter() - t0)
+            counts[(attack, outcome)] += 1
+            if outcome not in ("read", "read, a damaged material said", "ValueError"):
+                failures.append(f"{attack}: {outcome}")
+    finally:
+        signal.signal(signal.SIGALRM, old)
+    table = {}
+    for (attack, outcome), k in sorted(counts.items()):
+        table.setdefault(attack, {})[outcome] = k
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "fuzz_mtlx.json").write_text(json.dumps(
+        {"cases": sum(counts.values()), "seconds": round(time.perf_counter() - t_all, 1),
+         "slowest_case_s": round(slowest, 3), "by_attack": table}, indent=1))
+    assert not failures, failures[:10]
+    assert sum(counts.values()) > 4000
+    assert counts[("truncation", "ValueError")] >= 290  # every cut but the whole file
+
+
+@pytest.mark.parametrize("doc, words", [
+    ("<materialx", "not a well-formed XML file"),
+    ("<notmaterialx/>", "not a MaterialX document"),
+    ('<materialx><surfacematerial name="m" type="material"><input name="surfaceshader" '
+     'type="surfaceshader" value="1,2"/></surfacematerial></materialx>', None),
+    ('<materialx><conductor_bsdf name="c" type="BSDF"><input name="ior" type="color3" '
+     'value="1, 2"/></conductor_bsdf></materialx>', "is not 3 numbers separated by commas"),
+])
+def test_bad_documents_get_one_line(tmp_path, doc, words):
+    path = tmp_path / "bad.mtlx"
+    path.write_text(doc)
+    if words is None:  # a material whose surface is no shader: read, and said
+        (im,) = M.read(path)
+        assert im.parameters is None and im.notes
+        return
+    with pytest.raises(ValueError, match=words) as info:
+        M.read(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
