@@ -147,6 +147,34 @@ def mapped_values(p, m):
 # --------------------------------------------------------------------------------------------
 
 
+def draw_presets_row(layout):
+    """The presets menu with add / remove, as Blender's preset panels have it."""
+    row = layout.row(align=True)
+    row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
+    row.operator("hazy_gloss.preset_add", text="", icon="ADD")
+    row.operator("hazy_gloss.preset_add", text="", icon="REMOVE").remove_active = True
+
+
+def draw_haze(layout, hg):
+    """The haze controls (β_h, λ_h with its x / y link, the smooth variant's w): the same for a
+    whole hazy material and for a haze layer."""
+    haze = layout.box().column()
+    haze.use_property_split = True
+    haze.use_property_decorate = False
+    haze.label(text="Haze", icon="LIGHT_SUN")
+    haze.prop(hg, "haziness", slider=True)
+    row = haze.row(align=True)
+    row.prop(hg, "haze_extent_x", text="Extent" if hg.haze_extent_linked else "Extent X")
+    row.prop(hg, "haze_extent_linked", text="", icon="LINKED" if hg.haze_extent_linked else "UNLINKED")
+    if not hg.haze_extent_linked:
+        haze.prop(hg, "haze_extent_y", text="Extent Y")
+    row = haze.row(align=True)
+    row.prop(hg, "use_smoothness", text="Smooth")
+    sub = row.row(align=True)
+    sub.active = hg.use_smoothness
+    sub.prop(hg, "smoothness", text="w")
+
+
 def draw_material(layout, context, mat, idname):
     """The body of both panels; ``idname`` keeps their collapsible sections apart."""
     prefs = preferences.get(context)
@@ -202,10 +230,7 @@ def draw_material(layout, context, mat, idname):
     body = col.column()
     body.enabled = problem is None
 
-    row = body.row(align=True)
-    row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
-    row.operator("hazy_gloss.preset_add", text="", icon="ADD")
-    row.operator("hazy_gloss.preset_add", text="", icon="REMOVE").remove_active = True
+    draw_presets_row(body)
 
     body.prop(hg, "kind", expand=True)
     split = body.column()
@@ -227,21 +252,7 @@ def draw_material(layout, context, mat, idname):
         core.prop(hg, "rotation", slider=True)
         core.prop(hg, "tangent")
 
-    haze = body.box().column()
-    haze.use_property_split = True
-    haze.use_property_decorate = False
-    haze.label(text="Haze", icon="LIGHT_SUN")
-    haze.prop(hg, "haziness", slider=True)
-    row = haze.row(align=True)
-    row.prop(hg, "haze_extent_x", text="Extent" if hg.haze_extent_linked else "Extent X")
-    row.prop(hg, "haze_extent_linked", text="", icon="LINKED" if hg.haze_extent_linked else "UNLINKED")
-    if not hg.haze_extent_linked:
-        haze.prop(hg, "haze_extent_y", text="Extent Y")
-    row = haze.row(align=True)
-    row.prop(hg, "use_smoothness", text="Smooth")
-    sub = row.row(align=True)
-    sub.active = hg.use_smoothness
-    sub.prop(hg, "smoothness", text="w")
+    draw_haze(body, hg)
 
     if p["kind"] == "DIELECTRIC":
         base = body.box().column()
@@ -374,26 +385,9 @@ def draw_layer(layout, context, mat, idname, hg, problem):
     head.label(text="Edit the material as usual: the layer follows it")
     body = col.column()
     body.enabled = problem is None
-    row = body.row(align=True)
-    row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
-    row.operator("hazy_gloss.preset_add", text="", icon="ADD")
-    row.operator("hazy_gloss.preset_add", text="", icon="REMOVE").remove_active = True
+    draw_presets_row(body)
 
-    haze = body.box().column()
-    haze.use_property_split = True
-    haze.use_property_decorate = False
-    haze.label(text="Haze", icon="LIGHT_SUN")
-    haze.prop(hg, "haziness", slider=True)
-    row = haze.row(align=True)
-    row.prop(hg, "haze_extent_x", text="Extent" if hg.haze_extent_linked else "Extent X")
-    row.prop(hg, "haze_extent_linked", text="", icon="LINKED" if hg.haze_extent_linked else "UNLINKED")
-    if not hg.haze_extent_linked:
-        haze.prop(hg, "haze_extent_y", text="Extent Y")
-    row = haze.row(align=True)
-    row.prop(hg, "use_smoothness", text="Smooth")
-    sub = row.row(align=True)
-    sub.active = hg.use_smoothness
-    sub.prop(hg, "smoothness", text="w")
+    draw_haze(body, hg)
     plan = info["plan"]
     if plan.type == "PRINCIPLED":
         coat = core.inputs["Coat Weight"]
