@@ -194,6 +194,20 @@ def save_image(rgb, name, *, exposure=1.0):
     return f"img/{name}"
 
 
+def write_section(begin, end, md):
+    """Replace the text between the markers ``begin`` and ``end`` of docs/performance.md with
+    ``md`` (appended with its markers when they are not there yet): a section one benchmark
+    regenerates alone."""
+    path = ROOT / "docs" / "performance.md"
+    text = path.read_text()
+    block = f"{begin}\n{md.rstrip()}\n{end}"
+    if begin in text and end in text:
+        text = text[:text.index(begin)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip() + "\n\n" + block + "\n"
+    path.write_text(text)
+
+
 def md_table(header, rows):
     out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     out += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]

@@ -330,7 +330,7 @@ def main():
     md = markdown(res)
     (C.OUT / "perf_layer.md").write_text(md)
     if os.environ.get("HG_REPORT_SECTION") != "1":  # standalone: update the docs in place
-        write_section(md)
+        C.write_section(BEGIN, END, md)
 
 
 def markdown(res):
@@ -411,17 +411,6 @@ def markdown(res):
                      f"{extra[s]:+.3f}"] for s in syms[:10]]
             L.append(C.md_table(["symbol", "layered", what, "extra CPU s / render"], prow) + "\n")
     return "\n".join(L)
-
-
-def write_section(md):
-    path = C.ROOT / "docs" / "performance.md"
-    text = path.read_text()
-    block = f"{BEGIN}\n{md.rstrip()}\n{END}"
-    if BEGIN in text and END in text:
-        text = text[:text.index(BEGIN)] + block + text[text.index(END) + len(END):]
-    else:
-        text = text.rstrip() + "\n\n" + block + "\n"
-    path.write_text(text)
 
 
 if __name__ == "__main__":

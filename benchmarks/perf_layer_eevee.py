@@ -303,7 +303,7 @@ def main():
     md = markdown(res)
     (C.OUT / "perf_layer_eevee.md").write_text(md)
     if os.environ.get("HG_REPORT_SECTION") != "1":
-        write_section(md)
+        C.write_section(BEGIN, END, md)
 
 
 def _strip(strips):
@@ -430,17 +430,6 @@ def markdown(res):
                      f"{fr['eevee_output']['wall']:.1f}"])
     L.append(C.md_table(header, rows) + "\n")
     return "\n".join(L)
-
-
-def write_section(md):
-    path = C.ROOT / "docs" / "performance.md"
-    text = path.read_text()
-    block = f"{BEGIN}\n{md.rstrip()}\n{END}"
-    if BEGIN in text and END in text:
-        text = text[:text.index(BEGIN)] + block + text[text.index(END) + len(END):]
-    else:
-        text = text.rstrip() + "\n\n" + block + "\n"
-    path.write_text(text)
 
 
 if __name__ == "__main__":
