@@ -34,7 +34,6 @@ the data module carries the notice).
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import textwrap
 from pathlib import Path
@@ -43,7 +42,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
-from extract_ggx_tables import WHEELS, read_symbol  # noqa: E402
+from extract_ggx_tables import WHEELS, read_symbol, run  # noqa: E402
 
 OUT = ROOT / "hazy_gloss" / "core" / "cycles_albedo_tables.py"
 IOR_S = "_ZN3cclL27table_ggx_gen_schlick_ior_sE"
@@ -125,20 +124,14 @@ def render(tables, same):
     return "".join(parts)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--check", action="store_true", help="compare with the committed module")
-    ap.add_argument("--venv-root", default=str(ROOT), help="directory holding .venv, .venv52, .venv45")
-    args = ap.parse_args(argv)
-    tables, same = extract(args.venv_root)
+def _make(venv_root):
+    tables, same = extract(venv_root)
     text = render(tables, same)
-    if args.check:
-        ok = OUT.exists() and OUT.read_text(encoding="utf-8") == text
-        print(f"{OUT.relative_to(ROOT)}: {'up to date' if ok else 'DIFFERS'}")
-        return 0 if ok else 1
-    OUT.write_text(text, encoding="utf-8")
-    print(f"wrote {OUT.relative_to(ROOT)} ({OUT.stat().st_size} bytes)")
-    return 0
+    return text, f"{len(text.encode('utf-8'))} bytes"
+
+
+def main(argv=None):
+    return run(__doc__, OUT, _make, argv)
 
 
 if __name__ == "__main__":

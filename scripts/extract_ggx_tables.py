@@ -140,20 +140,30 @@ EAVG_V53 = {row(new["Eavg"])}
 '''
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def run(doc, out, make, argv=None):
+    """The command line of a table extractor: ``make(venv_root)`` -> (module text, a note for
+    the "wrote" line); --check compares with the committed ``out`` instead of writing it."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="compare with the committed module")
     ap.add_argument("--venv-root", default=str(ROOT), help="directory holding .venv, .venv52, .venv45")
     args = ap.parse_args(argv)
-    tables, diffs = extract(args.venv_root)
-    text = render(tables, diffs)
+    text, note = make(args.venv_root)
     if args.check:
-        same = OUT.exists() and OUT.read_text(encoding="utf-8") == text
-        print(f"{OUT.relative_to(ROOT)}: {'up to date' if same else 'DIFFERS'}")
+        same = out.exists() and out.read_text(encoding="utf-8") == text
+        print(f"{out.relative_to(ROOT)}: {'up to date' if same else 'DIFFERS'}")
         return 0 if same else 1
-    OUT.write_text(text, encoding="utf-8")
-    print(f"wrote {OUT.relative_to(ROOT)} (E_avg 4.5/5.2 vs 5.3: {diffs['eavg']:.2e})")
+    out.write_text(text, encoding="utf-8")
+    print(f"wrote {out.relative_to(ROOT)} ({note})")
     return 0
+
+
+def _make(venv_root):
+    tables, diffs = extract(venv_root)
+    return render(tables, diffs), f"E_avg 4.5/5.2 vs 5.3: {diffs['eavg']:.2e}"
+
+
+def main(argv=None):
+    return run(__doc__, OUT, _make, argv)
 
 
 if __name__ == "__main__":
