@@ -10,8 +10,12 @@ the numpy mapping without rendering.
 - Values are float32; a vector is three lanes (Blender's Vector Math / colour sockets).
 - DIVIDE is safe (x / 0 = 0), SQRT of a negative is 0, POWER of a negative base with a
   non-integer exponent is 0, ``clamp=True`` saturates the result (the Math node's Clamp).
+- CLAMP(x, lo, hi): the Clamp node (Min Max), min(max(x, lo), hi) with the kernel's
+  comparisons (max(a, b) = a > b ? a : b): x NaN gives lo.  SVM runs it cheaper than a Math
+  node, and a Math node's Clamp option costs a second node (Cycles expands it into one).
 - MIX(t, a, b) = (1-t) a + t b (the float Mix node): an exact select for t ∈ {0, 1} when both
-  branches are finite.
+  branches are finite.  SATURATE(v): a colour Mix node with Clamp Result (factor 0), each lane
+  in [0, 1], NaN -> 0: one node where Vector Math needs two.
 - RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
   Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
   the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).
@@ -28,7 +32,7 @@ __all__ = ("Expr", "Graph", "evaluate", "ramp_table", "SCALAR_OPS", "VECTOR_OPS"
 #: Math node operations used here, with their arity.
 SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "SQRT": 1, "MINIMUM": 2, "MAXIMUM": 2, "LESS_THAN": 2,
-              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1}
+              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3}
 #: Vector Math node operations used here (SCALE: vector × scalar).
 VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1, "FLOOR": 1,
@@ -40,6 +44,7 @@ RAMP_TABLE_SIZE = 256
 RAMP_MAX_STOPS = 32
 
 _F32 = np.float32
+_F32_MAX = float(np.finfo(_F32).max)
 
 
 class Expr:
@@ -172,10 +177,17 @@ class Graph:
         return self.math("LESS_THAN", a, b, **kw)
 
     def clamp(self, a, lo, hi, **kw):
-        """min(max(a, lo), hi), NaN -> lo; one node (the Clamp option) when hi is 1."""
-        if 0.0 <= lo and hi == 1.0:
-            return self.maximum(a, lo, clamp=True, **kw)
-        return self.minimum(self.maximum(a, lo), hi, **kw)
+        """min(max(a, lo), hi), NaN -> lo (one Clamp node; ``lo``, ``hi`` may be expressions:
+        lo <= hi is the caller's to keep)."""
+        return self.math("CLAMP", a, lo, hi, **kw)
+
+    def at_least(self, a, lo, **kw):
+        """max(a, lo) for a known finite (not ±inf): a Clamp node, cheaper than Maximum."""
+        return self.clamp(a, lo, _F32_MAX, **kw)
+
+    def at_most(self, a, hi, **kw):
+        """min(a, hi) for a known finite (a NaN gives -FLT_MAX, not hi)."""
+        return self.clamp(a, -_F32_MAX, hi, **kw)
 
     def select(self, cond, if_true, if_false, **kw):
         """cond ∈ {0, 1}: the Mix node, (1 - cond) if_false + cond if_true."""
@@ -188,6 +200,14 @@ class Graph:
         if vector and not (a.vector and b.vector):
             raise TypeError("select of a vector and a scalar")
         return self._make("MIX", (c, b, a), vector=vector, **kw)
+
+    def vmix(self, t, a, b, **kw):
+        """(1 - t) a + t b per lane with a vector factor ``t`` (the vector Mix node, Non-Uniform
+        factor); scalar ``a``, ``b`` are broadcast."""
+        t, a, b = self.value(t), self.value(a), self.value(b)
+        if not t.vector:
+            raise TypeError("vmix() takes a vector factor")
+        return self._make("VMIX", (t, a, b), vector=True, **kw)
 
     # -- vectors -------------------------------------------------------------------------------
     def vmath(self, op, *args, label=None):
@@ -219,9 +239,9 @@ class Graph:
         return self._make("RAMP", (x,), vector=True, stops=stops, **kw)
 
     def vclamp01(self, v, **kw):
-        """A vector clamped to [0, 1] per lane, NaN -> 0 (Vector Math MAXIMUM, MINIMUM: cheaper
-        in Cycles than one colour Mix node with Clamp Result)."""
-        return self.vmath("MINIMUM", self.vmath("MAXIMUM", v, 0.0), 1.0, **kw)
+        """A vector clamped to [0, 1] per lane, NaN -> 0 (SATURATE: one colour Mix node); a
+        scalar becomes (f, f, f) first, as when linked into a colour input."""
+        return self._make("SATURATE", (self.value(v),), vector=True, **kw)
 
     def separate(self, v):
         """The three lanes of a vector (one Separate node)."""
@@ -234,8 +254,9 @@ class Graph:
         return self._make("COMBINE", (x, y, z), vector=True, **kw)
 
     def channel_max(self, v, **kw):
+        """The largest lane of a finite vector (e.g. a clamped colour): Clamp nodes."""
         r, g, b = self.separate(v)
-        return self.maximum(self.maximum(r, g), b, **kw)
+        return self.at_least(self.at_least(r, g), b, **kw)
 
     # -- bookkeeping ---------------------------------------------------------------------------
     def used(self, outputs):
@@ -295,6 +316,11 @@ def _safe_pow(a, b):
         return np.where(bad, _F32(0), np.power(np.where(bad, _F32(1), a), b)).astype(_F32)
 
 
+def _clamp(x, lo, hi):  # kernel max/min: a > b ? a : b, a < b ? a : b
+    m = np.where(x > lo, x, lo)
+    return np.where(m < hi, m, hi).astype(_F32)
+
+
 def _fmin(a, b):  # fminf: NaN loses
     return np.fmin(a, b).astype(_F32)
 
@@ -319,6 +345,7 @@ _SCALAR = {
                                 ).astype(_F32),
     "ABSOLUTE": np.abs,
     "FLOOR": np.floor,
+    "CLAMP": _clamp,
 }
 
 
@@ -379,6 +406,9 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
             a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
                                          for v, is_vec in zip(vals, vector_args)))
             return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2], _F32)
+        if op == "SATURATE":
+            v = vals[0] if vector_args[0] else np.repeat(vals[0][..., None], 3, -1)
+            return _saturate(v)
         if op == "SEPARATE":
             out = vals[0][..., lane]
         elif op == "COMBINE":
@@ -386,7 +416,7 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
         else:
             if op.startswith("V") or (op == "MIX" and any(vector_args)):
                 vals = [v if is_vec else v[..., None] for v, is_vec in zip(vals, vector_args)]
-            if op == "MIX":
+            if op in ("MIX", "VMIX"):
                 t, a, b = vals
                 out = (_F32(1) - t) * a + t * b
             elif op == "VSCALE":

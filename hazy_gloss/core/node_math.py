@@ -61,11 +61,10 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
         ax = g.minimum(ax_raw, 1.0, label="α_n^x")
         ay = g.mul(alpha, s, label="α_n^y")
         gm = g.sqrt(g.mul(ax, ay), label="√(α_x α_y)")
-        lx = g.maximum(src["haze_extent_x"], 0.0)
-        ly = g.maximum(src["haze_extent_y"], 0.0)
-        # spread = α_w - α_n, limited by α <= 1: no subtraction of nearly equal numbers
-        sx = g.minimum(g.mul(lx, gm), g.sub(1.0, ax))
-        sy = g.minimum(g.mul(ly, gm), g.sub(1.0, ay))
+        # spread = α_w - α_n = λ_h √(α_x α_y) in [0, 1 - α_n] (λ_h < 0 or NaN: no halo):
+        # no subtraction of nearly equal numbers
+        sx = g.clamp(g.mul(src["haze_extent_x"], gm), 0.0, g.sub(1.0, ax))
+        sy = g.clamp(g.mul(src["haze_extent_y"], gm), 0.0, g.sub(1.0, ay))
         # aspect <= 10: shorten the halo's long axis (never below α_n), to 10 α_w^y - α_n^x =
         # 10 s_y + (10 α_n^y - α_n^x) with 10 α_n^y - α_n^x = 9 α (1-a)/s (+ what α <= 1 cut off
         # α_n^x): formed without cancellation (at a = 1 the raw difference is pure rounding)
@@ -90,8 +89,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
         if kind == "LEGACY":  # Glossy's convention: a = s - 1 gives α_x = R²/s, α_y = R² s
             out["anisotropy_narrow"] = g.sub(s, 1.0, label="Glossy anisotropy")
     else:
-        lam = g.maximum(src["haze_extent_x"], 0.0)
-        spread = g.minimum(g.mul(lam, alpha), g.sub(1.0, alpha))
+        spread = g.clamp(g.mul(src["haze_extent_x"], alpha), 0.0, g.sub(1.0, alpha))
         if distribution == "ASHIKHMIN_SHIRLEY":
             alpha, spread = _as_floor(g, alpha, spread)
         aw = g.add(alpha, spread, label="α_w")
@@ -199,12 +197,12 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
     β_h / (p + (1-p) β_h) — nothing renders differently there, both lobes reflect 0."""
     omr = g.sub(1.0, rc_max, label="1 - r̂_c")
     omb = g.sub(1.0, bh, label="1 - β_h")
-    # p - r̂_c = p (1-r̂_c) - r̂_c (1-p): both products are accurate whether p, r̂_c are near 0
-    # (where 1 - r̂_c has rounded off r̂_c's low digits, but p (1-r̂_c) keeps them relative) or
-    # near 1 (where the complements carry the digits)
-    rq = g.mul(rc_max, q)
-    p_minus_rc = g.sub(g.mul(p, omr), rq, label="p - r̂_c")
     if smoothness is not None:
+        # p - r̂_c = p (1-r̂_c) - r̂_c (1-p): both products are accurate whether p, r̂_c are near
+        # 0 (where 1 - r̂_c has rounded off r̂_c's low digits, but p (1-r̂_c) keeps them
+        # relative) or near 1 (where the complements carry the digits)
+        rq = g.mul(rc_max, q)
+        p_minus_rc = g.sub(g.mul(p, omr), rq, label="p - r̂_c")
         w = g.maximum(smoothness, K.MIN_SMOOTHNESS)
         ms = g.div(g.sqrt(g.mul(rc_max, omr)), w)
         hyp = g.sqrt(g.madd(p_minus_rc, p_minus_rc, g.mul(ms, ms)))
@@ -220,18 +218,17 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         c0 = g.maximum(g.select(g.less(c0, c2), c0_conic, c0), 0.0)
         omr_hat = g.madd(g.mul(q, t), omb, c0, label="1 - r̂")
     else:
-        # r̂_c > p: the energy branch of Eq. 7, decided on p - r̂_c (accurate on both sides of
-        # 1/2).  k̂_h = β_h N / D with (N, D) = (1 - r̂_c, 1 - p) on the energy side, (r̂_c, p) on
-        # the positivity side; r̂ = r̂_c + (1-p) k̂_h (a sum of non-negative terms)
-        upper = g.less(p_minus_rc, 0.0)
-        num = g.select(upper, omr, rc_max)
-        den = g.maximum(g.select(upper, q, p), _DIV_MIN)
-        kh = g.mul(bh, g.div(num, den), label="k̂_h (Eq. 7)")
-        r_hat = g.madd(q, kh, rc_max, label="r̂ (Eq. 5)")
-        # 1 - r̂ in non-negative terms: (1-r̂_c)(1-β_h), or ((p-r̂_c) + r̂_c (1-p)(1-β_h)) / p
-        # (its divisor is den: p wherever that branch is selected)
-        omr_lo = g.div(g.madd(rq, omb, g.maximum(p_minus_rc, 0.0)), den)
-        omr_hat = g.select(upper, g.mul(omr, omb), omr_lo, label="1 - r̂")
+        # Eq. 7: k̂_h = β_h u, u = min(r̂_c / p, (1 - r̂_c) / (1 - p)) (positivity, energy).  With
+        # v = (1-p) u = min((1-p) r̂_c / p, 1 - r̂_c) (exactly 1 - r̂_c on the energy side):
+        # r̂ = r̂_c + β_h v and 1 - r̂ = v (1-β_h) + (1 - r̂_c - v), sums of non-negative terms
+        # (the last one is 0 on the energy side, (p - r̂_c) / p on the other, as accurate as
+        # p (1-r̂_c) - r̂_c (1-p)).  p >= 2.6e-10 (α_n >= 1.6e-5, α_w <= 1); 1 - p = 0: no halo
+        u_pos = g.div(rc_max, p)
+        v = g.at_most(g.mul(q, u_pos), omr, label="(1-p) u")
+        u = g.at_most(u_pos, g.div(omr, g.at_least(q, _DIV_MIN)), label="u (Eq. 7)")
+        kh = g.mul(bh, u, label="k̂_h (Eq. 7)")
+        r_hat = g.madd(bh, v, rc_max, label="r̂ (Eq. 5)")
+        omr_hat = g.madd(v, omb, g.sub(omr, v), label="1 - r̂")
     # no clamp: β is in [0, 1] up to rounding and the Mix Shader clamps its factor
     beta = g.div(kh, r_hat, label="β = k̂_h / r̂ (Eq. 4)")
     return kh, beta, omr_hat, r_hat
@@ -244,8 +241,7 @@ def reflectivity(g, rc, rc_max, r_hat, omr_hat):
     # a true division (not a scale by 1/r̂_c), so the max channel's chroma is exactly 1
     chroma = g.vmath("DIVIDE", rc, rc_max, label="chroma c")
     r = g.vmath("SCALE", chroma, r_hat, label="r")
-    omr_v = g.vmath("MULTIPLY_ADD", chroma, omr_hat, g.vmath("SUBTRACT", 1.0, chroma),
-                    label="1 - r")
+    omr_v = g.vmix(chroma, 1.0, omr_hat, label="1 - r")  # (1-c) 1 + c (1-r̂): one node
     omr_v = g.vmath("MAXIMUM", omr_v, _TINY)
     return r, omr_v, chroma
 
@@ -256,11 +252,10 @@ def gulbrandsen(g, r, omr_v, edge_tint):
     η = A (1-r) + B and κ = 2 √(r A (A + 2 B/(1-r)))."""
     gt = g.vclamp01(edge_tint, label="g")
     s = g.vmath("POWER", r, 0.5, label="√r")
-    ops = g.vmath("ADD", s, 1.0)
     opr = g.vmath("ADD", r, 1.0)
     a = g.vmath("DIVIDE", gt, opr, label="A = g/(1+r)")
-    b = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SUBTRACT", 1.0, gt),
-                                  g.vmath("MULTIPLY", ops, ops)), omr_v, label="B")
+    ops2 = g.vmath("MULTIPLY_ADD", s, 2.0, opr, label="(1+√r)² = 2√r + 1 + r")
+    b = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SUBTRACT", 1.0, gt), ops2), omr_v, label="B")
     eta = g.vmath("MULTIPLY_ADD", a, omr_v, b, label="η")
     inner = g.vmath("MULTIPLY", a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
     kappa = g.vmath("SCALE", g.vmath("POWER", g.vmath("MULTIPLY", inner, r), 0.5), 2.0, label="κ")

@@ -147,6 +147,8 @@ NODEDEFS = {
         "in1": ("float", 0.0), "in2": ("float", 0.0)}),
     "ND_mix_vector3": ("mix", "vector3", {"fg": ("vector3", (0.0, 0.0, 0.0)),
         "bg": ("vector3", (0.0, 0.0, 0.0)), "mix": ("float", 0.0)}),
+    "ND_mix_vector3_vector3": ("mix", "vector3", {"fg": ("vector3", (0.0, 0.0, 0.0)),
+        "bg": ("vector3", (0.0, 0.0, 0.0)), "mix": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_mix_color3": ("mix", "color3", {"fg": ("color3", (0.0, 0.0, 0.0)),
         "bg": ("color3", (0.0, 0.0, 0.0)), "mix": ("float", 0.0)}),
     "ND_extract_vector3": ("extract", "float", {"in": ("vector3", (0.0, 0.0, 0.0)),

@@ -376,11 +376,14 @@ class Writer:
         return self._bin("max", a, b, base, np.fmax)
 
     def clamp(self, a, lo=0.0, hi=1.0, base="clamp"):
-        if a.is_const:
-            return _c(a.type, np.clip(a.array(), lo, hi))
+        """Numbers or (Clamp node with linked bounds) float Vs for ``lo``, ``hi``."""
+        bounds = [b if isinstance(b, V) else _c("float", float(b)) for b in (lo, hi)]
+        if a.is_const and all(b.is_const for b in bounds):
+            return _c(a.type, np.clip(a.array(), float(bounds[0].const), float(bounds[1].const)))
         t = a.type if a.type in ("float", "vector3") else "vector3"
         a2 = self.convert(a, t)
-        out = V(t, node=self.node(f"ND_clamp_{t}", base, **{"in": a2}, low=_c(t, lo), high=_c(t, hi)))
+        low, high = (_c(t, float(b.const)) if b.is_const else self.convert(b, t) for b in bounds)
+        out = V(t, node=self.node(f"ND_clamp_{t}", base, **{"in": a2}, low=low, high=high))
         return self.convert(out, a.type)
 
     def unary(self, cat, a, base, fold):
@@ -452,7 +455,7 @@ class Writer:
     def mix(self, t, a, b, base="mix"):
         """(1-t) a + t b."""
         typ = a.type if a.type != "float" else b.type
-        if t.is_const:
+        if t.is_const and t.type == "float":
             tv = float(t.const)
             if tv == 0.0:
                 return self.convert(a, typ)
@@ -461,7 +464,10 @@ class Writer:
             if a.is_const and b.is_const:
                 return _c(typ, (1.0 - tv) * self.convert(a, typ).array() + tv * self.convert(b, typ).array())
         nt = typ if typ in ("float", "vector3", "color3") else "vector3"
-        return self.convert(V(nt, node=self.node(f"ND_mix_{nt}", base, fg=self.convert(b, nt),
+        nd = f"ND_mix_{nt}" if t.type == "float" else "ND_mix_vector3_vector3"  # (per lane)
+        if t.type != "float":
+            nt = "vector3"
+        return self.convert(V(nt, node=self.node(nd, base, fg=self.convert(b, nt),
                                                  bg=self.convert(a, nt), mix=t)), typ)
 
     def lane(self, v, i):
@@ -610,9 +616,11 @@ class Writer:
             return V("vector3", node=self.tangent_node(_tangent_kind(node)))
         if t == "ShaderNodeClamp":
             lo, hi = self._in(node, "Min"), self._in(node, "Max")
-            if not (lo.is_const and hi.is_const) or node.props.get("clamp_type", "MINMAX") != "MINMAX":
+            if node.props.get("clamp_type", "MINMAX") != "MINMAX":
                 return None
-            return self.clamp(self._in(node, "Value"), float(lo.const), float(hi.const), node.name)
+            if lo.is_const and hi.is_const:
+                return self.clamp(self._in(node, "Value"), float(lo.const), float(hi.const), node.name)
+            return self.clamp(self._in(node, "Value"), lo, hi, node.name)
         return None
 
     # -- value nodes ---------------------------------------------------------------------------
@@ -677,7 +685,11 @@ class Writer:
             self.note(f"Mix “{node.name}” blends with {node.props.get('blend_type')}: not exported")
             return None
         if dt == "VECTOR" and node.props.get("factor_mode", "UNIFORM") != "UNIFORM":
-            return None
+            t = self.value(node.input("Factor_Vector"), "vector3")
+            if node.props.get("clamp_factor", True):
+                t = self.clamp(t, base=node.name + "_factor")
+            return self.mix(t, self.value(node.input("A_Vector"), "vector3"),
+                            self.value(node.input("B_Vector"), "vector3"), node.name)
         suffix = {"FLOAT": "_Float", "VECTOR": "_Vector", "RGBA": "_Color"}.get(dt)
         if suffix is None:
             return None

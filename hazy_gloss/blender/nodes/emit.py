@@ -103,6 +103,27 @@ class _ShaderEmitter:
             tb.feed(_by_id(n.inputs, b), self.value(e.args[2]))
             self.sockets[e.index] = _by_id(n.outputs, res)
             return
+        if e.op == "VMIX":  # vector Mix, Non-Uniform factor
+            n = self._node("ShaderNodeMix", e, data_type="VECTOR", factor_mode="NON_UNIFORM",
+                           clamp_factor=False)
+            for ident, a in zip(("Factor_Vector", "A_Vector", "B_Vector"), e.args):
+                tb.feed(_by_id(n.inputs, ident), self.value(a))
+            self.sockets[e.index] = _by_id(n.outputs, "Result_Vector")
+            return
+        if e.op == "SATURATE":  # colour Mix, factor 0, Clamp Result: v in [0, 1] per lane
+            n = self._node("ShaderNodeMix", e, data_type="RGBA", blend_type="MIX",
+                           clamp_factor=False, clamp_result=True)
+            tb.feed(_by_id(n.inputs, "Factor_Float"), 0.0)
+            tb.feed(_by_id(n.inputs, "A_Color"), self.value(e.args[0]))
+            tb.feed(_by_id(n.inputs, "B_Color"), (0.0, 0.0, 0.0, 1.0))
+            self.sockets[e.index] = _by_id(n.outputs, "Result_Color")
+            return
+        if e.op == "CLAMP":
+            n = self._node("ShaderNodeClamp", e, clamp_type="MINMAX")
+            for sock, a in zip(n.inputs, e.args):
+                tb.feed(sock, self.value(a))
+            self.sockets[e.index] = n.outputs[0]
+            return
         if e.op == "RAMP":  # linear RGB Color Ramp with the graph's stops (set on reuse too)
             n = self._node("ShaderNodeValToRGB", e)
             ramp = n.color_ramp
@@ -195,6 +216,13 @@ class _CompositorEmitter:
         if e.op == "COMBINE":
             self.vals[e.index] = tuple(self.value(a) for a in e.args)
             return
+        if e.op == "VMIX":  # (1 - t) a + t b per lane
+            t, a, b = (self._lanes(x) for x in e.args)
+            self.vals[e.index] = tuple(
+                self._math("MULTIPLY_ADD", t[i], b[i],
+                           self._math("MULTIPLY", self._math("SUBTRACT", 1.0, t[i]), a[i]),
+                           label=e.label) for i in range(3))
+            return
         if e.op == "MIX":  # (1 - t) a + t b
             t = self.value(e.args[0])
             lanes = list(zip(self._lanes(e.args[1]), self._lanes(e.args[2]))) if e.vector \
@@ -206,6 +234,18 @@ class _CompositorEmitter:
             return
         if e.op == "RAMP":
             raise NotImplementedError("the compositor backend has no Color Ramp of the graph's form")
+        if e.op == "SATURATE":
+            self.vals[e.index] = tuple(self._math("MINIMUM", self._math("MAXIMUM", x, 0.0), 1.0,
+                                                  label=e.label) for x in self._lanes(e.args[0]))
+            return
+        if e.op == "CLAMP":  # Maximum then Minimum (the same for bounds that are not NaN)
+            x, lo, hi = (self.value(a) for a in e.args)
+            if isinstance(lo, float) and lo >= 0.0 and hi == 1.0:
+                self.vals[e.index] = self._math("MAXIMUM", x, lo, clamp=True, label=e.label)
+            else:
+                self.vals[e.index] = self._math("MINIMUM", self._math("MAXIMUM", x, lo), hi,
+                                                label=e.label)
+            return
         if e.op == "VDOT_PRODUCT":
             a, b = self._lanes(e.args[0]), self._lanes(e.args[1])
             acc = self._math("MULTIPLY", a[0], b[0])
