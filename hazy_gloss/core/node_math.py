@@ -240,7 +240,7 @@ def reflectivity(g, rc, rc_max, r_hat, omr_hat):
     Fresnel terms divide by)."""
     # a true division (not a scale by 1/r̂_c), so the max channel's chroma is exactly 1
     chroma = g.vmath("DIVIDE", rc, rc_max, label="chroma c")
-    r = g.vmath("SCALE", chroma, r_hat, label="r")
+    r = g.vmul(r_hat, chroma, label="r")
     omr_v = g.vmix(chroma, 1.0, omr_hat, label="1 - r")  # (1-c) 1 + c (1-r̂): one node
     omr_v = g.vmath("MAXIMUM", omr_v, _TINY)
     return r, omr_v, chroma
@@ -251,14 +251,14 @@ def gulbrandsen(g, r, omr_v, edge_tint):
     (docs/mapping.md §7): with A = g/(1+r) and B = (1-g)(1+√r)²/(1-r),
     η = A (1-r) + B and κ = 2 √(r A (A + 2 B/(1-r)))."""
     gt = g.vclamp01(edge_tint, label="g")
-    s = g.vmath("POWER", r, 0.5, label="√r")
+    s = g.vsqrt(r, label="√r")
     opr = g.vmath("ADD", r, 1.0)
     a = g.vmath("DIVIDE", gt, opr, label="A = g/(1+r)")
     ops2 = g.vmath("MULTIPLY_ADD", s, 2.0, opr, label="(1+√r)² = 2√r + 1 + r")
-    b = g.vmath("DIVIDE", g.vmath("MULTIPLY", g.vmath("SUBTRACT", 1.0, gt), ops2), omr_v, label="B")
+    b = g.vmath("DIVIDE", g.vmix(gt, ops2, 0.0), omr_v, label="B")  # (1-g) (1+√r)² / (1-r)
     eta = g.vmath("MULTIPLY_ADD", a, omr_v, b, label="η")
-    inner = g.vmath("MULTIPLY", a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
-    kappa = g.vmath("SCALE", g.vmath("POWER", g.vmath("MULTIPLY", inner, r), 0.5), 2.0, label="κ")
+    inner = g.vmul(a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
+    kappa = g.vmul(2.0, g.vsqrt(g.vmul(inner, r)), label="κ")
     return eta, kappa
 
 
@@ -274,7 +274,7 @@ def gulbrandsen_inverse(g, eta, kappa):
     r = g.vmath("MINIMUM", g.vmath("DIVIDE", num, den), K.ONE_MINUS_ULP32, label="r")
     # 1 - r = 4η / ((η+1)² + κ²): no cancellation
     omr = g.vmath("MAXIMUM", g.vmath("DIVIDE", g.vmath("SCALE", eta, 4.0), den), _TINY)
-    ops = g.vmath("ADD", g.vmath("POWER", r, 0.5), 1.0)
+    ops = g.vmath("ADD", g.vsqrt(r), 1.0)
     n_d = g.vmath("DIVIDE", g.vmath("MULTIPLY", ops, ops), omr)
     n_m = g.vmath("DIVIDE", omr, g.vmath("ADD", r, 1.0))
     tint = g.vmath("DIVIDE", g.vmath("SUBTRACT", n_d, eta), g.vmath("SUBTRACT", n_d, n_m))

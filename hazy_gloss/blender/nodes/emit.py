@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Emit a :class:`hazy_gloss.core.graph.Graph` as nodes: shader trees (Math, Vector Math,
-Mix, Separate/Combine XYZ, Color Ramp) or compositor trees (scalar Math only: vectors become three lanes,
-selects become arithmetic, colours are split with the compositor's Separate Color)."""
+Clamp, Mix, Separate/Combine Color, Color Ramp) or compositor trees (scalar Math only: vectors
+become three lanes, selects become arithmetic, colours are split with the compositor's Separate
+Color)."""
 import numpy as np
 
 from ...core.graph import Expr
@@ -78,10 +79,10 @@ class _ShaderEmitter:
         if e.op == "input":
             self.sockets[e.index] = self.sources[e.name]
             return
-        if e.op == "SEPARATE":  # one Separate XYZ node per vector, shared by its lanes
-            src = e.args[0]
+        if e.op == "SEPARATE":  # one Separate Color node per vector, shared by its lanes (one
+            src = e.args[0]        # SVM node where Separate XYZ compiles to one per lane)
             if src.index not in self.separated:
-                node = self._node("ShaderNodeSeparateXYZ", e)
+                node = self._node("ShaderNodeSeparateColor", e, mode="RGB")
                 tb.feed(node.inputs[0], self.value(src))
                 self.separated[src.index] = (node, self.depth[e.index])
             node, d = self.separated[src.index]
@@ -89,7 +90,7 @@ class _ShaderEmitter:
             self.sockets[e.index] = node.outputs[e.lane]
             return
         if e.op == "COMBINE":
-            n = self._node("ShaderNodeCombineXYZ", e)
+            n = self._node("ShaderNodeCombineColor", e, mode="RGB")  # (likewise)
             for sock, a in zip(n.inputs, e.args):
                 tb.feed(sock, self.value(a))
             self.sockets[e.index] = n.outputs[0]
@@ -103,10 +104,12 @@ class _ShaderEmitter:
             tb.feed(_by_id(n.inputs, b), self.value(e.args[2]))
             self.sockets[e.index] = _by_id(n.outputs, res)
             return
-        if e.op == "VMIX":  # vector Mix, Non-Uniform factor
-            n = self._node("ShaderNodeMix", e, data_type="VECTOR", factor_mode="NON_UNIFORM",
-                           clamp_factor=False)
-            for ident, a in zip(("Factor_Vector", "A_Vector", "B_Vector"), e.args):
+        if e.op == "VMIX":  # vector Mix (a vector factor: Non-Uniform)
+            uniform = not e.args[0].vector
+            n = self._node("ShaderNodeMix", e, data_type="VECTOR", clamp_factor=False,
+                           factor_mode="UNIFORM" if uniform else "NON_UNIFORM")
+            fac = "Factor_Float" if uniform else "Factor_Vector"
+            for ident, a in zip((fac, "A_Vector", "B_Vector"), e.args):
                 tb.feed(_by_id(n.inputs, ident), self.value(a))
             self.sockets[e.index] = _by_id(n.outputs, "Result_Vector")
             return
