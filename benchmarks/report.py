@@ -28,6 +28,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_cycles", "perf_cycles.py"),
     ("perf_eevee", "perf_eevee.py"),
     ("perf_maps", "perf_maps.py"),
+    ("perf_nodes", "perf_nodes.py"),
     ("perf_mapping", "perf_mapping.py"),
     ("perf_layer", "perf_layer.py"),
     ("perf_layer_eevee", "perf_layer_eevee.py"),
@@ -128,8 +129,8 @@ def texture_driven(pm):
             f"{1 / r['q3']:.2f}-{1 / r['q1']:.2f}x) in section 3's scene, so the 1.15x target is "
             f"**{'met' if ok else 'not met'}** there. With constant inputs (section 4) Cycles "
             "folds the whole mapping into constants and the in-shader material costs the same as "
-            "the lean one. For textured materials that must render fast, bake the maps "
-            "(api.convert_maps); keep the in-shader group for procedural or animated inputs.")
+            "the lean one. Baked maps (api.convert_maps) save the rest; the in-shader group is "
+            "the path for procedural or animated inputs.")
 
 
 def marked_section(module, md):
@@ -179,7 +180,7 @@ def main():
         "Numerical accuracy of the mapping itself is in [numerics.md](numerics.md).")
     perf += "\n" + headlines() + "\n"
     perf += "\n".join([frag["perf_cycles"].split("## 4.")[0].rstrip() + "\n",
-                       frag["perf_eevee"], frag["perf_maps"],
+                       frag["perf_eevee"], frag["perf_maps"], frag["perf_nodes"],
                        "## 4." + frag["perf_cycles"].split("## 4.", 1)[1].rstrip() + "\n\n"
                        + texture_driven(C.read_json("perf_maps")) + "\n",
                        frag["perf_mapping"],

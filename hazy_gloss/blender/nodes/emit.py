@@ -113,12 +113,14 @@ class _ShaderEmitter:
                 tb.feed(_by_id(n.inputs, ident), self.value(a))
             self.sockets[e.index] = _by_id(n.outputs, "Result_Vector")
             return
-        if e.op == "SATURATE":  # colour Mix, factor 0, Clamp Result: v in [0, 1] per lane
+        if e.op == "SATURATE":  # colour Mix with Clamp Result: v in [0, 1] per lane
+            # v enters as B at factor 1 over A = 0: kept as is, ±inf included, in every version
+            # (as A at factor 0, 4.5 and 5.2 turn inf into NaN: docs/blender-versions.md)
             n = self._node("ShaderNodeMix", e, data_type="RGBA", blend_type="MIX",
                            clamp_factor=False, clamp_result=True)
-            tb.feed(_by_id(n.inputs, "Factor_Float"), 0.0)
-            tb.feed(_by_id(n.inputs, "A_Color"), self.value(e.args[0]))
-            tb.feed(_by_id(n.inputs, "B_Color"), (0.0, 0.0, 0.0, 1.0))
+            tb.feed(_by_id(n.inputs, "Factor_Float"), 1.0)
+            tb.feed(_by_id(n.inputs, "A_Color"), (0.0, 0.0, 0.0, 1.0))
+            tb.feed(_by_id(n.inputs, "B_Color"), self.value(e.args[0]))
             self.sockets[e.index] = _by_id(n.outputs, "Result_Color")
             return
         if e.op == "CLAMP":
