@@ -16,7 +16,7 @@ from .builder import TreeBuilder
 from .emit import emit
 from .lobes import build_lobes
 
-GROUP_VERSION = 4  # 4: Multiscatter GGX groups keep the peak (node_multiscatter)
+GROUP_VERSION = 5  # 5: cheaper node kinds (docs/performance.md, "What a node costs")
 
 
 _KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
