@@ -97,6 +97,8 @@ def main():
                              ("smooth (Bézier)", dict(smoothness=2.0)),
                              ("anisotropic + smooth", dict(anisotropy=0.5, haze_extent=(8.0, 2.0), smoothness=2.0))):
             p = dict(base, kind=kind, **extra)
+            if kind != "CONDUCTOR":  # (a dielectric or legacy material has no edge tint)
+                p.pop("edge_tint")
             lean = count(api.create_material("lean", **p))
             shader = count(api.create_material("shader", shader_mapping=True, **p))
             ms = count(api.create_material("shader ms", shader_mapping=True, distribution="MULTI_GGX", **p))
