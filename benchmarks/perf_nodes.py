@@ -87,10 +87,10 @@ def _chains():
     def mix_saturate(t, x, v, i):
         n = _new(t, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_factor=False,
                  clamp_result=True)
-        s = _ids(n, "inputs")
-        _set(s["Factor_Float"], 0.0)
-        t.links.new(v, s["A_Color"])
-        _set(s["B_Color"], (0.0, 0.0, 0.0, 1.0))
+        s = _ids(n, "inputs")  # as core.graph's SATURATE is emitted: v as B at factor 1
+        _set(s["Factor_Float"], 1.0)
+        _set(s["A_Color"], (0.0, 0.0, 0.0, 1.0))
+        t.links.new(v, s["B_Color"])
         return x, _ids(n, "outputs")["Result_Color"]
 
     def split_join(sep, comb):
@@ -133,7 +133,7 @@ def _chains():
         "vmath_div": ("Vector Math Divide", vmath("DIVIDE")),
         "mix_vector_uniform": ("Mix, vector, uniform factor", mix_vector(True)),
         "mix_vector_lanes": ("Mix, vector, non-uniform factor", mix_vector(False)),
-        "mix_saturate": ("Mix, colour, Clamp Result (factor 0)", mix_saturate),
+        "mix_saturate": ("Mix, colour, Clamp Result", mix_saturate),
         "xyz_pair": ("Separate XYZ + Combine XYZ", split_join("ShaderNodeSeparateXYZ",
                                                              "ShaderNodeCombineXYZ")),
         "color_pair": ("Separate Color + Combine Color", split_join("ShaderNodeSeparateColor",

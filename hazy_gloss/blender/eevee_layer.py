@@ -54,8 +54,12 @@ Remove Haze drops).  Every node made here carries the role ``"layer eevee ..."``
 from __future__ import annotations
 
 from .. import constants as K
+from ..core import node_math
+from ..core.graph import Graph
 from . import layer
 from .nodes import ownership
+from .nodes.builder import TreeBuilder
+from .nodes.emit import emit
 
 ROLE = "layer eevee "
 OUTPUT_ROLE = K.EEVEE_OUTPUT_ROLE
@@ -65,7 +69,6 @@ MODE_KEY = "hazy_gloss_eevee_mode"
 STAMP_KEY = "eevee"  # in the material's stamp (constants.STAMP): {"mode": ...}
 MODES = ("auto", "always")
 _PATH_TYPES = ("ShaderNodeMixShader", "ShaderNodeAddShader")
-_ROUGH_FLOOR = 1e-6
 
 
 def eevee_nodes(tree):
@@ -154,77 +157,39 @@ def needs_eevee_output(mat):
 # --------------------------------------------------------------------------------------------
 
 
-class _Math:
-    """Node math for the EEVEE copy's inputs (constants folded in Python)."""
+class _Values:
+    """The EEVEE copy's inputs as core.graph expressions: what feeds an input becomes a graph
+    input (a linked socket) or a constant; ``emit`` builds the nodes the results need."""
 
-    def __init__(self, tree, x, y):
-        self.tree = tree
-        self.count = 0
-        self.x, self.y = x, y
+    def __init__(self):
+        self.g = Graph()
+        self.sources = {}
+        self._names = {}
 
-    def _node(self, bl_idname, **props):
-        n = self.tree.nodes.new(bl_idname)
-        for k, v in props.items():
-            setattr(n, k, v)
-        _tag(n, f"{ROLE}math {self.count}")
-        n.location = (self.x - 160.0 * (self.count % 6), self.y - 120.0 * (self.count // 6))
-        n.hide = True
-        self.count += 1
-        return n
-
-    @staticmethod
-    def _feed(n, sock, v):
+    def __call__(self, v, colour=False):
+        """An Expr for ``v`` (a socket, a number or a colour) read as a number or, ``colour``,
+        as a colour (Blender converts a linked socket of the other kind as its input does)."""
         if _is_socket(v):
-            n.id_data.links.new(v, sock)
-        else:
-            sock.default_value = v
+            key = (v.node.name, v.identifier, colour)
+            if key not in self._names:
+                name = f"s{len(self._names)}"
+                self._names[key] = name
+                self.sources[name] = v
+            return self.g.input(self._names[key], vector=colour)
+        if colour:
+            v = tuple(float(x) for x in v[:3]) if hasattr(v, "__len__") else (float(v),) * 3
+            return self.g.const(v)
+        return self.g.const(float(v[0]) if hasattr(v, "__len__") else float(v))
 
-    def op(self, operation, a, b=0.0):
-        if not _is_socket(a) and not _is_socket(b):
-            return _CONST[operation](float(a), float(b))
-        n = self._node("ShaderNodeMath", operation=operation)
-        self._feed(n, n.inputs[0], a)
-        self._feed(n, n.inputs[1], b)
-        return n.outputs[0]
-
-    def mix_colour(self, fac, a, b):
-        if not any(_is_socket(v) for v in (fac, a, b)):
-            f = float(fac)
-            return tuple((1.0 - f) * x + f * y for x, y in zip(a, b))
-        n = self._node("ShaderNodeMix", data_type="RGBA", clamp_factor=True)
-        ins = {s.identifier: s for s in n.inputs}
-        self._feed(n, ins["Factor_Float"], fac)
-        self._feed(n, ins["A_Color"], _rgba(a))
-        self._feed(n, ins["B_Color"], _rgba(b))
-        return next(s for s in n.outputs if s.identifier == "Result_Color")
-
-    def add_colour(self, a, b):
-        if not _is_socket(a) and not _is_socket(b):
-            return tuple(x + y for x, y in zip(a, b))
-        n = self._node("ShaderNodeVectorMath", operation="ADD")
-        self._feed(n, n.inputs[0], _xyz(a))
-        self._feed(n, n.inputs[1], _xyz(b))
-        return n.outputs[0]
-
-    def colour_sum(self, a):
-        """r + g + b of a colour."""
-        if not _is_socket(a):
-            return float(sum(a[:3]))
-        n = self._node("ShaderNodeVectorMath", operation="DOT_PRODUCT")
-        self.tree.links.new(a, n.inputs[0])
-        n.inputs[1].default_value = (1.0, 1.0, 1.0)
-        return n.outputs["Value"]
-
-
-_CONST = {
-    "ADD": lambda a, b: a + b,
-    "SUBTRACT": lambda a, b: a - b,
-    "MULTIPLY": lambda a, b: a * b,
-    "DIVIDE": lambda a, b: a / b if b != 0.0 else 0.0,  # as Cycles' and EEVEE's Math node
-    "POWER": lambda a, b: a ** b if a > 0.0 else 0.0,
-    "MAXIMUM": max,
-    "MINIMUM": min,
-}
+    def emit(self, tree, outputs, x, y):
+        """``outputs`` (name -> Expr) as sockets or constants; the nodes made are tagged and
+        hidden below the core.  Returns (values, number of nodes)."""
+        tb = TreeBuilder(tree, x0=x, y0=y)
+        out = emit(tb, self.g, outputs, self.sources)
+        for i, n in enumerate(tb.created):
+            _tag(n, f"{ROLE}math {i}")
+            n.hide = True
+        return out, len(tb.created)
 
 
 def _is_socket(v):
@@ -236,10 +201,6 @@ def _rgba(v):
         return v
     v = tuple(float(x) for x in v)
     return v[:3] + (1.0,) if len(v) >= 3 else (v[0],) * 3 + (1.0,)
-
-
-def _xyz(v):
-    return v if _is_socket(v) else tuple(float(x) for x in v[:3])
 
 
 def _read(sock):
@@ -259,15 +220,6 @@ def _mix_factor(node):
     return _read(node.inputs[0])
 
 
-def fold_roughness(m, beta, r_n, r_w):
-    """R_f = R_n ((1 - β) + β (R_n / R_w)⁴)^(-1/4): the single GGX lobe with the peak of
-    (1 - β) D(α_n) + β D(α_w) at the same F(0) (1/α_f² = (1-β)/α_n² + β/α_w², α = R²)."""
-    ratio = m.op("DIVIDE", r_n, m.op("MAXIMUM", r_w, _ROUGH_FLOOR))
-    q = m.op("POWER", ratio, 4.0)
-    s = m.op("ADD", m.op("SUBTRACT", 1.0, beta), m.op("MULTIPLY", beta, q))
-    return m.op("MULTIPLY", r_n, m.op("POWER", m.op("MAXIMUM", s, 1e-12), -0.25))
-
-
 # --------------------------------------------------------------------------------------------
 # Building
 # --------------------------------------------------------------------------------------------
@@ -283,12 +235,14 @@ def _layer_node(tree, role):
     return ownership.ours(tree).get("layer " + role)
 
 
-def _overrides(mat, plan, m):
-    """{input name: value} the EEVEE copy of the core gets instead of the core's own."""
+def _overrides(mat, plan, val):
+    """{input name: Expr} the EEVEE copy of the core gets instead of the core's own (``val``:
+    the _Values the expressions belong to)."""
     tree = mat.node_tree
     core = plan.core
     slots = layer._existing(tree, plan)
     first = plan.parts[0] if plan.parts else None
+    g = val.g
     out = {}
     rough_name = "Roughness"
     if plan.parts:
@@ -297,29 +251,31 @@ def _overrides(mat, plan, m):
             narrow, wide = slots[(part, False, False)], slots[(part, True, False)]
             mix = _layer_node(tree, f"Mix {part.lower()}")
             if part == "GLOSSY":  # an Add Shader of k_n = (1-β) r and k_w = β r
-                cn, cw = _read(narrow.inputs["Color"]), _read(wide.inputs["Color"])
-                beta = m.op("DIVIDE", m.colour_sum(cw),
-                            m.op("MAXIMUM", m.op("ADD", m.colour_sum(cn), m.colour_sum(cw)), 1e-12))
-                out["Color"] = m.add_colour(cn, cw)
+                cn = val(_read(narrow.inputs["Color"]), colour=True)
+                cw = val(_read(wide.inputs["Color"]), colour=True)
+                sn, sw = g.dot(cn, (1.0, 1.0, 1.0)), g.dot(cw, (1.0, 1.0, 1.0))
+                beta = g.div(sw, g.maximum(g.add(sn, sw), 1e-12))
+                out["Color"] = g.vmath("ADD", cn, cw)
             else:
-                beta = _mix_factor(mix)
-            folded[part] = fold_roughness(m, beta, _read(narrow.inputs[rough_name]),
-                                          _read(wide.inputs[rough_name]))
+                beta = val(_mix_factor(mix))
+            folded[part] = node_math.folded_roughness(g, beta, val(_read(narrow.inputs[rough_name])),
+                                                      val(_read(wide.inputs[rough_name])))
         if plan.split:  # one copy for both parts: mixed by the user's metallic source
-            metal = _mix_factor(_layer_node(tree, "Mix metallic"))
+            metal = val(_mix_factor(_layer_node(tree, "Mix metallic")))
             d, k = folded["DIELECTRIC"], folded["METAL"]
-            out[rough_name] = m.op("ADD", d, m.op("MULTIPLY", metal, m.op("SUBTRACT", k, d)))
+            out[rough_name] = g.madd(metal, g.sub(k, d), d)
             out["Metallic"] = metal
-            out["Base Color"] = m.mix_colour(metal, _read(slots[("DIELECTRIC", False, False)]
-                                                         .inputs["Base Color"]),
-                                             _read(slots[("METAL", False, False)].inputs["Base Color"]))
+            colour = lambda part: val(_read(slots[(part, False, False)].inputs["Base Color"]),  # noqa: E731
+                                      colour=True)
+            # the Mix Shader's factor is clamped: so is this one
+            out["Base Color"] = g.mix(g.clamp(metal, 0.0, 1.0), colour("DIELECTRIC"), colour("METAL"))
         else:
             out[rough_name] = folded[first]
     if plan.coat:
         cw = slots[(first, False, True)]
-        out["Coat Roughness"] = fold_roughness(m, _mix_factor(_layer_node(tree, "Mix coat")),
-                                               _read(core.inputs["Coat Roughness"]),
-                                               _read(cw.inputs["Coat Roughness"]))
+        out["Coat Roughness"] = node_math.folded_roughness(
+            g, val(_mix_factor(_layer_node(tree, "Mix coat"))),
+            val(_read(core.inputs["Coat Roughness"])), val(_read(cw.inputs["Coat Roughness"])))
     return out
 
 
@@ -374,8 +330,9 @@ def build_eevee_output(mat, *, mode="auto"):
 
     core = plan.core
     made = []
-    m = _Math(tree, core.location.x - 200.0, core.location.y - 700.0)
-    over = _overrides(mat, plan, m)
+    val = _Values()
+    over, n_math = val.emit(tree, _overrides(mat, plan, val), core.location.x - 1400.0,
+                            core.location.y - 700.0)
     bsdf = tree.nodes.new(core.bl_idname)
     for prop in layer._NODE_PROPS.get(core.bl_idname, ()):
         setattr(bsdf, prop, getattr(core, prop))
@@ -432,7 +389,7 @@ def build_eevee_output(mat, *, mode="auto"):
             d.default_value = v
     user_out.is_active_output = True  # the user's output stays the one the editor shows
     return dict(added=True, reason=why if needed else "requested (mode 'always')",
-                nodes=len(made) + m.count)
+                nodes=len(made) + n_math)
 
 
 def _path(user_out, final):

@@ -201,6 +201,15 @@ class Graph:
             raise TypeError("select of a vector and a scalar")
         return self._make("MIX", (c, b, a), vector=vector, **kw)
 
+    def mix(self, t, a, b, **kw):
+        """(1 - t) a + t b, scalar ``t`` (the float or vector Mix node, factor not clamped)."""
+        t, a, b = self.value(t), self.value(a), self.value(b)
+        if t.vector:
+            raise TypeError("mix() takes a scalar factor (vmix: a vector one)")
+        if a.vector != b.vector:
+            raise TypeError("mix of a vector and a scalar")
+        return self._make("MIX", (t, a, b), vector=a.vector, **kw)
+
     def vmix(self, t, a, b, **kw):
         """(1 - t) a + t b per lane: the vector Mix node (Non-Uniform factor for a vector ``t``);
         scalar ``a``, ``b`` are broadcast."""

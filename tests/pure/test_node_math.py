@@ -228,6 +228,44 @@ def test_semantics_follow_blender():
     assert v["cmp"].tolist()[3] == 1.0
 
 
+def test_semantics_of_the_cheaper_node_kinds():
+    """Clamp (the kernel's comparisons: x NaN gives lo, a NaN bound wins the max), SATURATE
+    (NaN -> 0, ±inf kept and clamped), the vector Mix, vsqrt (< 0 gives 0); render-checked in
+    tests/blender/test_graph_semantics.py."""
+    g = Graph()
+    x, y = g.input("x"), g.input("y")
+    out = dict(clamp=g.clamp(x, 0.25, 0.75), low=g.clamp(0.5, x, 1e3), most=g.at_most(x, y),
+               sat=g.vclamp01(g.combine(x, y, 0.5)), mix=g.vmix(g.combine(x, 1.0, 0.5), 1.0, 1e-6),
+               root=g.vsqrt(g.combine(x, y, 4.0)))
+    v = evaluate(out, dict(x=np.array([np.nan, np.inf, -np.inf, 0.5, 1.0], F32),
+                           y=np.array([-1.0, 2.0, 0.1, 0.25, 9.0], F32)))
+    assert v["clamp"].tolist() == [0.25, 0.75, 0.25, 0.5, 0.75]
+    assert v["low"].tolist()[:3] == [1e3, 1e3, 0.5]  # NaN min: NaN, then min(NaN, 1e3) = 1e3
+    assert v["most"].tolist()[3:] == [0.25, 1.0]
+    assert v["sat"][:, 0].tolist() == [0.0, 1.0, 0.0, 0.5, 1.0]
+    assert v["sat"][:, 1].tolist() == [0.0, 1.0, F32(0.1), 0.25, 1.0]
+    assert v["mix"][4].tolist() == [F32(1e-6), F32(1e-6), F32(0.5) + F32(0.5) * F32(1e-6)]
+    assert v["root"][3:].tolist() == [[np.sqrt(F32(0.5)), 0.5, 2.0], [1.0, 3.0, 2.0]]
+    assert v["root"][0, 1] == 0.0  # √ of a negative
+
+
+def test_folded_roughness_has_the_peak_of_the_mix():
+    """The EEVEE fold: 1/α_f² = (1-β)/α_n² + β/α_w² (α = R²), i.e. the GGX peak D(0) ∝ 1/α²
+    of the two-lobe mix, against that formula in float64."""
+    rng = np.random.default_rng(3)
+    n = 2000
+    beta = rng.uniform(0.0, 1.0, n)
+    r_n = rng.uniform(0.02, 0.9, n)
+    r_w = np.minimum(r_n * rng.uniform(1.0, 8.0, n), 1.0)
+    g = Graph()
+    out = node_math.folded_roughness(g, g.input("b"), g.input("n"), g.input("w"))
+    got = evaluate(out, dict(b=beta.astype(F32), n=r_n.astype(F32), w=r_w.astype(F32)))
+    a_n, a_w = r_n.astype(F32).astype(np.float64) ** 2, r_w.astype(F32).astype(np.float64) ** 2
+    b = beta.astype(F32).astype(np.float64)
+    want = ((1.0 - b) / a_n ** 2 + b / a_w ** 2) ** -0.25  # R_f = α_f^½
+    assert np.max(np.abs(got / want - 1.0)) < 2e-6
+
+
 def test_node_counts_are_lean():
     """Shared sub-expressions and the Clamp/Mix forms keep the graph small (docs/node-groups.md
     lists the counts with the lobes)."""
