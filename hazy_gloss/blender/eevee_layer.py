@@ -120,8 +120,7 @@ def remove_eevee_output(mat):
 def _refresh_fallback(mat):
     """An export fallback's EEVEE render output gives way to ours and comes back without it."""
     from . import interchange
-    if interchange.FALLBACK_STAMP in mat:
-        interchange.refresh_export_fallback(mat)
+    interchange.refresh_stamped_fallback(mat)
 
 
 def _plan(mat):

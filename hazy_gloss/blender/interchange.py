@@ -831,6 +831,14 @@ def refresh_export_fallback(mat):
     return []
 
 
+def refresh_stamped_fallback(mat):
+    """refresh_export_fallback where the material's stamp says it has one (a key lookup, no
+    tree scan: called after every layer or EEVEE-output change).  Raises ValueError as
+    add_export_fallback does."""
+    if FALLBACK_STAMP in mat:
+        refresh_export_fallback(mat)
+
+
 # --------------------------------------------------------------------------------------------
 # Operators (thin: the work is above)
 # --------------------------------------------------------------------------------------------

@@ -43,7 +43,7 @@ def sync(mat, *, force=False):
     core = layer.find_core(mat.node_tree, state.get("core"))
     if core is None:
         properties.last_error[mat.session_uid] = (
-            f"The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
+            "The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
         return False
     key = mat.session_uid
     if not force and _fingerprints.get(key) == layer.fingerprint(core):
@@ -103,11 +103,10 @@ def refresh_fallback(mat):
     """The export fallback (if any) after the layer or its EEVEE output changed: its render
     output for EEVEE gives way to the EEVEE-only output, and comes back without it."""
     from . import interchange
-    if interchange.FALLBACK_STAMP in mat:
-        try:
-            interchange.refresh_export_fallback(mat)
-        except ValueError as exc:
-            properties.last_error[mat.session_uid] = plain_message(exc)
+    try:
+        interchange.refresh_stamped_fallback(mat)
+    except ValueError as exc:  # (a depsgraph handler: the panel shows it)
+        properties.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent
