@@ -14,8 +14,10 @@ the numpy mapping without rendering.
   comparisons (max(a, b) = a > b ? a : b): x NaN gives lo.  SVM runs it cheaper than a Math
   node, and a Math node's Clamp option costs a second node (Cycles expands it into one).
 - MIX(t, a, b) = (1-t) a + t b (the float Mix node): an exact select for t ∈ {0, 1} when both
-  branches are finite.  SATURATE(v): a colour Mix node with Clamp Result (factor 0), each lane
-  in [0, 1], NaN -> 0: one node where Vector Math needs two.
+  branches are finite.  VMIX: the vector Mix, per lane (a vector factor: Non-Uniform); with
+  a = 0 it is the product t b (finite t), cheaper in SVM than Vector Math Multiply.
+- SATURATE(v): each lane in [0, 1], NaN -> 0, ±inf to 1 / 0: a colour Mix node with Clamp
+  Result (v as B at factor 1), one node where Vector Math needs two.
 - RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
   Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
   the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).

@@ -222,7 +222,7 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         # v = (1-p) u = min((1-p) r̂_c / p, 1 - r̂_c) (exactly 1 - r̂_c on the energy side):
         # r̂ = r̂_c + β_h v and 1 - r̂ = v (1-β_h) + (1 - r̂_c - v), sums of non-negative terms
         # (the last one is 0 on the energy side, (p - r̂_c) / p on the other, as accurate as
-        # p (1-r̂_c) - r̂_c (1-p)).  p >= 2.6e-10 (α_n >= 1.6e-5, α_w <= 1); 1 - p = 0: no halo
+        # p (1-r̂_c) - r̂_c (1-p)).  p > 0 (α_n >= 1.6e-5, α_w <= 1); 1 - p = 0: no halo
         u_pos = g.div(rc_max, p)
         v = g.at_most(g.mul(q, u_pos), omr, label="(1-p) u")
         u = g.at_most(u_pos, g.div(omr, g.at_least(q, _DIV_MIN)), label="u (Eq. 7)")
