@@ -317,6 +317,41 @@ def test_renamed_group_stays_attached(env):
     assert g.inputs["Roughness"].default_value == pytest.approx(0.33, abs=1e-6)
 
 
+def _interface_names(ng):
+    return [(i.item_type, i.name) for i in ng.interface.items_tree]
+
+
+@pytest.mark.parametrize("changed", [False, True], ids=["same sockets", "sockets changed"])
+def test_outdated_group_is_rebuilt_in_place(env, changed):
+    """A group saved by an older add-on (an older stamp version) is rebuilt on first use with
+    its sockets kept: no duplicated interface, the user's links and typed values stay; when the
+    interface itself differs, the group nodes' links and values are put back by name."""
+    groups = importlib.import_module(env.hg.__name__ + ".blender.nodes.groups")
+    mat = in_shader(env)
+    tree = mat.node_tree
+    g = group(env, mat)
+    ng = g.node_tree
+    want = _interface_names(ng)
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tree.links.new(tex.outputs["Color"], g.inputs["Core Reflectivity"])
+    g.inputs["Haze Extent"].default_value = 7.5
+    if changed:  # a socket of an older layout
+        ng.interface.new_socket(name="Old Input", in_out="INPUT", socket_type="NodeSocketFloat")
+    stamp = dict(ng[env.K.GROUP_STAMP])
+    stamp["version"] = groups.GROUP_VERSION - 1
+    ng[env.K.GROUP_STAMP] = stamp
+    assert groups.ensure_group("CONDUCTOR") == ng
+    assert _interface_names(ng) == want
+    assert ng[env.K.GROUP_STAMP]["version"] == groups.GROUP_VERSION
+    g = group(env, mat)
+    assert g.inputs["Core Reflectivity"].links[0].from_node == tex
+    assert g.inputs["Haze Extent"].default_value == pytest.approx(7.5)
+    assert g.outputs["BSDF"].is_linked
+    # the rebuilt group reads its inputs: a slider change still sets the group's value
+    assert panel_change(env, mat, haziness=0.25) is None
+    assert group(env, mat).inputs["Haziness"].default_value == pytest.approx(0.25)
+
+
 # --------------------------------------------------------------------------------------------
 # e. The depsgraph handler reads edits of a material in use back at once
 # --------------------------------------------------------------------------------------------

@@ -110,9 +110,88 @@ def _interface(ng, kind, anisotropic, smooth):
     _socket(it, "Normal", "NodeSocketVector", hide_value=True, desc="Shading normal (e.g. normal map)")
 
 
+def _interface_items(iface):
+    """What an interface holds, in order: (kind, name, socket type, direction, panel)."""
+    out = []
+    for item in iface.items_tree:
+        parent = getattr(getattr(item, "parent", None), "name", None)
+        if item.item_type == "SOCKET":
+            out.append(("SOCKET", item.name, item.socket_type, item.in_out, parent))
+        else:
+            out.append((item.item_type, item.name, parent))
+    return out
+
+
+_SOCKET_ATTRS = ("default_value", "min_value", "max_value", "description", "hide_value")
+
+
+def _users(ng):
+    """Group nodes using ``ng`` in materials and node groups, with their links and unlinked
+    input values by socket name (to restore them after the interface is made anew)."""
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
+    trees += [t for t in bpy.data.node_groups if t != ng]
+    found = []
+    for tree in trees:
+        for node in tree.nodes:
+            if node.bl_idname != "ShaderNodeGroup" or node.node_tree != ng:
+                continue
+            ins = [(s.name, l.from_socket) for s in node.inputs for l in s.links]
+            outs = [(s.name, l.to_socket) for s in node.outputs for l in s.links]
+            vals = {s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__")
+                             else s.default_value)
+                    for s in node.inputs if not s.is_linked and hasattr(s, "default_value")}
+            found.append((tree, node.name, ins, outs, vals))
+    return found
+
+
+def _restore_users(found):
+    for tree, name, ins, outs, vals in found:
+        node = tree.nodes.get(name)
+        if node is None:
+            continue
+        for sname, v in vals.items():
+            sock = node.inputs.get(sname)
+            if sock is not None and hasattr(sock, "default_value") and not sock.is_linked:
+                try:
+                    sock.default_value = v
+                except (TypeError, ValueError):
+                    pass
+        for sname, src in ins:
+            if node.inputs.get(sname) is not None:
+                tree.links.new(src, node.inputs[sname])
+        for sname, dst in outs:
+            if node.outputs.get(sname) is not None:
+                tree.links.new(node.outputs[sname], dst)
+
+
+def _rebuild_interface(ng, kind, anisotropic, smooth):
+    """Give ``ng`` this configuration's interface.  A group being rebuilt (an outdated version
+    in the user's file) keeps its sockets when they are the same, so every link and value its
+    group nodes have stays; otherwise the interface is made anew and the group nodes' links
+    and values are put back by socket name."""
+    if not len(ng.interface.items_tree):
+        _interface(ng, kind, anisotropic, smooth)
+        return
+    tmp = bpy.data.node_groups.new(".Hazy Gloss interface", "ShaderNodeTree")
+    try:
+        _interface(tmp, kind, anisotropic, smooth)
+        if _interface_items(ng.interface) == _interface_items(tmp.interface):
+            for have, want in zip(ng.interface.items_tree, tmp.interface.items_tree):
+                for attr in _SOCKET_ATTRS:
+                    if hasattr(want, attr) and hasattr(have, attr):
+                        setattr(have, attr, getattr(want, attr))
+            return
+        found = _users(ng)
+        ng.interface.clear()
+        _interface(ng, kind, anisotropic, smooth)
+        _restore_users(found)
+    finally:
+        bpy.data.node_groups.remove(tmp)
+
+
 def build_group(ng, kind, distribution, anisotropic, smooth):
     ng.nodes.clear()
-    _interface(ng, kind, anisotropic, smooth)
+    _rebuild_interface(ng, kind, anisotropic, smooth)
     gin = ng.nodes.new("NodeGroupInput")
     gin.location = (-300, 0)
     gout = ng.nodes.new("NodeGroupOutput")
