@@ -25,6 +25,8 @@ input of the copies follows the core (:func:`sync`).
 """
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
 from .. import constants as K
@@ -93,6 +95,19 @@ class _Links:
     @classmethod
     def changed(cls):
         cls.into = None
+
+
+@contextlib.contextmanager
+def _links_cached(tree):
+    """_Links for ``tree`` while the block runs (inside another such block: that one's)."""
+    if _Links.tree is not None:
+        yield
+        return
+    _Links.tree, _Links.into = tree.as_pointer(), None
+    try:
+        yield
+    finally:
+        _Links.tree = _Links.into = None
 
 
 def _source(sock):
@@ -659,11 +674,8 @@ def apply(mat, haze, *, core=None, baked=None):
     read from maps instead of node math (texture conversion): {"maps": {output key: Image},
     "vector": the coordinates socket or None, "interpolation": ...}; kept in the stamp, so
     later updates keep them.  Returns the constant parts' HazeMappings by part."""
-    _Links.tree, _Links.into = mat.node_tree.as_pointer(), None
-    try:
+    with _links_cached(mat.node_tree):
         return _apply(mat, haze, core, baked)
-    finally:
-        _Links.tree = _Links.into = None
 
 
 def output_keys(plan):
@@ -933,6 +945,11 @@ def remove(mat):
 def fingerprint(core):
     """A hash of what the copies must follow: the core's inputs (values and link sources) and
     node settings (the depsgraph handler resyncs when it changes)."""
+    with _links_cached(core.id_data):
+        return _fingerprint(core)
+
+
+def _fingerprint(core):
     items = []
     for s in core.inputs:
         src = _source(s)
@@ -949,6 +966,11 @@ def read(mat):
     """The perceptual view of a layered material: the haze parameters, and the core's own
     parameters as it holds them (linked inputs report their unlinked value and are listed in
     ``textured``).  Raises ValueError (one line) when the layer's stamp is damaged."""
+    with _links_cached(mat.node_tree):
+        return _read(mat)
+
+
+def _read(mat):
     from . import stamp as _stamp_module
     state = layer_state(mat) or {}
     problem = _stamp_module.layer_problem(mat, state.get("problems", []))
