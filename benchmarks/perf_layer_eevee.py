@@ -26,7 +26,6 @@ and, run standalone, replaces its section of docs/performance.md (between its ma
 from __future__ import annotations
 
 import datetime
-import json
 import os
 import subprocess
 import sys
@@ -145,16 +144,9 @@ def variants_of(label):
 
 
 def plane_render(mat, engine, samples, light, view):
-    import bpy
     import scenes
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    if engine == "EEVEE":
-        scenes.eevee_setup(samples=samples, resolution=PLANE_RES)
-    else:
-        scenes.setup_render("CYCLES", samples=1, resolution=PLANE_RES, bounces=0)
-    scenes.flat_plane_scene(mat, light_dir=light, view_dir=view)
-    return scenes.render_exr()[..., :3].astype(np.float64)
+    return scenes.render_plane(mat, engine=engine, samples=samples, resolution=PLANE_RES,
+                               light_dir=light, view_dir=view)
 
 
 def closures():

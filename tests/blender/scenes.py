@@ -344,6 +344,45 @@ def flat_plane_scene(material, *, tilt_deg=0.0, view_dir=None, light_dir=(30.0, 
     }
 
 
+def render_plane(material, *, engine="CYCLES", samples=1, resolution=(8, 8), light_dir=(30.0, 0.0),
+                 view_dir=(0.0, 0.0), strength=1.0):
+    """``material`` on flat_plane_scene in a scene of its own (every object removed first):
+    Cycles with 1 sample and no bounces (every pixel f_r(wi, wo) cos θi · strength), or EEVEE
+    with ``samples``.  Returns the float64 RGB image."""
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    if engine == "EEVEE":
+        eevee_setup(samples=samples, resolution=resolution)
+    else:
+        setup_render("CYCLES", samples=1, resolution=resolution, bounces=0)
+    flat_plane_scene(material, light_dir=light_dir, view_dir=view_dir, strength=strength)
+    return render_exr()[..., :3].astype(np.float64)
+
+
+def _feed(tree, sock, v):
+    if isinstance(v, bpy.types.NodeSocket):
+        tree.links.new(v, sock)
+    elif v is not None:
+        sock.default_value = v
+
+
+def math_node(tree, op, *operands):
+    """A Math node ``op`` on ``operands`` (sockets are linked, numbers typed in); its output."""
+    n = tree.nodes.new("ShaderNodeMath")
+    n.operation = op
+    for sock, v in zip(n.inputs, operands):
+        _feed(tree, sock, v)
+    return n.outputs[0]
+
+
+def combine_xyz(tree, *lanes):
+    """A Combine XYZ node of three lanes (sockets or numbers); its output."""
+    n = tree.nodes.new("ShaderNodeCombineXYZ")
+    for sock, v in zip(n.inputs, lanes):
+        _feed(tree, sock, v)
+    return n.outputs[0]
+
+
 def plane_grid_scene(materials, *, strength=1.0):
     """One unit plane per material, tiled in a square grid facing +Z, seen straight down by an
     orthographic camera, lit by a delta sun along the normal: one render measures them all.

@@ -10,7 +10,6 @@ import importlib
 import math
 from types import SimpleNamespace
 
-import bpy
 import numpy as np
 import pytest
 
@@ -79,14 +78,8 @@ def snapshot(mat, ours):
 
 
 def render(mat, engine="CYCLES", samples=1, light=(30.0, 0.0), view=(0.0, 0.0), res=(8, 8)):
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    if engine == "EEVEE":
-        scenes.eevee_setup(samples=samples, resolution=res)
-    else:
-        scenes.setup_render("CYCLES", samples=1, resolution=res, bounces=0)
-    scenes.flat_plane_scene(mat, light_dir=light, view_dir=view)
-    return scenes.render_exr()[..., :3].astype(np.float64)
+    return scenes.render_plane(mat, engine=engine, samples=samples, resolution=res,
+                               light_dir=light, view_dir=view)
 
 
 @pytest.mark.parametrize("name", list(MATERIALS))

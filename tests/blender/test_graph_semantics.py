@@ -8,7 +8,6 @@ before the kernel sees them; each probe emits three lanes on a flat plane, 1 sam
 """
 import importlib
 
-import bpy
 import numpy as np
 import pytest
 
@@ -25,15 +24,7 @@ def g_mod(hg, clean_file):
             importlib.import_module(hg.__name__ + ".blender.compat"))
 
 
-def _math(tree, op, a, b):
-    n = tree.nodes.new("ShaderNodeMath")
-    n.operation = op
-    for sock, v in zip(n.inputs, (a, b)):
-        if isinstance(v, bpy.types.NodeSocket):
-            tree.links.new(v, sock)
-        else:
-            sock.default_value = v
-    return n.outputs[0]
+_math = scenes.math_node
 
 
 def _special(tree, key):
@@ -68,20 +59,10 @@ def _render(mods, build, key):
     lanes = build(g, x)
     want = graph.evaluate(lanes, {"x": np.float32(_value(key))})
     sock = emit.emit(builder.TreeBuilder(tree), g, lanes, {"x": _special(tree, key)})
-    comb = tree.nodes.new("ShaderNodeCombineXYZ")
-    for i, s in enumerate(sock):
-        if isinstance(s, bpy.types.NodeSocket):
-            tree.links.new(s, comb.inputs[i])
-        else:
-            comb.inputs[i].default_value = s
     em = tree.nodes.new("ShaderNodeEmission")
-    tree.links.new(comb.outputs[0], em.inputs["Color"])
+    tree.links.new(scenes.combine_xyz(tree, *sock), em.inputs["Color"])
     tree.links.new(em.outputs[0], out.inputs["Surface"])
-    scenes.setup_render("CYCLES", samples=1, resolution=(2, 2), bounces=0)
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    scenes.flat_plane_scene(mat, light_dir=(0.0, 0.0), view_dir=(0.0, 0.0), strength=0.0)
-    got = scenes.render_exr()[0, 0, :3].astype(np.float64)
+    got = scenes.render_plane(mat, resolution=(2, 2), light_dir=(0.0, 0.0), strength=0.0)[0, 0]
     return got, np.array([float(w) for w in want])
 
 

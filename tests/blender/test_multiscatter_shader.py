@@ -17,7 +17,6 @@ Python); haziness 0, 0.3, 0.6, 0.9 over the same textures.
 import importlib
 from types import SimpleNamespace
 
-import bpy
 import numpy as np
 import pytest
 
@@ -40,27 +39,8 @@ def mods(hg, clean_file):
                            api=mod("api"), material=mod("blender.material"))
 
 
-def _math(tree, op, a, b=None, c=None):
-    n = tree.nodes.new("ShaderNodeMath")
-    n.operation = op
-    for sock, v in zip(n.inputs, (a, b, c)):
-        if v is None:
-            continue
-        if isinstance(v, bpy.types.NodeSocket):
-            tree.links.new(v, sock)
-        else:
-            sock.default_value = v
-    return n.outputs[0]
-
-
-def _combine(tree, *lanes):
-    n = tree.nodes.new("ShaderNodeCombineXYZ")
-    for sock, v in zip(n.inputs, lanes):
-        if isinstance(v, bpy.types.NodeSocket):
-            tree.links.new(v, sock)
-        else:
-            sock.default_value = v
-    return n.outputs[0]
+_math = scenes.math_node
+_combine = scenes.combine_xyz
 
 
 def _textures(tree, lobe):
@@ -155,11 +135,7 @@ def hazy_material(m, name, lobe, haziness, extent=6.0, multiscatter=True):
 
 
 def render(mat, light=(0.0, 0.0)):
-    scenes.setup_render("CYCLES", samples=1, resolution=(RES, RES), bounces=0)
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    scenes.flat_plane_scene(mat, light_dir=light, view_dir=(0.0, 0.0))
-    return scenes.render_exr()[..., :3].astype(np.float64)
+    return scenes.render_plane(mat, resolution=(RES, RES), light_dir=light)
 
 
 def drift(images):
@@ -268,11 +244,8 @@ def test_cycles_evaluates_the_graph_as_numpy(mods, lobe):
             params = dict(params, core_reflectivity=(params["core_reflectivity"][1],) * 3)
         for outputs in (("beta", "reflectivity_max", "halo_max"), ("reflectivity",)):
             mat, want = _emit_values(mods, lobe, params, outputs)
-            scenes.setup_render("CYCLES", samples=1, resolution=(2, 2), bounces=0)
-            for o in list(bpy.data.objects):
-                bpy.data.objects.remove(o)
-            scenes.flat_plane_scene(mat, light_dir=(0.0, 0.0), view_dir=(0.0, 0.0), strength=0.0)
-            got = scenes.render_exr()[0, 0, :len(want)].astype(np.float64)
+            got = scenes.render_plane(mat, resolution=(2, 2), light_dir=(0.0, 0.0),
+                                      strength=0.0)[0, 0, :len(want)]
             err = float(np.max(np.abs(got - want)))
             worst = max(worst, err)
             assert err <= 2e-5, (lobe, params, outputs, got, want)
