@@ -149,7 +149,7 @@ def main():
                                                       - true_maps["roughness_wide"])))
         res["formats"][key] = {"label": label, "map_error": errs,
                                "bytes": sum(os.path.getsize(p) for p in paths.values())}
-        mats[key] = _baked_material(bpy, tree_name=f"maps {key}", imgs=imgs, png=png)
+        mats[key] = _baked_material(tree_name=f"maps {key}", imgs=imgs, png=png)
 
     res["in_bytes"] = sum(os.path.getsize(p) for p in in_paths.values())
 
@@ -244,15 +244,11 @@ def _texture(tree, image):
     return t
 
 
-def _baked_material(bpy, tree_name, imgs, png):
+def _baked_material(tree_name, imgs, png):
     """Two Metallic lobes + mix, every physical value from the baked maps (x/(1+x) decoded for
     PNG: η, κ >= 0 do not fit in [0, 1])."""
-    mat = bpy.data.materials.new(tree_name)
-    tree = mat.node_tree
-    for n in list(tree.nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            tree.nodes.remove(n)
-    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    import perf_scene as P
+    mat, tree, out = P.empty_material(tree_name)
     tex = {k: _texture(tree, im) for k, im in imgs.items()}
 
     def decoded(k):

@@ -144,13 +144,9 @@ def _chains():
     }
 
 
-def _material(bpy, name, step=None):
-    mat = bpy.data.materials.new(name)
-    t = mat.node_tree
-    for n in list(t.nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            t.nodes.remove(n)
-    out = next(n for n in t.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+def _material(name, step=None):
+    import perf_scene as P
+    mat, t, out = P.empty_material(name)
     tc = _new(t, "ShaderNodeTexCoord")
     sep = _new(t, "ShaderNodeSeparateXYZ")
     t.links.new(tc.outputs["Generated"], sep.inputs[0])
@@ -195,16 +191,15 @@ def _material(bpy, name, step=None):
 
 def main():
     C.start_blender()
-    import bpy
     import perf_scene as P
     import scenes
 
     C.clean_file()
     scenes.setup_render(samples=SAMPLES, resolution=P.RESOLUTION, bounces=2)
     chains = _chains()
-    mats = {"base": _material(bpy, "base")}
+    mats = {"base": _material("base")}
     for key, (_, step) in chains.items():
-        mats[key] = _material(bpy, key, step)
+        mats[key] = _material(key, step)
     info = P.lit_sphere_scene(mats["base"])
 
     def render(mat):

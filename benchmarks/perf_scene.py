@@ -129,7 +129,8 @@ def lit_sphere_scene(material, *, light_power=150.0, light_size=1.0):
 # --------------------------------------------------------------------------------------------
 
 
-def _new_material(name):
+def empty_material(name):
+    """A new material holding only its Material Output: (material, tree, output node)."""
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
@@ -195,7 +196,7 @@ def hand_built(api, params, variant, name=None):
     """``mix`` (two lobes + Mix Shader by β) or ``single`` (the narrow lobe alone), typed in
     from the physical values without the add-on's tree code."""
     ph = physical(api, params)
-    mat, tree, out = _new_material(name or f"{variant} {ph['kind']}")
+    mat, tree, out = empty_material(name or f"{variant} {ph['kind']}")
     tangent = None
     if ph["anisotropic"]:
         t = tree.nodes.new("ShaderNodeTangent")
