@@ -198,10 +198,7 @@ class Graph:
             return a
         if c.is_const:
             return a if float(c.value) >= 0.5 else b
-        vector = a.vector or b.vector
-        if vector and not (a.vector and b.vector):
-            raise TypeError("select of a vector and a scalar")
-        return self._make("MIX", (c, b, a), vector=vector, **kw)
+        return self.mix(c, b, a, **kw)
 
     def mix(self, t, a, b, **kw):
         """(1 - t) a + t b, scalar ``t`` (the float or vector Mix node, factor not clamped)."""
