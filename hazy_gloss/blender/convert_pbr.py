@@ -1,15 +1,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Convert a PBR texture set (base colour, metallic, roughness, normal, coat, alpha, as any
-texture library ships them) plus haze maps into a Principled material with a baked haze layer.
+texture library ships them) plus haze maps into a Principled material with a converted haze
+layer.
 
 The set goes into a Principled BSDF (a new material, or the user's own: its empty inputs take
-the maps; an input the user linked to something else is refused, never replaced).  The haze
-layer is the one Make Hazy builds (blender.layer): its outputs (the raised IOR / Base Color, the
-wide roughness, β per part, the coat's) are computed by the layer's own graph (core.graph:
-the node math of the in-shader layer, evaluated in numpy with Blender's float32 semantics) over
-every texel and written as maps, all or nothing (blender.convert's transaction); the layer then
-reads those maps instead of node math.  A Metallic map splits the material per texel into its
-dielectric and metal parts, each with its own β map.
+the maps; an input the user linked to something else is refused, never replaced), which then
+becomes a layer node (blender.layer) whose group reads the haze mapping's per-texel values —
+the raised IOR / Base Color, the wide roughness, β per part, the coat's (core.layer_graph.BAKED)
+— from maps: the live layer's own graph (core.layer_graph, evaluated in numpy with Blender's
+float32 node semantics) over every texel, written all or nothing (blender.convert's
+transaction).  A Metallic map splits the material per texel into its dielectric and metal
+parts, each with its own β map.  (Make Hazy gives the live layer instead: no maps, the shader
+computes the same per shading point.)
 """
 from __future__ import annotations
 
@@ -22,9 +24,10 @@ import numpy as np
 from .. import constants as K
 from .. import convert as core
 from ..convert import ConversionError, did_you_mean
+from ..core import layer_graph
 from ..core.graph import evaluate
 from ..core.parameters import HAZE_DEFAULTS, RANGES
-from . import compat, layer
+from . import compat, layer, layer_group
 from .convert import (_EXT, _Source, _Transaction, _Writer, _check_prefix, _check_readable,
                       _check_targets, _final_path, _image_for, _out_path, _reason)
 from .make_hazy import find_core_bsdf
@@ -57,15 +60,8 @@ def is_pbr(inputs):
 
 
 def _slug(key):
-    """A file name for one output of the layer (e.g. metal_base_color, beta_dielectric)."""
-    if key[0] == "m":
-        return "beta_" + key[1].split(" ", 1)[1].replace(" ", "_") if key[1] != "Mix metallic" \
-            else "metallic_mix"
-    where, name = key[1], key[2].lower().replace(" ", "_")
-    if where in ("coat", "coat wide"):
-        return f"{where.replace(' ', '_')}_{name}"
-    part, wide = where
-    return f"{str(part).lower()}_{'wide_' if wide else ''}{name}"
+    """A file name for one converted map (e.g. beta_metal, raised_base_color)."""
+    return layer_graph.BAKED[key][0].lower().replace("β", "beta").replace(" ", "_")
 
 
 def _is_constant(v):
@@ -202,7 +198,9 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             raise ConversionError(f"“{material.name}” already has a haze layer set in Blender: "
                                   f"Remove Haze first (conversion bakes its own)")
         mat = material
-        bsdf = layer.find_core(mat.node_tree) or find_core_bsdf(mat.node_tree)
+        if layer.is_layered(mat):  # converted before: its BSDF takes the new set
+            layer.remove(mat)
+        bsdf = find_core_bsdf(mat.node_tree)
         if bsdf is None or bsdf.bl_idname != layer.PRINCIPLED:
             raise ConversionError(f"“{mat.name}” has no Principled BSDF on its Material Output "
                                   f"to take the PBR set")
@@ -267,66 +265,74 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         if "haziness" not in arrays and "haziness" not in constants and "coat_haziness" not in \
                 arrays and "coat_haziness" not in constants:
             warnings.append("no haziness given: the layer holds no haze (haziness 0)")
-        # evaluate the layer's graph over the texels
-        state = layer.layer_state(mat) or {}
-        plan = layer.Plan(bsdf, haze, dict(state.get("base", {})))
-        for nm_ in plan.owned():
-            if nm_ not in plan.base:
-                plan.base[nm_] = layer._current(bsdf.inputs[nm_])
-        flat, g, graph_sources, _ = layer.output_keys(plan)
-        warnings.extend(plan.notes)
+        # evaluate the live layer's graph over the texels
+        settings = layer_group.settings_of(bsdf)
+        lay = layer_graph.build(layer_group.config_for("PRINCIPLED", settings,
+                                                       smooth=smoothness is not None))
+        g = lay.graph
         feeds = {f"in:{PBR_MAPS[k][0]}": arrays[k] for k in arrays if k in PBR_MAPS}
-        for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y"):
+        for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y",
+                    "smoothness"):
             src = key if key in arrays else "haze_extent" if key.startswith("haze_extent_") else None
             if src in arrays:
                 feeds[f"haze:{key}"] = arrays[src]
-        for n, sock in graph_sources.items():  # the user's own image textures are maps too
-            if n in feeds or not n.startswith("in:") or sock is None:
+            elif key == "smoothness":
+                feeds["haze:smoothness"] = 2.0 if smoothness is None else float(smoothness)
+            else:
+                v = haze["haze_extent"]["xy".index(key[-1])] if key.startswith("haze_extent_") \
+                    else haze[key]
+                feeds[f"haze:{key}"] = float(v)
+        needed = {e.name for e in g.used(lay.baked) if e.op == "input"}
+        for n in sorted(needed - set(feeds)):
+            sock = bsdf.inputs.get(n[3:]) if n.startswith("in:") else None
+            if sock is None:
+                raise ConversionError(f"the layer needs {n}, which conversion cannot give")
+            if not sock.is_linked:
+                v = sock.default_value
+                feeds[n] = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
                 continue
-            node = sock.node
+            node = sock.links[0].from_node  # the user's own image textures are maps too
+            from_id = sock.links[0].from_socket.identifier
             if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and \
-                    sock.identifier in ("Color", "Alpha") and not node.inputs["Vector"].is_linked:
+                    from_id in ("Color", "Alpha") and not node.inputs["Vector"].is_linked:
                 colour = g.inputs[n].vector
                 a = _Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
                             else "data", node.image)
                 a.check()
                 v = a.read(None, warnings)
-                if sock.identifier == "Alpha":
+                if from_id == "Alpha":
                     v = _alpha_of(node.image)
                 if v.shape[:2] != (h, w):
                     raise ConversionError(f"“{node.name}” ({node.image.name}, linked into "
                                           f"{n[3:]}) is {v.shape[1]}x{v.shape[0]}, the set "
                                           f"{w}x{h}: give {n[3:]} as a map of the set's size")
                 feeds[n] = v
-        missing = [n for n in graph_sources if n not in feeds]
-        if missing:
-            names = ", ".join(n[3:] for n in missing)
-            raise ConversionError(f"{names} of “{bsdf.name}” is linked to a node conversion cannot "
+                continue
+            raise ConversionError(f"{n[3:]} of “{bsdf.name}” is linked to a node conversion cannot "
                                   f"evaluate: give it as a map, or unlink it")
-        for k in list(feeds):  # vectors as (H, W, 3), scalars as (H, W)
+        for k in list(feeds):  # vectors as (H, W, 3) or 3 numbers, scalars as (H, W) or a number
             e = g.inputs.get(k)
-            a = feeds[k]
+            a = np.asarray(feeds[k], np.float32)
             if e is not None and e.vector and a.ndim == 2:
-                feeds[k] = np.repeat(a[..., None], 3, axis=-1)
+                a = np.repeat(a[..., None], 3, axis=-1)
+            elif e is not None and e.vector and a.ndim == 0:
+                a = np.repeat(a, 3)
             elif e is not None and not e.vector and a.ndim == 3:
-                feeds[k] = a[..., 0]
-        # what varies per texel is baked; a map the layer only passes on (the metallic mix
-        # factor) is linked as it is
-        live = {k: e for k, e in flat.items()
-                if not e.is_const and not (e.op == "input" and e.name.startswith("in:"))}
-        values = evaluate(live, feeds)
+                a = a[..., 0]
+            elif e is not None and not e.vector and a.ndim == 1:
+                a = a[0]
+            feeds[k] = a
+        values = evaluate(lay.baked, feeds)
         ext_ = _EXT["OPEN_EXR"]
-        first = {}  # one map per distinct value (the narrow and wide lobes share the IOR)
-        for k, e in live.items():
-            first.setdefault(id(e), k)
-        paths = {k: _final_path(out_dir, prefix, _slug(k), None, ext_) for k in first.values()}
+        paths = {k: _final_path(out_dir, prefix, _slug(k), None, ext_) for k in lay.baked}
         _check_targets(list(paths.values()), {os.path.realpath(p) for s in sources.values()
                                                for p in s.files()}, txn)
         writer = _Writer("OPEN_EXR", exr_codec)
         txn.make_folder()
         for i, (k, path) in enumerate(paths.items()):
             v = np.asarray(values[k], np.float32)
-            v = np.broadcast_to(v, (h, w) + v.shape[2:] if v.ndim >= 2 else (h, w))
+            full = (h, w) + ((3,) if layer_graph.BAKED[k][1] else ())
+            v = np.broadcast_to(v, full)
             writer.write(np.ascontiguousarray(v), txn.temp(path), path)
             written.append(path)
             if progress is not None:
@@ -335,10 +341,8 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         writer = None
         txn.commit()
         images_out = {k: _image_for(p) for k, p in paths.items()}
-        baked = {k: images_out[first[id(e)]] for k, e in live.items()}
-        layer.apply(mat, haze, core=bsdf, baked=dict(
-            maps=baked, vector=vector, interpolation=interpolation,
-            sources=sorted(k for k in graph_sources if k.startswith("in:"))))
+        attach_converted_layer(mat, bsdf, images_out, vector, interpolation,
+                               sorted(n[3:] for n in needed if n.startswith("in:")))
     except BaseException as exc:
         if writer is not None:
             writer.close()
@@ -359,10 +363,31 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         if problems and isinstance(exc, ConversionError):
             raise ConversionError(f"{exc}; " + "; ".join(problems)) from None
         raise
-    report = core.ConversionReport(kind="PBR", distribution=bsdf.distribution,
+    report = core.ConversionReport(kind="PBR", distribution=settings["distribution"],
                                    file_format="OPEN_EXR", size=(w, h), texels=w * h,
                                    warnings=list(dict.fromkeys(warnings)))
     report.seconds = time.perf_counter() - t0
     result = core.ConversionResult({_slug(k): p for k, p in paths.items()}, report, [])
     result.material = mat
     return result
+
+
+def attach_converted_layer(mat, bsdf, images, vector, interpolation, sources=()):
+    """``bsdf`` becomes a layer node whose group reads the converted maps ``images`` (BAKED key
+    -> Image), linked through Image Textures into its Converted Maps (the one place the
+    conversion wires the layer).  ``sources``: the BSDF inputs the maps were computed from
+    (what they held is recorded: layer.notes says when they change)."""
+    record = layer.input_record(bsdf, sources)
+    node = layer.wrap(mat, bsdf, {}, baked=True)
+    layer.record_baked_sources(mat, record)
+    tree = mat.node_tree
+    for i, (key, img) in enumerate(sorted(images.items())):
+        tex = tree.nodes.new("ShaderNodeTexImage")
+        tex.image, tex.interpolation = img, interpolation
+        tex.label = f"Converted {layer_graph.BAKED[key][0]}"
+        tex.hide = True
+        tex.location = (node.location.x - 420.0, node.location.y - 400.0 - 40.0 * i)
+        if vector is not None:
+            tree.links.new(vector, tex.inputs["Vector"])
+        tree.links.new(tex.outputs["Color"], node.inputs[layer_graph.BAKED[key][0]])
+    return node

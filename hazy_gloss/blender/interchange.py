@@ -44,7 +44,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import engines, layered, materialx, usd
-from . import compat, material, stamp
+from . import compat, layer_group, material, stamp
 from .context import plain_message, target_material
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -120,47 +120,117 @@ def _image_info(img):
     return info
 
 
+def _bnode(n, core=None, prefix=""):
+    props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
+    props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
+    b = layered.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True) for x in n.inputs],
+                      [_snap_socket(x, False) for x in n.outputs], props, n.label,
+                      material.role(n), core is not None and n == core, bool(n.mute))
+    if n.bl_idname == "ShaderNodeTexImage":
+        b.image = _image_info(n.image)
+    if n.bl_idname == "ShaderNodeValToRGB":
+        r = n.color_ramp
+        b.ramp = dict(color_mode=r.color_mode, interpolation=r.interpolation,
+                      elements=[(float(e.position), tuple(float(c) for c in e.color))
+                                for e in r.elements])
+    return b
+
+
+def _inline_group(gnode, nodes):
+    """A layer node's group as nodes of the material's tree (named "<node>/<inner>"): links from
+    its Group Input become what feeds the layer node's input of that name (a link or a value),
+    links out of its outputs come from what feeds its Group Output."""
+    prefix = gnode.name + "/"
+    outer = {s.name: s for s in gnode.inputs}
+    for n in gnode.node_tree.nodes:
+        if n.bl_idname in ("NodeFrame", "NodeGroupInput", "NodeGroupOutput"):
+            continue
+        b = _bnode(n, prefix=prefix)
+        for sock, snap in zip(n.inputs, b.inputs):
+            if not sock.is_linked:
+                continue
+            src = sock.links[0].from_socket
+            if src.node.bl_idname == "NodeGroupInput":
+                o = outer.get(src.name)
+                link = None
+                if o is not None and o.is_linked:
+                    lk = o.links[0]
+                    if getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
+                        link = (lk.from_node.name, lk.from_socket.identifier)
+                value = _socket_value(o) if o is not None else None
+                if value is not None and snap.type in ("RGBA", "VECTOR") and not hasattr(value, "__len__"):
+                    value = (value,) * (4 if snap.type == "RGBA" else 3)
+                elif value is not None and snap.type == "VALUE" and hasattr(value, "__len__"):
+                    value = float(value[0])
+                snap.link, snap.value = link, value
+            else:
+                snap.link = (prefix + src.node.name, src.identifier)
+        nodes[b.name] = b
+    gout = next((n for n in gnode.node_tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
+    redirect = {}
+    for s in (gout.inputs if gout is not None else ()):
+        if s.name and s.is_linked:
+            src = s.links[0].from_socket
+            redirect[next(o.identifier for o in gnode.outputs if o.name == s.name)] = (
+                prefix + src.node.name, src.identifier)
+    return redirect
+
+
+def _core_view(gnode, kind, settings):
+    """The user's BSDF as the layer node holds it (its inputs are the BSDF's own): a node of
+    the core's type for the snapshot (the USD preview and the fallback read it)."""
+    b = layered.BNode(gnode.name + " (core)", layer_group.BSDF_NODES[kind],
+                      [_snap_socket(x, True) for x in gnode.inputs], [], dict(settings),
+                      gnode.label, None, True, False)
+    b.base = {}
+    return b
+
+
 def tree_snapshot(mat):
     """The node tree of ``mat`` as interchange.layered.Tree (plain values, no bpy), with the
-    haze layer's state."""
+    haze layer's state.  The layer node's group is inlined: the exporters see the BSDF copies,
+    mixes and math the group renders with."""
     tree = mat.node_tree
     from . import layer as _layer
     state = _layer.layer_state(mat) or {}
-    core = _layer.find_core(tree, state.get("core"))
-    nodes = {}
+    legacy = bool(state.get("legacy"))
+    core = _layer.find_core(tree, state.get("core")) if legacy else None
+    gnode = _layer.layer_node(mat) if state and not legacy else None
+    nodes, redirect = {}, {}
     for n in tree.nodes:
         if n.bl_idname in ("NodeFrame",):
             continue
-        props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
-        props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
-        b = layered.BNode(n.name, n.bl_idname, [_snap_socket(x, True) for x in n.inputs],
-                          [_snap_socket(x, False) for x in n.outputs], props, n.label,
-                          material.role(n),
-                          core is not None and n == core, bool(n.mute))
-        if n.bl_idname == "ShaderNodeTexImage":
-            b.image = _image_info(n.image)
-        if n.bl_idname == "ShaderNodeValToRGB":
-            r = n.color_ramp
-            b.ramp = dict(color_mode=r.color_mode, interpolation=r.interpolation,
-                          elements=[(float(e.position), tuple(float(c) for c in e.color))
-                                    for e in r.elements])
+        if gnode is not None and n == gnode:
+            redirect = _inline_group(n, nodes)
+            continue
+        b = _bnode(n, core)
         if b.core:
             b.base = {k: dict(v) for k, v in state.get("base", {}).items()}
-        nodes[n.name] = b
+        nodes[b.name] = b
+    if gnode is not None:  # links from the layer node come from inside its group
+        for b in nodes.values():
+            for snap in b.inputs:
+                if snap.link is not None and snap.link[0] == gnode.name and snap.link[1] in redirect:
+                    snap.link = redirect[snap.link[1]]
     outs = [n for n in tree.nodes if n.bl_idname == _OUTPUT]
     used = _engine_output(outs, "CYCLES")
     lay = {}
     if state:
         h = _layer.haze_of(mat)
-        lay = dict(core=core.name if core is not None else None,
-                   core_type=_layer.core_type(core) if core is not None else None,
-                   haze={k: (list(v) if isinstance(v, tuple) else v) for k, v in h.items()},
-                   baked=bool(state.get("baked")), live_math=bool(state.get("math")),
-                   nodes=sorted(r for r in material.ours(tree) if r.startswith("layer ")))
-        if core is not None:
-            plan = _layer.Plan(core, h, dict(state.get("base", {})))
-            lay.update(parts=list(plan.parts), coat=bool(plan.coat), split=bool(plan.split),
-                       owned=plan.owned())
+        lay = dict(haze={k: (list(v) if isinstance(v, tuple) else v) for k, v in h.items()})
+        if legacy:
+            lay.update(core=core.name if core is not None else None,
+                       core_type=_layer.core_type(core) if core is not None else None,
+                       baked=bool(state.get("baked")), live_math=bool(state.get("math")),
+                       nodes=sorted(r for r in material.ours(tree) if r.startswith("layer ")))
+        elif gnode is not None:
+            st = stamp.group(gnode.node_tree, K.GROUP_STAMP) or {}
+            kind = st.get("bsdf", "PRINCIPLED")
+            settings = st.get("settings", {})
+            view = _core_view(gnode, kind, settings)
+            nodes[view.name] = view
+            lay.update(core=gnode.name, core_type=kind, settings=settings, live_math=True,
+                       group=gnode.node_tree.name, version=_layer.LAYER_VERSION)
     return layered.Tree(mat.name, nodes, used.name if used is not None else None, lay)
 
 
@@ -704,10 +774,15 @@ def _layer_fallback(mat):
     from . import layer as _layer
     tree = mat.node_tree
     state = _layer.layer_state(mat) or {}
-    core = _layer.find_core(tree, state.get("core"))
+    if state.get("legacy"):
+        core = _layer.find_core(tree, state.get("core"))
+        base = dict(state.get("base", {}))
+    else:  # the layer node's inputs are the user's own values and links
+        node = _layer.layer_node(mat)
+        core = _CoreProxy(node, state) if node is not None else None
+        base = {}
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
-    base = dict(state.get("base", {}))
     notes = []
     ref, user_outs = _render_outputs(mat, tree)
     fb = _fallback_node(tree, ref.location)
@@ -733,6 +808,29 @@ def _layer_fallback(mat):
                      f"network (the USD export option) and glTF get the fallback")
     _export_output(tree, fb, ref, user_outs)
     return notes
+
+
+class _CoreProxy:
+    """The layer node seen as the user's BSDF: its inputs, the BSDF's type and settings."""
+
+    def __init__(self, node, state):
+        st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
+        self.node = node
+        self.name = node.name
+        self.inputs = node.inputs
+        self.bl_idname = layer_group.BSDF_NODES[st.get("bsdf", "PRINCIPLED")]
+        self.settings = dict(st.get("settings") or state.get("settings") or {})
+
+    def __getattr__(self, name):
+        if name in ("distribution", "subsurface_method", "fresnel_type"):
+            return self.settings.get(name, {"distribution": "GGX", "subsurface_method": "RANDOM_WALK",
+                                            "fresnel_type": "F82"}[name])
+        raise AttributeError(name)
+
+    def __eq__(self, other):
+        return other is self or other == self.node
+
+    __hash__ = object.__hash__
 
 
 def _metal_fallback(tree, fb, core, base, notes):

@@ -185,19 +185,24 @@ def replace_with_hazy(mat, replaced, p, links):
 def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
     """Put a haze layer on ``mat``'s own BSDF (blender.layer): ``node`` (a node or its name),
     else the Principled, Metallic or Glossy BSDF closest to the Material Output (also inside
-    Mix / Add Shader trees) stays, with every input and link; at haziness 0 the material
-    renders as before.  Returns (status, message, notes): status "FINISHED" (made hazy), "NOOP"
-    (already hazy) or "ERROR"."""
+    Mix / Add Shader trees) becomes the layer node, with every input, link and keyframe; at
+    haziness 0 the material renders as before.  On a material that has a layer already, the
+    haze values given are set on it.  Returns (status, message, notes): status "FINISHED"
+    (made hazy or updated) or "ERROR"."""
     problem = edit_problem(mat)
     if problem is not None and (mat is None or mat.library is not None
                                 or getattr(mat, "override_library", None) is not None):
         return "ERROR", problem, []
-    if material.is_hazy(mat):
-        return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
     if maps_problem(mat):
         return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
+    given = dict(haze, haziness=haziness, haze_extent=haze_extent)
+    if layer.is_layered(mat):
+        return _update_layer(mat, given, node)
+    if material.is_hazy(mat):
+        return ("ERROR", f"“{mat.name}” is a hazy material of its own (New Hazy Material): "
+                f"change it with its panel or api.update_material", [])
     found, groups = surface_bsdfs(mat.node_tree)
     if node is not None:
         name = node if isinstance(node, str) else node.name
@@ -215,7 +220,7 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
         return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF connected to its "
                 "Material Output: nothing to make hazy (use New Hazy Material instead)", [])
     try:
-        h = normalise_haze(dict(haze, haziness=haziness, haze_extent=haze_extent))
+        h = normalise_haze(given)
         layer.apply(mat, h, core=node)
     except ValueError as exc:
         return "ERROR", plain_message(exc), []
@@ -224,13 +229,32 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
     if others:
         notes.append(f"also found {', '.join('“' + n + '”' for n in others)}, not hazed (one "
                      f"layer per material: pick the BSDF with the operator's Node option)")
-    r = node.inputs.get("Roughness")
+    lnode = layer.layer_node(mat)
+    r = lnode.inputs.get("Roughness") if lnode is not None else None
     if r is not None and not r.is_linked and r.default_value < MIN_ROUGHNESS:
         notes.append(f"roughness {r.default_value:.4g} is below {MIN_ROUGHNESS}: haze needs a "
                      f"rough core (a perfect mirror cannot carry a halo)")
-    msg = (f"Made “{mat.name}” hazy: a haze layer on its {node.bl_label} “{node.name}” (every input "
-           f"and link kept; haziness {h['haziness']:g})")
+    notes += layer.notes(mat)
+    msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
+           f"(every input, link and keyframe kept; haziness {h['haziness']:g})")
     return "FINISHED", msg, notes
+
+
+def _update_layer(mat, given, node):
+    """make_hazy on a material that has a layer: its haze values set (the BSDF stays)."""
+    if node is not None:
+        name = node if isinstance(node, str) else node.name
+        have = layer.layer_node(mat)
+        if have is not None and name != have.name and not layer.is_legacy(mat):
+            return ("ERROR", f"“{mat.name}” has a haze layer on “{have.name}” already (one layer per "
+                    f"material): Remove Haze first to put it on “{name}”", [])
+    try:
+        h = normalise_haze(given, layer.haze_of(mat))
+        layer.apply(mat, h)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), []
+    return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness {h['haziness']:g})",
+            layer.notes(mat))
 
 
 def remove_haze(mat):
@@ -247,12 +271,17 @@ def remove_haze(mat):
            for why, keys in state.get("problems", [])):
         notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
                      "could not restore keep the values the layer gave them")
-    core = layer.find_core(mat.node_tree, state.get("core"))
+    if not state.get("legacy") and layer.original_node(mat) is None:
+        notes.append("the BSDF kept beside the layer node is gone: the layer node stays, as "
+                     "an ordinary node group")
     from . import interchange
     if interchange.remove_export_fallback(mat):  # the user's output active again, as before
         notes.append("the export fallback was removed too (the material is no longer hazy)")
+    core = (layer.find_core(mat.node_tree, state.get("core")) if state.get("legacy")
+            else layer.original_node(mat))
+    label = core.bl_label if core is not None else ""
     layer.remove(mat)
-    where = f" from its {core.bl_label} “{core.name}”" if core is not None else ""
+    where = f" from its {label} “{core.name}”" if core is not None else ""
     return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes
 
 
@@ -447,3 +476,79 @@ def import_two_lobe_mix(mat):
            f"{params['haziness']:.3g}, haze extent {params['haze_extent'][0]:.3g}"
            + (f" x {params['haze_extent'][1]:.3g}" if params['haze_extent'][0] != params['haze_extent'][1] else ""))
     return "FINISHED", msg, notes
+
+
+# --------------------------------------------------------------------------------------------
+# Haze layers: upgrade, paintable haziness
+# --------------------------------------------------------------------------------------------
+
+
+def upgrade_layers(materials):
+    """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node.
+    Returns (status, message, notes)."""
+    done, notes = [], []
+    for mat in materials:
+        if not layer.is_legacy(mat):
+            continue
+        problem = edit_problem(mat)
+        if problem is not None:
+            notes.append(problem)
+            continue
+        try:
+            layer.upgrade(mat)
+        except ValueError as exc:
+            notes.append(f"“{mat.name}”: {plain_message(exc)}")
+            continue
+        done.append(mat.name)
+    if not done and not notes:
+        return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []
+    msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to the layer node"
+           + (f": {', '.join('“' + n + '”' for n in done)}" if done else ""))
+    return ("FINISHED" if done else "ERROR"), msg, notes
+
+
+def add_haziness_map(mat, *, size=1024, param="haziness"):
+    """A paintable image linked to the layer node's haziness (or ``param``: coat_haziness):
+    an Image Texture with a new float, Non-Color image filled with the current value, made the
+    active paint slot.  The image is packed into the file (farm-safe).  Returns
+    (status, message, notes)."""
+    problem = edit_problem(mat)
+    if problem is not None:
+        return "ERROR", problem, []
+    if layer.is_legacy(mat):
+        layer.upgrade(mat)
+    node = layer.layer_node(mat)
+    if node is None:
+        return "ERROR", f"“{mat.name}” has no haze layer node: Make Hazy first", []
+    if param not in ("haziness", "coat_haziness"):
+        return "ERROR", f"param must be haziness or coat_haziness, got {param!r}", []
+    sock = node.inputs.get(K.HAZE_SOCKETS[param][0])
+    if sock is None:
+        return "ERROR", f"the layer of “{mat.name}” has no {K.HAZE_SOCKETS[param][0]} input", []
+    if sock.is_linked:
+        return ("ERROR", f"{sock.name} of “{node.name}” is linked to “{sock.links[0].from_node.name}” "
+                f"already: disconnect it first to paint a map instead", [])
+    import bpy
+    size = int(size)
+    if not 16 <= size <= 16384:
+        return "ERROR", f"size must be 16 to 16384 pixels, got {size}", []
+    value = float(sock.default_value)
+    img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
+                              float_buffer=True, is_data=True)
+    img.generated_color = (value, value, value, 1.0)
+    img.pack()
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = tex_image = img
+    tex.label = f"{sock.name} Map"
+    tex.location = (node.location.x - 320.0, node.location.y - 120.0)
+    tex.parent = node.parent
+    tree.links.new(tex.outputs["Color"], sock)
+    tree.nodes.active = tex
+    notes = []
+    objs = [o for o in bpy.data.objects if o.type == "MESH" and
+            any(s.material == mat for s in o.material_slots)]
+    if objs and not any(o.data.uv_layers for o in objs):
+        notes.append("the objects using it have no UV map: add one to paint the map")
+    return ("FINISHED", f"Linked a paintable {size}x{size} map “{tex_image.name}” to {sock.name} "
+            f"of “{node.name}” (Texture Paint: it is the active paint slot)", notes)

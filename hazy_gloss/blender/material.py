@@ -851,10 +851,10 @@ def update_material(mat, **changes):
         if problem is not None:  # only setting the damaged haze values repairs the stamp
             raise stamp.StampError(problem)
         h = normalise_haze(changes, layer.haze_of(mat))
-        maps = layer.apply(mat, h)
+        layer.apply(mat, h)
         from . import sync
         sync.refresh_derived(mat)  # the export fallback and the EEVEE output follow
-        return next(iter(maps.values()), None), []
+        return None, []
     unknown = {k: v for k, v in changes.items() if k not in PARAMETERS}
     if unknown:
         normalise(unknown)  # raises: unknown names, with "did you mean"

@@ -27,7 +27,8 @@ from ..utils import looks, presets
 from . import layer, material, plots, preferences, properties, stamp
 from .context import PRESET_SUBDIR, plain_message, target_material
 from .looks import create_look
-from .make_hazy import CORE_NODES, import_two_lobe_mix, make_hazy, remove_haze
+from .make_hazy import (CORE_NODES, add_haziness_map, import_two_lobe_mix, make_hazy, remove_haze,
+                        upgrade_layers)
 
 #: (level, message) of every report, newest last (kept short).
 last_reports = []
@@ -106,6 +107,49 @@ class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):
             _report(self, "ERROR", "No material")
             return {"CANCELLED"}
         return _finish(self, *remove_haze(mat))
+
+
+class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
+    """Make every haze layer of an earlier Hazy Gloss (loose nodes) one layer node, with its
+    values (the first change of such a layer does it too)"""
+
+    bl_idname = "hazy_gloss.upgrade_layers"
+    bl_label = "Upgrade Haze Layers"
+    bl_options = {"REGISTER", "UNDO"}
+
+    material: StringProperty(**_MATERIAL_PROP)
+
+    def execute(self, context):
+        if self.material:
+            mat = bpy.data.materials.get(self.material)
+            if mat is None:
+                _report(self, "ERROR", f"No material named “{self.material}”")
+                return {"CANCELLED"}
+            mats = [mat]
+        else:
+            mats = list(bpy.data.materials)
+        return _finish(self, *upgrade_layers(mats))
+
+
+class HAZY_GLOSS_OT_add_haziness_map(bpy.types.Operator):
+    """Link a new paintable image to the haze layer's Haziness (or Coat Haziness), filled with
+    its current value and made the active Texture Paint slot"""
+
+    bl_idname = "hazy_gloss.add_haziness_map"
+    bl_label = "Add Haziness Map"
+    bl_options = {"REGISTER", "UNDO"}
+
+    material: StringProperty(**_MATERIAL_PROP)
+    target: EnumProperty(name="Input", items=(("haziness", "Haziness", "The base's haziness"),
+                                              ("coat_haziness", "Coat Haziness", "The coat's")))
+    size: bpy.props.IntProperty(name="Size", default=1024, min=16, max=16384)
+
+    def execute(self, context):
+        mat = target_material(context, self.material)
+        if mat is None:
+            _report(self, "ERROR", "No material")
+            return {"CANCELLED"}
+        return _finish(self, *add_haziness_map(mat, size=self.size, param=self.target))
 
 
 class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
@@ -315,6 +359,8 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
 classes = (
     HAZY_GLOSS_OT_make_hazy,
     HAZY_GLOSS_OT_remove_haze,
+    HAZY_GLOSS_OT_upgrade_layers,
+    HAZY_GLOSS_OT_add_haziness_map,
     HAZY_GLOSS_OT_import_two_lobe_mix,
     HAZY_GLOSS_OT_new_material,
     HAZY_GLOSS_OT_apply_preset,

@@ -308,69 +308,60 @@ _PART_NAMES = {"DIELECTRIC": "Dielectric", "METAL": "Metal", "PHYSICAL": "Metal"
                "GLOSSY": "Glossy", "COAT": "Coat"}
 
 
+_SHOWN = (("beta dielectric", "Dielectric: β"), ("IOR dielectric", "Dielectric: IOR"),
+          ("reflectivity dielectric", "Dielectric: r = F(0)"), ("beta metal", "Metal: β"),
+          ("reflectivity metal", "Metal: r = F(0)"), ("beta", "β"), ("reflectivity", "r = F(0)"),
+          ("ior", "η"), ("extinction", "κ"), ("roughness wide", "Wide roughness R_w"),
+          ("beta coat", "Coat: β"), ("coat IOR", "Coat: IOR"),
+          ("coat roughness wide", "Coat: wide roughness"))
+
+
 def layer_rows(info):
-    """[(label, value text)] of a layer's constant parts (β, r, IOR or colour, wide roughness)."""
-    rows = []
-    for part, m in info["maps"].items():
-        name = _PART_NAMES.get(part, part.title())
-        rows.append((f"{name}: β", _fmt(m.beta)))
-        rows.append((f"{name}: r = F(0)", _fmt(m.reflectivity)))
-        if part in ("DIELECTRIC", "COAT"):  # what the layer wrote on the core
-            sock = info["core"].inputs["IOR" if part == "DIELECTRIC" else "Coat IOR"]
-            if not sock.is_linked:
-                rows.append((f"{name}: IOR", _fmt(sock.default_value, 4)))
-        elif part == "PHYSICAL":
-            rows += [(f"{name}: η", _fmt(m.ior)), (f"{name}: κ", _fmt(m.extinction))]
-        wx, wy = (float(np.asarray(a)) for a in m.alpha_wide)
-        rows.append((f"{name}: α_w", _fmt((wx, wy) if wx != wy else wx, 4)))
-    return rows
+    """[(label, value text)] of what the layer's group computes for the layer node's values."""
+    vals = info["values"]
+    return [(label, _fmt(vals[key], 4)) for key, label in _SHOWN if key in vals]
 
 
 def layer_warnings(info, context=None, prefs=None):
     """Plain-language warnings for a haze layer (list of strings)."""
     prefs = prefs or preferences.get(context)
-    out = []
-    maps, plan = info["maps"], info["plan"]
-    m = maps.get("DIELECTRIC")
-    if m is not None and float(np.asarray(m.reflectivity_max)) > prefs.dielectric_warning:
-        out.append(f"The dielectric reflects r = {float(np.asarray(m.reflectivity_max)):.3f}: "
-                   f"it will look like a metal. Lower Haziness or Haze Extent")
-    if info["textured"] and plan.active:
-        out.append("Textured " + ", ".join(info["textured"]) + ": the haze mapping runs per "
-                   "pixel in the shader")
-    for part, mp in maps.items():
-        for reason in mp.clamped:
-            out.append(f"{_PART_NAMES.get(part, part)}: " + next(
-                (t for k, t in _CLAMP_TEXT.items() if reason.startswith(k)), reason))
-    core = info["core"]
-    out += [n[:1].upper() + n[1:] for n in plan.notes]
-    tf = core.inputs.get("Thin Film Thickness")
-    if plan.parts and plan.film is None and tf is not None and (tf.is_linked or tf.default_value > 0.1):
-        out.append("Thin film with textured inputs: the peak follows the film only "
-                   "approximately (constant inputs keep it exactly)")
-    scene = getattr(context, "scene", None) if context is not None else None
-    if scene is not None and "EEVEE" in scene.render.engine and info["bsdfs"] > 2:
-        out.append(f"EEVEE renders at most 3 closures per pixel: this layer mixes "
-                   f"{info['bsdfs']} BSDFs (render with Cycles for the full haze)")
+    out = list(info["notes"])
+    vals = info["values"]
+    r = vals.get("reflectivity dielectric")
+    if r is not None and max(np.atleast_1d(r)) > prefs.dielectric_warning and \
+            vals.get("beta dielectric", 0.0) > 0.0:
+        out.append(f"The dielectric reflects r = {max(np.atleast_1d(r)):.3f}: it will look like "
+                   f"a metal. Lower Haziness or Haze Extent")
+    node = info["node"]
+    tf = node.inputs.get("Thin Film Thickness")
+    if tf is not None and (tf.is_linked or tf.default_value > 0.1):
+        out.append("Thin film: the layer raises the BSDF's F(0) as without a film, so the peak "
+                   "follows the film only approximately")
     return out
 
 
 def draw_layer(layout, context, mat, idname, hg, problem):
-    """A haze layer on the user's BSDF: haze controls only (the core is the user's node)."""
+    """A haze layer: the layer node's Haze sockets (drawn from the node, so they can be
+    keyframed and driven here too), its settings, what it computes; the BSDF's own inputs are
+    on the node."""
     col = layout.column()
+    if layer.is_legacy(mat):
+        box = col.box()
+        box.label(text="A haze layer of an earlier Hazy Gloss (loose nodes in the tree)", icon="INFO")
+        box.label(text="It renders as it did; the first change here makes it one node")
+        box.operator("hazy_gloss.upgrade_layers", icon="FILE_REFRESH")
+        draw_haze(col, hg)
+        col.operator("hazy_gloss.remove_haze", icon="X")
+        return
     try:
         info = layer.summary(mat)
-    except ValueError as exc:  # a damaged stamp or a missing core: say so, offer the way out
+    except ValueError as exc:  # a missing layer node: say so, offer the way out
         box = col.box()
         box.alert = True
         box.label(text=plain_message(exc), icon="ERROR")
-        state = layer.layer_state(mat) or {}
-        if stamp.damaged_haze(state.get("problems", [])) and problem is None:
-            row = col.row(align=True)  # a preset sets every haze value: it repairs them
-            row.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
         col.operator("hazy_gloss.remove_haze", icon="X")
         return
-    core = info["core"]
+    node = info["node"]
     if problem is not None:
         box = col.box()
         box.alert = True
@@ -381,30 +372,34 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         box.alert = True
         box.label(text=err, icon="ERROR")
     head = col.box().column(align=True)
-    head.label(text=f"Haze layer on {core.bl_label} “{core.name}”", icon="NODE_MATERIAL")
-    head.label(text="Edit the material as usual: the layer follows it")
+    head.label(text=f"Haze layer node “{node.name}” ({node.node_tree.name})", icon="NODE_MATERIAL")
+    head.label(text="Its own inputs are the BSDF's: edit them on the node as usual")
     body = col.column()
     body.enabled = problem is None
     draw_presets_row(body)
 
-    draw_haze(body, hg)
-    plan = info["plan"]
-    if plan.type == "PRINCIPLED":
-        coat = core.inputs["Coat Weight"]
-        box = body.box().column()
-        box.use_property_split = True
-        box.use_property_decorate = False
-        box.label(text="Coat", icon="MOD_SMOOTH")
-        box.active = coat.is_linked or coat.default_value > 0.0
-        box.prop(hg, "coat_haziness", slider=True, text="Haziness")
-        box.prop(hg, "coat_haze_extent", text="Extent")
-        if not box.active:
-            box.label(text="The BSDF has no coat (Coat Weight 0)", icon="INFO")
-        if "DIELECTRIC" in plan.parts or not plan.parts:
-            body.prop(hg, "keep_body_colour")
-
-    if plan.active:
-        draw_eevee(body, mat, hg)
+    haze = body.box().column()
+    haze.use_property_split = True
+    haze.label(text="Haze", icon="LIGHT_SUN")
+    for param in layer_group_params(node):
+        sock = node.inputs.get(K.HAZE_SOCKETS[param][0])
+        if sock is None:
+            continue
+        row = haze.row()
+        if sock.is_linked:
+            row.label(text=f"{sock.name}: from “{sock.links[0].from_node.name}”", icon="TEXTURE")
+        else:
+            row.prop(sock, "default_value", text=sock.name,
+                     slider=param in ("haziness", "coat_haziness"))
+    row = haze.row(align=True)
+    row.prop(hg, "use_smoothness", text="Smooth Haze Curve")
+    if "Coat Weight" in node.inputs:
+        coat = node.inputs["Coat Weight"]
+        if not (coat.is_linked or coat.default_value > 0.0):
+            haze.label(text="Coat Haziness needs a coat (Coat Weight > 0)", icon="INFO")
+        body.prop(hg, "keep_body_colour")
+    body.operator("hazy_gloss.add_haziness_map", icon="BRUSH_DATA")
+    draw_eevee(body, mat, hg)
 
     warns = layer_warnings(info, context)
     if warns:
@@ -418,9 +413,17 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         for label, value in layer_rows(info):
             grid.label(text=label)
             grid.label(text=value)
-        if not info["maps"] and plan.active:
-            panel.label(text="Varies per pixel (textured inputs)", icon="TEXTURE")
+        if info["textured"]:
+            panel.label(text="For the unlinked values; linked inputs vary them per pixel",
+                        icon="TEXTURE")
     col.operator("hazy_gloss.remove_haze", icon="X")
+
+
+def layer_group_params(node):
+    """The haze parameters the layer node's group has, in panel order."""
+    from .layer_group import haze_params
+    st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
+    return haze_params(st.get("bsdf", "PRINCIPLED"), bool(st.get("smooth")))
 
 
 def draw_eevee(layout, mat, hg):

@@ -1,33 +1,30 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Haze layers follow their core: after the user edits the BSDF a layer sits on (any input, link
-or setting, in the node editor, the Properties editor, a driver or a script), the layer's copies
-and node math are brought up to date.
+"""Node-editor edits of the add-on's own materials, read back.
 
-A ``depsgraph_update_post`` handler (persistent across file loads) sees which materials were
-updated; for a lean or in-shader one it reads the user's node-editor edits of the add-on's
-nodes back into the stamp (material.adopt_node_edits); for a layered one whose core changed
-since the layer last wrote it (a fingerprint of the core's inputs, links and settings),
-:func:`sync` reruns the layer with its stamped haze.
-The layer's own writes change the fingerprint only once: the handler then finds it unchanged
-and stops.  Scripts that edit a material no object uses (no depsgraph update) call
-``api.sync_haze(mat)``; rendering an edited material syncs it first (the render's depsgraph
-update runs the handler).
+A haze layer (blender.layer) needs nothing here: its node group computes everything from the
+layer node's inputs, whatever changes them.  A ``depsgraph_update_post`` handler (persistent
+across file loads) sees which materials were updated; for a lean or in-shader one it reads the
+user's node-editor edits of the add-on's nodes back into the stamp (material.adopt_node_edits);
+a layer of the form before (blender.legacy_layer: copies of the core that had to follow it) is
+upgraded to the layer node on the first edit of its core after the file was opened.  Scripts
+that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
 """
 import bpy
 from bpy.app.handlers import persistent
 
 from .. import constants as K
-from . import layer, material, properties, stamp
+from . import layer, legacy_layer, material, properties, stamp
 from .context import plain_message
 
-_fingerprints = layer.FINGERPRINTS
+_fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
 _busy = False
 
 
 def sync(mat, *, force=False):
-    """Bring ``mat``'s haze layer up to date with its core; returns whether it was rerun.  For a
-    lean / in-shader material: read the user's node-editor edits of the add-on's nodes back
-    into its parameters (material.adopt_node_edits); returns whether there were any."""
+    """For a lean / in-shader material: read the user's node-editor edits of the add-on's nodes
+    back into its parameters (material.adopt_node_edits); returns whether there were any.  For
+    a legacy haze layer whose core was edited since it was first seen (or ``force``): upgrade it
+    to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
     if mat is None or mat.library is not None:
         return False
     if not layer.is_layered(mat):
@@ -35,55 +32,32 @@ def sync(mat, *, force=False):
             return False
         adopted, _ = material.adopt_node_edits(mat)
         return bool(adopted)
+    if not layer.is_legacy(mat):
+        return False
     state = layer.layer_state(mat) or {}
     problem = stamp.layer_problem(mat, state.get("problems", []))
-    if problem is not None:  # rerunning would take the damaged values for the user's
+    if problem is not None:  # upgrading would take the damaged values for the user's
         properties.last_error[mat.session_uid] = problem
         return False
-    core = layer.find_core(mat.node_tree, state.get("core"))
+    core = legacy_layer.find_core(mat.node_tree, state.get("core"))
     if core is None:
         properties.last_error[mat.session_uid] = (
             "The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
         return False
     key = mat.session_uid
-    if not force and _fingerprints.get(key) == layer.fingerprint(core):
-        return False
-    gaps = _baked_gaps(mat, state, core) if "baked" in state else []
-    if gaps:  # the layer would have to rebuild them from maps it no longer knows
-        properties.last_error[key] = (
-            f"The haze layer of “{mat.name}” lists no baked map for {len(gaps)} of its values "
-            f"(its stamp lost them): convert the maps again, or Remove Haze")
+    now = legacy_layer.fingerprint(core)
+    seen = _fingerprints.get(key)
+    _fingerprints[key] = now
+    if not force and (seen is None or seen == now):
         return False
     try:
-        layer.apply(mat, layer.haze_of(mat), core=core)  # records the new fingerprint
+        layer.upgrade(mat)
     except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
         properties.last_error[key] = plain_message(exc)
-        layer.FINGERPRINTS[key] = layer.fingerprint(core)  # said once, not per update
         return False
+    _fingerprints.pop(key, None)
     refresh_derived(mat)
     return True
-
-
-def _needs_haze_map(expr, seen):
-    """Whether ``expr`` reads a per-texel haze value (a graph input "haze:<name>")."""
-    stack = [expr]
-    while stack:
-        e = stack.pop()
-        if id(e) in seen:
-            continue
-        seen.add(id(e))
-        if e.op == "input" and (e.name or "").startswith("haze:"):
-            return True
-        stack.extend(a for a in e.args if hasattr(a, "op"))
-    return False
-
-
-def _baked_gaps(mat, state, core):
-    """The outputs of a baked layer that vary with a haze map but have no baked image."""
-    baked = layer._baked_from_state(mat.node_tree, state) or {"maps": {}}
-    plan = layer.Plan(core, layer.haze_of(mat), dict(state.get("base", {})))
-    flat, _, _, _ = layer.output_keys(plan)
-    return [k for k, e in flat.items() if k not in baked["maps"] and _needs_haze_map(e, set())]
 
 
 def refresh_derived(mat):

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import tempfile
 
 import bpy
@@ -455,6 +456,48 @@ def furnace_sphere_scene(material, world_strength=1.0, *, radius=1.0, view_dir=(
 # ------------------------------------------------------------------------------------------------
 
 
+#: What Cycles logs when a material needs more closures than the kernel holds (it then drops
+#: lobes): every test render fails on it.  Logged (scene/scene.cpp get_max_closure_count) with
+#: Blender's debug flag on in 5.x; 4.5's glog keeps it at a verbose level the module cannot set.
+CLOSURE_WARNING = "Maximum number of closures exceeded"
+
+
+class ClosureLimitExceeded(AssertionError):
+    pass
+
+
+def render_still():
+    """bpy.ops.render.render(write_still=True), failing when Cycles reports that a material
+    exceeds its closure limit (stdout and stderr are read around the render)."""
+    fds = (1, 2)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    log = tempfile.TemporaryFile(mode="w+b")
+    saved = [os.dup(f) for f in fds]
+    debug = bpy.app.debug
+    try:
+        for f in fds:
+            os.dup2(log.fileno(), f)
+        bpy.app.debug = True
+        bpy.ops.render.render(write_still=True)
+    finally:
+        bpy.app.debug = debug
+        sys.stdout.flush()
+        sys.stderr.flush()
+        for f, fd in zip(fds, saved):
+            os.dup2(fd, f)
+            os.close(fd)
+    log.seek(0)
+    text = log.read().decode("utf-8", "replace")
+    log.close()
+    kept = [ln for ln in text.splitlines() if "Saved:" in ln or "WARNING" in ln or "Error" in ln]
+    if kept:
+        print("\n".join(kept))
+    bad = [ln for ln in text.splitlines() if CLOSURE_WARNING in ln]
+    if bad:
+        raise ClosureLimitExceeded(bad[0].strip())
+
+
 def render_exr(path=None, *, codec="ZIP"):
     """Render the current scene and return its pixels as float32 (H, W, 4), RGBA, scene-linear.
 
@@ -484,7 +527,7 @@ def render_exr(path=None, *, codec="ZIP"):
     old_path = render.filepath
     render.filepath = path
     try:
-        bpy.ops.render.render(write_still=True)
+        render_still()
     finally:
         render.filepath = old_path
     if not os.path.exists(path) or os.path.getsize(path) == 0:
@@ -551,7 +594,7 @@ def render_passes(read_exr, names=("combined",), *, path=None):
     old = scene.render.filepath
     scene.render.filepath = path
     try:
-        bpy.ops.render.render(write_still=True)
+        render_still()
         ch = read_exr(path)
     finally:
         scene.render.filepath = old

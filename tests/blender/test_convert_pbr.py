@@ -85,9 +85,9 @@ def test_pbr_set_is_exact_per_texel(env, tmp_path):
     assert env.api.is_hazy(mat) and env.layer.is_baked(mat)
     assert all(os.path.isfile(p) for p in res.values())
     assert {"beta_dielectric", "beta_metal"} <= set(res)  # each part its own β per texel
-    core = env.layer.find_core(mat.node_tree)
+    core = env.layer.layer_node(mat)
     assert core.inputs["Base Color"].is_linked and core.inputs["Roughness"].is_linked
-    assert "link" in env.layer.layer_state(mat)["base"]["Metallic"]  # the map is the user's
+    assert core.inputs["Metallic"].is_linked  # the map is the user's
     window(mat)
     got = [L.render(env, mat, *v)["combined"] for v in VIEWS]
     worst = 0.0
@@ -155,7 +155,7 @@ def test_pbr_set_into_the_users_material(env, tmp_path):
     assert res.material == mat and env.layer.is_baked(mat)
     assert "noise" not in [n.bl_idname for n in tree.nodes] or noise.name in tree.nodes
     assert bsdf.inputs["Coat Weight"].default_value == 0.5
-    assert env.layer.find_core(tree) == bsdf
+    assert env.layer.layer_node(mat).name == "Principled BSDF" and env.layer.original_node(mat) == bsdf
     with pytest.raises(ValueError, match="converted maps"):
         env.api.update_material(mat, haziness=0.2)
 
@@ -205,25 +205,27 @@ def test_operator_converts_a_library_folder(env, tmp_path):
     wood, rusty = bpy.data.materials["Wood049"], bpy.data.materials["rusty_metal"]
     assert "Broken" not in bpy.data.materials
     for mat in (wood, rusty):
-        core = env.layer.find_core(mat.node_tree)
+        core = env.layer.layer_node(mat)
         assert env.layer.is_baked(mat) and core.inputs["Normal"].is_linked
         assert mat.use_fake_user
-    assert env.layer.layer_state(rusty)["base"]["Metallic"].get("link")  # metallic map kept
+    assert env.layer.layer_node(rusty).inputs["Metallic"].is_linked  # metallic map kept
     assert os.path.isdir(tmp_path / "maps" / "Wood049")
 
 
 def test_baked_layer_after_an_edit_that_needs_new_maps(env, tmp_path):
-    """The user links a new texture into an input the baked maps depend on: the layer cannot
-    follow without converting again; it says so (one line) and leaves the tree as it was."""
+    """The user links a new texture into an input the baked maps depend on: the maps do not
+    follow without converting again; the layer says so (read_parameters' notes, the panel)
+    and nothing in the tree changes."""
     res = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "out"), name="Set")
     mat = res.material
-    core = env.layer.find_core(mat.node_tree)
+    core = env.layer.layer_node(mat)
+    assert not env.layer.notes(mat)
     noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
     mat.node_tree.links.new(noise.outputs["Color"], core.inputs["Specular Tint"])
     sig = L.signature(mat)
     assert env.api.sync_haze(mat) is False
-    props = importlib.import_module(env.api.__name__.rsplit(".", 1)[0] + ".blender.properties")
-    assert "convert the maps again" in props.error_for(mat)
+    said = " ".join(env.api.read_parameters(mat)["notes"])
+    assert "Specular Tint" in said and "convert the maps again" in said
     assert L.signature(mat) == sig
 
 

@@ -217,3 +217,42 @@ def test_eevee_plane_close_to_analytic(clean_file):
     ref = info["wi"][2] * analytic.microfacet_brdf(info["wi"], info["wo"], 0.09, eta=IOR,
                                                    kappa=EXTINCTION)
     assert _relative_error(img, ref) < 0.1
+
+
+@pytest.mark.skipif(bpy.app.version < (5, 0, 0), reason="4.5's Cycles logs the closure count "
+                    "at a glog verbosity the bpy module cannot set")
+def test_render_fails_when_a_material_exceeds_the_closure_limit(clean_file):
+    """Eight Principled BSDFs mixed by a texture: Cycles counts 96 closures (> 64) and drops
+    lobes; the harness turns its log line into a failure."""
+    mat = scenes.new_material("Too many closures")
+    tree = mat.node_tree
+    for n in list(tree.nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            tree.nodes.remove(n)
+    out = tree.nodes[0]
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    level = [tree.nodes.new("ShaderNodeBsdfPrincipled").outputs[0] for _ in range(8)]
+    while len(level) > 1:
+        nxt = []
+        for a, b in zip(level[::2], level[1::2]):
+            mix = tree.nodes.new("ShaderNodeMixShader")
+            tree.links.new(checker.outputs["Fac"], mix.inputs[0])
+            tree.links.new(a, mix.inputs[1])
+            tree.links.new(b, mix.inputs[2])
+            nxt.append(mix.outputs[0])
+        level = nxt
+    tree.links.new(level[0], out.inputs["Surface"])
+    with pytest.raises(scenes.ClosureLimitExceeded, match="96 > 64"):
+        scenes.render_plane(mat)
+    # five are within the limit (60)
+    tree.links.remove(out.inputs["Surface"].links[0])
+    five = [tree.nodes.new("ShaderNodeBsdfPrincipled").outputs[0] for _ in range(5)]
+    acc = five[0]
+    for b in five[1:]:
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(checker.outputs["Fac"], mix.inputs[0])
+        tree.links.new(acc, mix.inputs[1])
+        tree.links.new(b, mix.inputs[2])
+        acc = mix.outputs[0]
+    tree.links.new(acc, out.inputs["Surface"])
+    scenes.render_plane(mat)

@@ -19,7 +19,7 @@ def _by_id(sockets, identifier):
     raise KeyError(identifier)
 
 
-def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None):
+def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_expr=None):
     """Build the nodes ``outputs`` (an Expr or a dict/list of them) need with TreeBuilder ``tb``.
 
     ``sources``: input name -> socket or constant.  Returns ``outputs`` with every Expr replaced
@@ -33,6 +33,8 @@ def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None):
     try:
         for e in graph.used(outputs):
             emitter.visit(e)
+            if nodes_by_expr is not None and e.op != "input":
+                nodes_by_expr[e.index] = emitter.sockets[e.index].node
     finally:
         tb.reuse = None
     return _replace(outputs, emitter.value)

@@ -1,0 +1,469 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The haze layer's node group: one per configuration (BSDF type, distribution, subsurface
+method or Fresnel type, haze curve, Blender version), shared by every material that has it.
+
+Its interface is the wrapped BSDF's own inputs — names, types, limits, defaults and panels as
+Blender declares them (core.bsdf_interfaces, read through Make Group) — and a Haze panel
+(constants.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
+mapping in frames, then the BSDF slots (copies of the wrapped node type whose inputs are the
+group's own, except those the mapping computes) and their Mix Shaders.  Two outputs: "BSDF"
+(the layer) and "EEVEE" (each layer's lobes folded into one, for the EEVEE-only output).
+"""
+from __future__ import annotations
+
+import bpy
+
+from .. import constants as K
+from ..core import bsdf_interfaces, layer_graph
+from ..core.multiscatter import cycles_version
+from . import stamp
+from .nodes.builder import TreeBuilder
+from .nodes.emit import emit
+
+#: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
+GROUP_VERSION = 1
+
+BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
+              "GLOSSY": "ShaderNodeBsdfGlossy"}
+#: Node settings a configuration fixes (the group node has no enum properties).
+NODE_SETTINGS = {"PRINCIPLED": ("distribution", "subsurface_method"),
+                 "METALLIC": ("distribution", "fresnel_type"), "GLOSSY": ("distribution",)}
+_DIST_LABEL = {"GGX": "GGX", "MULTI_GGX": "Multiscatter GGX", "BECKMANN": "Beckmann",
+               "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
+_LABEL = {"PRINCIPLED": "Hazy Principled BSDF", "METALLIC": "Hazy Metallic BSDF",
+          "GLOSSY": "Hazy Glossy BSDF"}
+_SETTING_LABEL = {"RANDOM_WALK": "", "RANDOM_WALK_SKIN": "Skin", "BURLEY": "Christensen-Burley",
+                  "F82": "F82", "PHYSICAL_CONDUCTOR": "Physical"}
+OUTPUTS = ("BSDF", "EEVEE")
+
+
+def version_tag(version=None):
+    v = cycles_version(version)
+    return f"{v[0]}.{v[1]}"
+
+
+def settings_of(node):
+    """{setting: value} of a BSDF node (what a configuration fixes)."""
+    kind = kind_of(node)
+    return {p: getattr(node, p) for p in NODE_SETTINGS[kind]}
+
+
+def kind_of(node):
+    for kind, idname in BSDF_NODES.items():
+        if node.bl_idname == idname or (kind == "GLOSSY" and node.bl_idname == "ShaderNodeBsdfAnisotropic"):
+            return kind
+    return None
+
+
+def config_for(kind, settings, *, smooth=False, baked=False):
+    """The layer_graph.Config of a BSDF kind and its node settings."""
+    return layer_graph.Config(kind, settings.get("distribution", "GGX"),
+                              fresnel=settings.get("fresnel_type", ""), smooth=bool(smooth),
+                              version=cycles_version(None), baked=bool(baked))
+
+
+def group_name(kind, settings, smooth=False, baked=False):
+    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth) 5.3" (< 64 bytes)."""
+    parts = [_DIST_LABEL.get(settings.get("distribution"), settings.get("distribution", ""))]
+    for key in ("subsurface_method", "fresnel_type"):
+        label = _SETTING_LABEL.get(settings.get(key), "")
+        if label:
+            parts.append(label)
+    if smooth:
+        parts.append("Smooth")
+    if baked:
+        parts.append("Converted")
+    return f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
+
+
+def _stamp_of(kind, settings, smooth, baked=False):
+    d = {"kind": "layer", "version": GROUP_VERSION, "bsdf": kind, "settings": dict(settings),
+         "smooth": int(bool(smooth)), "blender": version_tag()}
+    if baked:
+        d["baked"] = 1
+    return d
+
+
+def fits(ng, kind, settings, smooth, baked=False):
+    if ng is None or ng.library is not None:
+        return False
+    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked)
+
+
+def is_layer_group(ng):
+    return ng is not None and (stamp.group(ng, K.GROUP_STAMP) or {}).get("kind") == "layer"
+
+
+def ensure_group(kind, settings, smooth=False, baked=False):
+    """The group of this configuration: found by its stamp (a renamed group is taken), else
+    appended from the per-user cache, else built (and cached); an outdated group of the same
+    name is rebuilt in place (its users keep their links and values)."""
+    name = group_name(kind, settings, smooth, baked)
+    ng = bpy.data.node_groups.get(name)
+    if fits(ng, kind, settings, smooth, baked):
+        return ng
+    found = next((g for g in bpy.data.node_groups if fits(g, kind, settings, smooth, baked)), None)
+    if found is not None:
+        return found
+    stale = ng is not None and ng.library is None and is_layer_group(ng)
+    if not stale:
+        cached = _from_cache(name, (kind, settings, smooth, baked))
+        if cached is not None:
+            return cached
+    if not stale:
+        ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    build(ng, kind, settings, smooth, baked)
+    ng[K.GROUP_STAMP] = _stamp_of(kind, settings, smooth, baked)
+    _to_cache(ng)
+    return ng
+
+
+# --------------------------------------------------------------------------------------------
+# The per-user cache: building a group takes seconds (every node edit in Blender updates the
+# whole tree), appending it from a .blend tens of milliseconds
+# --------------------------------------------------------------------------------------------
+
+_SOURCES = ("blender/layer_group.py", "blender/nodes/emit.py", "blender/nodes/builder.py",
+            "core/layer_graph.py", "core/node_math.py", "core/node_multiscatter.py",
+            "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
+_digest = []
+
+
+def _code_digest():
+    """A hash of the code that builds groups (a cached group from other code is not taken)."""
+    if not _digest:
+        import hashlib
+        import os
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        h = hashlib.sha256()
+        for rel in _SOURCES:
+            try:
+                with open(os.path.join(root, *rel.split("/")), "rb") as fh:
+                    h.update(fh.read())
+            except OSError:
+                h.update(rel.encode())
+        _digest.append(h.hexdigest()[:16])
+    return _digest[0]
+
+
+def _cache_path(name):
+    import os
+    import re
+    try:
+        base = bpy.utils.extension_path_user(__package__.rpartition(".blender")[0],
+                                             path="layer_groups", create=True)
+    except (ValueError, TypeError, AttributeError, RuntimeError):
+        return None  # not loaded as an extension (a script's import): no cache
+    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
+    return os.path.join(base, f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend")
+
+
+def _from_cache(name, config):
+    import os
+    path = _cache_path(name)
+    if path is None or not os.path.isfile(path):
+        return None
+    before = set(bpy.data.node_groups)
+    try:
+        with bpy.data.libraries.load(path, link=False) as (src, dst):
+            if name not in src.node_groups:
+                return None
+            dst.node_groups = [name]
+    except (OSError, RuntimeError):
+        return None
+    new = [g for g in bpy.data.node_groups if g not in before]
+    ng = next((g for g in new if fits(g, *config)), None)
+    for g in new:
+        if g is not ng and g.users == 0:
+            bpy.data.node_groups.remove(g)
+    if ng is not None:
+        ng.use_fake_user = False  # (as a built one: dropped on save once nothing uses it)
+    return ng
+
+
+def _to_cache(ng):
+    import os
+    path = _cache_path(ng.name)
+    if path is None:
+        return
+    tmp = path + f".{os.getpid()}.tmp"
+    try:
+        bpy.data.libraries.write(tmp, {ng}, fake_user=True, compress=True)
+        os.replace(tmp, path)
+    except (OSError, RuntimeError):
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+
+
+# --------------------------------------------------------------------------------------------
+# Interface
+# --------------------------------------------------------------------------------------------
+
+
+def _declarations(kind):
+    tables = bsdf_interfaces.TABLES
+    tag = version_tag()
+    if tag not in tables:  # a newer Blender: its sockets, with the newest known declarations
+        tag = max(tables, key=lambda t: tuple(int(x) for x in t.split(".")))
+    return tables[tag][kind]
+
+
+def bsdf_inputs(node):
+    """The enabled inputs of a BSDF node, in order (what the group's interface mirrors)."""
+    return [s for s in node.inputs if s.enabled]
+
+
+def _new_socket(iface, name, decl, parent):
+    stype = decl.get("type", "NodeSocketFloat")
+    s = iface.new_socket(name=name, in_out="INPUT", socket_type=stype, parent=parent)
+    if decl.get("subtype") and hasattr(s, "subtype"):
+        try:
+            s.subtype = decl["subtype"]
+        except (TypeError, ValueError):
+            pass
+    for attr, key in (("min_value", "min_value"), ("max_value", "max_value"),
+                      ("default_value", "default")):
+        if key in decl and hasattr(s, attr):
+            try:
+                setattr(s, attr, decl[key])
+            except (TypeError, ValueError):
+                pass
+    s.hide_value = bool(decl.get("hide_value", False))
+    return s
+
+
+def _interface(ng, kind, template, smooth, baked=False):
+    """The wrapped BSDF's inputs (``template``: a node of that kind and configuration) in its
+    panels, then the Haze panel (or, converted, the Converted Maps); outputs BSDF and EEVEE."""
+    iface = ng.interface
+    iface.new_socket(name="BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    eevee = iface.new_socket(name="EEVEE", in_out="OUTPUT", socket_type="NodeSocketShader")
+    eevee.description = ("Each layer's narrow and wide lobes folded into one with the same peak: "
+                         "for the EEVEE-only output (Hazy Gloss panel, EEVEE setting)")
+    decl = _declarations(kind)
+    panels = {}
+    for sock in bsdf_inputs(template):
+        d = dict(decl["sockets"].get(sock.name, {}))
+        if not d:  # not declared in the table: the socket's own type
+            d = {"type": {"VALUE": "NodeSocketFloat", "RGBA": "NodeSocketColor",
+                          "VECTOR": "NodeSocketVector", "BOOLEAN": "NodeSocketBool",
+                          "INT": "NodeSocketInt"}.get(sock.type, "NodeSocketFloat"),
+                 "hide_value": sock.hide_value}
+        title = d.get("panel", "")
+        parent = None
+        if title:
+            parent = panels.get(title)
+            if parent is None:
+                parent = panels[title] = iface.new_panel(
+                    title, default_closed=decl["panels"].get(title, True))
+        _new_socket(iface, sock.name, d, parent)
+    if baked:
+        maps = iface.new_panel("Converted Maps", default_closed=False)
+        for key, (name, colour) in layer_graph.BAKED.items():
+            s = iface.new_socket(name=name, in_out="INPUT", parent=maps,
+                                 socket_type="NodeSocketColor" if colour else "NodeSocketFloat")
+            s.description = "Written by texture conversion (the haze mapping per texel)"
+        return
+    haze = iface.new_panel(K.HAZE_PANEL, default_closed=False)
+    for param in haze_params(kind, smooth):
+        name, default, lo, hi, desc = K.HAZE_SOCKETS[param]
+        s = iface.new_socket(name=name, in_out="INPUT", socket_type="NodeSocketFloat", parent=haze)
+        if param in ("haziness", "coat_haziness") and hasattr(s, "subtype"):
+            s.subtype = "FACTOR"
+        s.default_value, s.min_value, s.max_value, s.description = default, lo, hi, desc
+
+
+def haze_params(kind, smooth):
+    """The haze parameters a group of ``kind`` has, in panel order."""
+    out = ["haziness", "haze_extent_x", "haze_extent_y"]
+    if smooth:
+        out.append("smoothness")
+    if kind == "PRINCIPLED":
+        out += ["coat_haziness", "coat_haze_extent"]
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Inside
+# --------------------------------------------------------------------------------------------
+
+_COLUMN = 180.0
+_ROW = 160.0
+
+
+def _frame(ng, title, nodes, x0, y0):
+    """Put ``nodes`` (already laid out from (0, 0) down) in a labelled frame at (x0, y0)."""
+    frame = ng.nodes.new("NodeFrame")
+    frame.label = title
+    frame.label_size = 16
+    frame.shrink = True
+    frame.location = (x0, y0)
+    for n in nodes:
+        loc = n.location.copy()
+        n.parent = frame
+        n.location = (x0 + loc.x, y0 + loc.y)
+    return frame
+
+
+def build(ng, kind, settings, smooth, baked=False):
+    """(Re)build ``ng`` for this configuration.  An existing interface is kept when it is the
+    same (the group nodes' links and values stay)."""
+    ng.nodes.clear()
+    template = ng.nodes.new(BSDF_NODES[kind])
+    for p, v in settings.items():
+        setattr(template, p, v)
+    _rebuild_interface(ng, kind, template, smooth, baked)
+    ng.nodes.remove(template)
+    cfg = config_for(kind, settings, smooth=smooth, baked=baked)
+    lay = layer_graph.build(cfg)
+
+    gin = ng.nodes.new("NodeGroupInput")
+    gin.label = "Inputs (the BSDF's and the haze's)"
+    sources = {}
+    for sock in gin.outputs:
+        if sock.name:
+            sources[layer_graph.input_name(sock.name)] = sock
+    if baked:
+        for key, (name, _) in layer_graph.BAKED.items():
+            sources[layer_graph.baked_name(key)] = gin.outputs[name]
+    else:
+        for param in haze_params(kind, smooth):
+            sources[layer_graph.haze_name(param)] = gin.outputs[K.HAZE_SOCKETS[param][0]]
+
+    # -- the math, one frame per section ---------------------------------------------------
+    tb = TreeBuilder(ng, prefix="")
+    made = {}
+    outs = emit(tb, lay.graph, lay.outputs(), sources, nodes_by_expr=made)
+    by_section, placed = {}, set()
+    for index, node in sorted(made.items()):
+        if node.name not in placed:
+            placed.add(node.name)
+            by_section.setdefault(lay.section_of(lay.graph.nodes[index]), []).append(node)
+    y = 0.0
+    width = 0.0
+    for title, _ in lay.sections:
+        nodes = by_section.get(title, [])
+        if not nodes:
+            continue
+        _relayout(nodes)
+        top = max(n.location.y for n in nodes)
+        bottom = min(n.location.y for n in nodes)
+        right = max(n.location.x for n in nodes)
+        _frame(ng, title, nodes, 0.0, y - top)
+        y -= (top - bottom) + 2.5 * _ROW
+        width = max(width, right)
+    gin.location = (-2.0 * _COLUMN, 0.0)
+
+    # -- the BSDF slots and their mixes ---------------------------------------------------
+    x_lobes = width + 3.0 * _COLUMN
+    gin2 = ng.nodes.new("NodeGroupInput")
+    gin2.label = "Inputs (passed to every BSDF)"
+    gin2.location = (x_lobes - 2.0 * _COLUMN, 0.0)
+    lobe_nodes = []
+    results = {}
+    for tree_name, tree in (("BSDF", lay.cycles), ("EEVEE", lay.eevee)):
+        results[tree_name] = _closures(ng, tree, kind, settings, outs, gin2, x_lobes, lobe_nodes)
+    gout = ng.nodes.new("NodeGroupOutput")
+    gout.location = (x_lobes + 6.0 * _COLUMN, 0.0)
+    for name, sock in results.items():
+        ng.links.new(sock, gout.inputs[name])
+    _frame(ng, "Lobes: copies of the BSDF with the haze's values, mixed by β", lobe_nodes, 0.0, 0.0)
+    for s in gin.outputs:  # each Group Input shows the sockets it feeds
+        s.hide = bool(s.name) and not s.is_linked
+    for s in gin2.outputs:
+        s.hide = bool(s.name) and not s.is_linked
+    return lay
+
+
+def _relayout(nodes):
+    """Columns by the order of dependency within a frame (TreeBuilder placed them by global
+    depth): x from the smallest depth used, rows packed per column."""
+    xs = sorted({round(n.location.x) for n in nodes})
+    col = {x: i for i, x in enumerate(xs)}
+    rows = {}
+    for n in sorted(nodes, key=lambda n: (n.location.x, -n.location.y)):
+        c = col[round(n.location.x)]
+        r = rows.get(c, 0)
+        rows[c] = r + 1
+        n.location = (_COLUMN * c, -_ROW * r)
+
+
+def _closures(ng, tree, kind, settings, outs, gin, x0, made):
+    """Nodes of a layer_graph closure tree; returns the output socket of its root."""
+    count = [0]
+
+    def visit(node, depth):
+        if isinstance(node, layer_graph.Slot):
+            bsdf = ng.nodes.new(BSDF_NODES[kind])
+            for p, v in settings.items():
+                setattr(bsdf, p, v)
+            bsdf.label = f"{_LABEL[kind][5:]}: {node.role}"
+            bsdf.hide = False
+            bsdf.location = (x0, -count[0] * 700.0)
+            count[0] += 1
+            for sock in bsdf_inputs(bsdf):
+                key = (node.role, sock.name)
+                if sock.name in node.writes:
+                    value = outs[key]
+                    if hasattr(value, "node"):
+                        ng.links.new(value, sock)
+                    elif value is not None and hasattr(sock, "default_value"):
+                        from .nodes.builder import socket_value
+                        sock.default_value = socket_value(sock, value)
+                elif sock.name in gin.outputs:
+                    ng.links.new(gin.outputs[sock.name], sock)
+            made.append(bsdf)
+            return bsdf.outputs[0]
+        a, b = visit(node.a, depth + 1), visit(node.b, depth + 1)
+        mix = ng.nodes.new("ShaderNodeAddShader" if node.add else "ShaderNodeMixShader")
+        mix.label = node.role
+        first = 0 if node.add else 1
+        if not node.add:
+            fac = outs[(node.role, "factor")]
+            if hasattr(fac, "node"):
+                ng.links.new(fac, mix.inputs[0])
+            else:
+                mix.inputs[0].default_value = float(fac)
+        ng.links.new(a, mix.inputs[first])
+        ng.links.new(b, mix.inputs[first + 1])
+        mix.location = (x0 + (6 - depth) * _COLUMN, -(count[0] - 1) * 350.0)
+        made.append(mix)
+        return mix.outputs[0]
+
+    return visit(tree, 0)
+
+
+# --------------------------------------------------------------------------------------------
+# Keeping the interface of a group being rebuilt
+# --------------------------------------------------------------------------------------------
+
+
+def _interface_items(iface):
+    out = []
+    for item in iface.items_tree:
+        parent = getattr(getattr(item, "parent", None), "name", None)
+        if item.item_type == "SOCKET":
+            out.append(("SOCKET", item.name, item.socket_type, item.in_out, parent))
+        else:
+            out.append((item.item_type, item.name, parent))
+    return out
+
+
+def _rebuild_interface(ng, kind, template, smooth, baked=False):
+    if not len(ng.interface.items_tree):
+        _interface(ng, kind, template, smooth, baked)
+        return
+    tmp = bpy.data.node_groups.new(".Hazy Gloss interface", "ShaderNodeTree")
+    try:
+        _interface(tmp, kind, template, smooth, baked)
+        if _interface_items(ng.interface) == _interface_items(tmp.interface):
+            return
+        from .nodes.groups import _restore_users, _users
+        found = _users(ng)
+        ng.interface.clear()
+        _interface(ng, kind, template, smooth, baked)
+        _restore_users(found)
+    finally:
+        bpy.data.node_groups.remove(tmp)

@@ -1,0 +1,442 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The haze layer as node math on its BSDF's own inputs (no bpy): what the layer's node group
+computes, written once against :class:`hazy_gloss.core.graph.Graph`.
+
+A layer wraps the artist's Principled, Metallic or Glossy BSDF (the *core*).  Every input of the
+core is a graph input ``"in:<socket name>"``, every haze parameter one ``"haze:<name>"``
+(constants.HAZE_SOCKETS), so the group computes the wide lobe, the raised Fresnel (Eq. 3-5), β,
+the metallic split, the coat's haze and the Multiscatter GGX correction per shading point, from
+whatever feeds the group node: values, keyframes, drivers, textures.  Cycles folds the math of
+constant inputs when it compiles the shader, and a Mix Shader whose factor folds to 0 or 1 drops
+the closure it does not need.
+
+The closure tree of a Principled core (5 BSDF slots at most: Cycles counts 12 closures per
+Principled BSDF against its limit of 64, kernel MAX_CLOSURE):
+
+    X_A = Mix(β_A, S1, S2)    X_B = Mix(β_B, S3, S4)    X = Mix(f_AB, X_A, X_B)
+    result = Mix(f_5, X, S5)
+
+Per shading point, with m = saturate(Metallic):
+
+- m ∈ {0, 1} (no split): A = B = the part of m (dielectric or metal), S1/S2 its narrow and wide
+  lobes under the narrow coat, S3/S4 the same under the wide coat; β_A = β_B = the part's β,
+  f_AB = β_c, f_5 = 0.  Exact (the haze mapping of that part, the coat's own on top).
+- 0 < m < 1 with haze (the Principled is linear in its metallic part, Cycles svm/closure.h): A = the
+  dielectric part, B = the metal part (each its own β), f_AB = m, all four under the narrow
+  coat; S5 is the user's own BSDF (no base haze) under the wide coat, f_5 = β_c.  Exact without
+  coat haze; with it the base's halo lives in the (1 - β_c) share under the narrow coat, so its
+  haziness is raised by 1/(1 - β_c) there (peaks exact, energy conserved: every slot is a
+  Principled BSDF; the halo's weight approximate where β_h > 1 - β_c).
+
+At haziness 0 (and coat haziness 0) nothing splits, every select picks the user's own input
+(the Mix node, (1-t) a + t b at t = 0, is exactly a), β is 0 and the slot S1 is the user's BSDF
+bit for bit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .. import constants as K
+from . import node_math
+from .graph import Graph
+
+__all__ = ("Config", "Slot", "Mix", "Layer", "build", "input_name", "haze_name", "baked_name",
+           "slots_of", "BSDF_TYPES", "BAKED")
+
+#: The core node types a layer wraps.
+BSDF_TYPES = ("PRINCIPLED", "METALLIC", "GLOSSY")
+
+#: Divisor floor where a quotient of a branch a select drops must stay finite.
+_DIV_MIN = 1e-30
+#: Cycles' CLOSURE_WEIGHT_CUTOFF: a coat below it is not built (kernel/svm/types.h).
+_WEIGHT_CUTOFF = 1e-5
+
+
+def input_name(socket):
+    """The graph input of a core socket."""
+    return "in:" + socket
+
+
+def haze_name(param):
+    """The graph input of a haze parameter (constants.HAZE_SOCKETS)."""
+    return "haze:" + param
+
+
+@dataclass(frozen=True)
+class Config:
+    """What a layer group is built for (one group per configuration, shared by materials).
+
+    ``bsdf``: PRINCIPLED, METALLIC or GLOSSY; ``distribution``: the core's; ``fresnel``: a
+    Metallic BSDF's fresnel_type; ``smooth``: the Bézier haze curve (Eqs. 12-15) instead of
+    Eq. 7; ``version``: the Cycles whose Multiscatter tables the math reproduces (None: the
+    running one); ``baked``: the haze mapping's per-point values (BAKED) are inputs, read from
+    maps texture conversion wrote (Principled only)."""
+
+    bsdf: str
+    distribution: str = "GGX"
+    fresnel: str = ""
+    smooth: bool = False
+    version: tuple = None
+    baked: bool = False
+
+    def key(self):
+        return (self.bsdf, self.distribution, self.fresnel, self.smooth,
+                tuple(self.version) if self.version else None, self.baked)
+
+
+@dataclass
+class Slot:
+    """One BSDF node of the group: ``writes`` input name -> Expr (the other inputs are the
+    group's own, passed through)."""
+
+    role: str
+    writes: dict = field(default_factory=dict)
+
+
+@dataclass
+class Mix:
+    """A Mix Shader (``add``: an Add Shader, ``factor`` unused)."""
+
+    role: str
+    factor: object
+    a: object
+    b: object
+    add: bool = False
+
+
+@dataclass
+class Layer:
+    """The group's math: ``cycles`` the full closure tree, ``eevee`` the folded one (one BSDF,
+    each part's lobes folded into one with the same peak: mapping.md §12), ``shown`` values the
+    panel can evaluate (β, r, IOR, α_w per part)."""
+
+    config: Config
+    graph: Graph
+    cycles: object
+    eevee: object
+    shown: dict
+    sections: list = field(default_factory=list)  # (frame title, first expression index)
+    baked: dict = field(default_factory=dict)  # BAKED key -> Expr (what conversion bakes)
+
+    def section_of(self, expr):
+        """The frame title of an expression (by when it was made)."""
+        title = self.sections[0][0] if self.sections else ""
+        for t, start in self.sections:
+            if expr.index >= start:
+                title = t
+        return title
+
+    def outputs(self):
+        """Every Expr the closure trees read (for emitting)."""
+        out = {}
+        for tree in (self.cycles, self.eevee):
+            for node in _walk(tree):
+                if isinstance(node, Slot):
+                    out.update({(node.role, k): v for k, v in node.writes.items()})
+                elif not node.add:
+                    out[(node.role, "factor")] = node.factor
+        return out
+
+
+def _walk(tree):
+    if isinstance(tree, Slot):
+        yield tree
+        return
+    yield tree
+    yield from _walk(tree.a)
+    yield from _walk(tree.b)
+
+
+def slots_of(tree):
+    """The BSDF slots of a closure tree, in order."""
+    return [n for n in _walk(tree) if isinstance(n, Slot)]
+
+
+# --------------------------------------------------------------------------------------------
+# Building blocks
+# --------------------------------------------------------------------------------------------
+
+
+def _f0(g, ior):
+    """((η - 1)/(η + 1))²."""
+    return g.math("POWER", g.div(g.sub(ior, 1.0), g.add(ior, 1.0)), 2.0)
+
+
+def _ior_from_f0(g, f0):
+    """(1 + √f)² / (1 - f) = (1 + √f)/(1 - √f), no cancellation."""
+    f0 = g.minimum(f0, K.ONE_MINUS_ULP32)
+    sq = g.add(g.sqrt(f0), 1.0)
+    return g.div(g.mul(sq, sq), g.maximum(g.sub(1.0, f0), 1e-12))
+
+
+class _Inputs:
+    def __init__(self, g):
+        self.g = g
+
+    def __call__(self, name, vector=False):
+        return self.g.input(input_name(name), vector=vector)
+
+    def haze(self, name):
+        return self.g.input(haze_name(name))
+
+
+def _section(g, title):
+    """Expressions made from here on belong to the frame ``title`` (the group's layout)."""
+    g.sections.append((title, len(g.nodes)))
+
+
+def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, tint=None):
+    """node_math.mapping of one part with the layer's inputs (always the anisotropic form:
+    anisotropy and the two extents may be animated or textured)."""
+    src = dict(core_reflectivity=rc, edge_tint=edge, roughness=rough, anisotropy=aniso,
+               rotation=rot, haziness=haziness, haze_extent_x=x.haze("haze_extent_x"),
+               haze_extent_y=x.haze("haze_extent_y"),
+               smoothness=x.haze("smoothness") if cfg.smooth else None)
+    dist = cfg.distribution if cfg.distribution in K.NODE_DISTRIBUTIONS[kind] else "GGX"
+    ms = None
+    if dist == "MULTI_GGX":
+        ms = lobe or node_math.MULTISCATTER_LOBE[kind]
+    return node_math.mapping(g, src, kind=kind, anisotropic=True, smooth=cfg.smooth,
+                             distribution=dist, multiscatter=ms, tint=tint, version=cfg.version)
+
+
+def _on(g, haziness):
+    """1 where haze is on (β_h > 0), else 0: what the selects of the user's own values read."""
+    return g.math("GREATER_THAN", haziness, 0.0, label="haze on")
+
+
+def _gain(g, m):
+    """r̂ / r̂_c (Eq. 5's raise of the brightest channel)."""
+    return g.div(m["reflectivity_max"], g.maximum(m["core_max"], _DIV_MIN))
+
+
+def _wide(m):
+    return {"roughness": m["roughness_wide"], "anisotropy": m["anisotropy_wide"],
+            "rotation": m["rotation_wide"]}
+
+
+# --------------------------------------------------------------------------------------------
+# Principled BSDF
+# --------------------------------------------------------------------------------------------
+
+
+#: A Principled layer's per-point values that texture conversion bakes into maps (the
+#: Converted Maps panel of a baked group): key -> (socket name, colour?).
+BAKED = {"ior_d": ("Raised IOR", False), "beta_d": ("β Dielectric", False),
+         "base_m": ("Raised Base Color", True), "beta_m": ("β Metal", False),
+         "roughness_wide": ("Wide Roughness", False), "anisotropy_wide": ("Wide Anisotropy", False),
+         "rotation_wide": ("Wide Rotation", False), "coat_ior": ("Raised Coat IOR", False),
+         "coat_roughness_wide": ("Coat Wide Roughness", False), "beta_c": ("β Coat", False)}
+
+
+def baked_name(key):
+    """The graph input of a baked value (a baked group reads it from its Converted Maps)."""
+    return "baked:" + key
+
+
+def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
+    """The haze mapping of a Principled core, per point: the values the slots need (BAKED's
+    keys), the split, and what the panel shows."""
+    bh = x.haze("haziness")
+    rough, aniso, rot = x("Roughness"), x("Anisotropic"), x("Anisotropic Rotation")
+
+    # -- the coat's haze (its own mapping on the Coat IOR's F0; always energy-preserving GGX) --
+    _section(g, "Coat: its own haze mapping (β, Coat IOR raised, wide coat roughness)")
+    cw = x("Coat Weight")
+    ch = x.haze("coat_haziness")
+    coat_on = g.mul(_on(g, ch), g.math("GREATER_THAN", cw, _WEIGHT_CUTOFF), label="coat haze on")
+    f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
+    coat_src = dict(core_reflectivity=f0c, edge_tint=0.0, roughness=x("Coat Roughness"),
+                    anisotropy=0.0, rotation=0.0, haziness=ch,
+                    haze_extent_x=x.haze("coat_haze_extent"),
+                    haze_extent_y=x.haze("coat_haze_extent"), smoothness=None)
+    mc = node_math.mapping(g, coat_src, kind="DIELECTRIC", anisotropic=False, smooth=False,
+                           distribution="MULTI_GGX", multiscatter="COAT", version=cfg.version)
+    v = {"beta_c": g.mul(mc["beta"], coat_on, label="β coat")}
+    v["coat_ior"] = g.select(coat_on, _ior_from_f0(g, g.mul(f0c, _gain(g, mc))), x("Coat IOR"),
+                             label="Coat IOR (raised)")
+    v["coat_roughness_wide"] = g.select(coat_on, mc["roughness_wide"], x("Coat Roughness"),
+                                        label="coat R_w")
+
+    # -- a fractional m splits into its two parts only where there is haze: without it the
+    #    user's BSDF renders as it is (bit for bit, not as the mix of its parts)
+    split = g.mul(g.sub(b_metal, a_metal), g.maximum(_on(g, bh), coat_on),
+                  label="split (0 < m < 1, haze on)")
+    # -- the base's haziness: raised where the split puts its halo under the narrow coat only --
+    share = g.sub(1.0, g.mul(v["beta_c"], split))
+    bh_eff = g.select(split, g.clamp(g.div(bh, g.maximum(share, _DIV_MIN)), 0.0, K.MAX_HAZINESS),
+                      bh, label="β_h of the base")
+    on = _on(g, bh_eff)
+
+    # -- dielectric part: F0 = F0(IOR) 2 Level Specular Tint, raised through the IOR ------------
+    _section(g, "Dielectric part: haze mapping (β, IOR raised so that F(0) = r)")
+    ior = x("IOR")
+    f0_user = _f0(g, ior)
+    level = g.mul(g.maximum(x("Specular IOR Level"), 0.0), 2.0)
+    rc_d = g.vmath("SCALE", x("Specular Tint", True), g.mul(f0_user, level))
+    md = _part(g, x, cfg, kind="DIELECTRIC", rc=rc_d, edge=0.0, rough=rough, aniso=aniso, rot=rot,
+               haziness=bh_eff)
+    v["ior_d"] = g.select(on, _ior_from_f0(g, g.mul(f0_user, _gain(g, md))), ior,
+                          label="IOR (raised)")
+    v["beta_d"] = g.mul(md["beta"], on, label="β dielectric")
+
+    # -- metal part: F82-tint with F0 = Base Color, raised per channel (Eq. 5) ---------------
+    _section(g, "Metal part: haze mapping (β, Base Color raised to r)")
+    base = x("Base Color", True)
+    mm = _part(g, x, cfg, kind="DIELECTRIC", rc=base, edge=0.0, rough=rough, aniso=aniso, rot=rot,
+               haziness=bh_eff, lobe="F82_TINT", tint=x("Specular Tint", True))
+    v["base_m"] = g.select(on, mm["reflectivity"], base, label="Base Color (raised)")
+    v["beta_m"] = g.mul(mm["beta"], on, label="β metal")
+    # α_w depends on α_n and λ_h only: the same for both parts
+    v.update(roughness_wide=md["roughness_wide"], anisotropy_wide=md["anisotropy_wide"],
+             rotation_wide=md["rotation_wide"])
+    shown = {"reflectivity dielectric": md["reflectivity"],
+             "haze room dielectric": md.get("halo_max", md["halo_intensity"])}
+    return v, split, shown
+
+
+def _principled_baked(g, x, m, a_metal, b_metal):
+    """The same values read from the Converted Maps (texture conversion evaluated the live
+    mapping per texel): haze is on where a map holds a β above 0."""
+    _section(g, "Converted maps: the haze mapping baked per texel")
+    v = {k: g.input(baked_name(k), vector=vec) for k, (_, vec) in BAKED.items()}
+    on = g.math("GREATER_THAN", g.maximum(g.maximum(v["beta_d"], v["beta_m"]), v["beta_c"]), 0.0)
+    split = g.mul(g.sub(b_metal, a_metal), on, label="split (0 < m < 1, haze on)")
+    return v, split, {}
+
+
+def _principled(g, x, cfg):
+    _section(g, "Metallic: which parts this point has")
+    metallic = x("Metallic")
+    m = g.clamp(metallic, 0.0, 1.0, label="m")
+    a_metal = g.math("GREATER_THAN", m, K.ONE_MINUS_ULP32, label="A is metal (m = 1)")
+    b_metal = g.math("GREATER_THAN", m, 0.0, label="B is metal (m > 0)")
+    if cfg.baked:
+        v, split, shown = _principled_baked(g, x, m, a_metal, b_metal)
+    else:
+        v, split, shown = _principled_mapping(g, x, cfg, m, a_metal, b_metal)
+    ior, base = x("IOR"), x("Base Color", True)
+
+    def slot(role, part_metal, lobe_wide, coat):
+        """``part_metal``: an Expr 1 (metal) / 0 (dielectric); ``coat``: "narrow", "wide" or
+        an Expr 1 (wide) / 0 (narrow)."""
+        w = {"Metallic": g.select(split, g.select(part_metal, 1.0, 0.0), metallic),
+             "IOR": g.select(part_metal, ior, v["ior_d"]),
+             "Base Color": g.select(part_metal, v["base_m"], base)}
+        if lobe_wide:
+            w.update({"Roughness": v["roughness_wide"], "Anisotropic": v["anisotropy_wide"],
+                      "Anisotropic Rotation": v["rotation_wide"]})
+        w["Coat IOR"] = v["coat_ior"]
+        if coat == "wide":
+            w["Coat Roughness"] = v["coat_roughness_wide"]
+        elif coat != "narrow":
+            w["Coat Roughness"] = g.select(coat, v["coat_roughness_wide"], x("Coat Roughness"))
+        return Slot(role, w)
+
+    _section(g, "What each BSDF gets")
+    s1 = slot("A narrow", a_metal, False, "narrow")
+    s2 = slot("A wide", a_metal, True, "narrow")
+    b_coat = g.sub(1.0, split)  # no split: B is A under the wide coat
+    s3 = slot("B narrow", b_metal, False, b_coat)
+    s4 = slot("B wide", b_metal, True, b_coat)
+    s5 = Slot("user under the wide coat", {"Coat IOR": v["coat_ior"],
+                                           "Coat Roughness": v["coat_roughness_wide"]})
+    beta_a = g.select(a_metal, v["beta_m"], v["beta_d"], label="β_A")
+    beta_b = g.select(b_metal, v["beta_m"], v["beta_d"], label="β_B")
+    f_ab = g.select(split, m, v["beta_c"], label="f_AB (m, or β coat)")
+    f5 = g.mul(split, v["beta_c"], label="f_5 (β coat of a split)")
+    cycles = Mix("Mix coat of a split", f5,
+                 Mix("Mix parts or coat", f_ab, Mix("Mix A", beta_a, s1, s2),
+                     Mix("Mix B", beta_b, s3, s4)), s5)
+
+    # -- EEVEE: one BSDF, each layer's lobes folded (1/α_f² = (1-β)/α_n² + β/α_w²) ------------
+    _section(g, "EEVEE: each layer's lobes folded into one (same peak)")
+    rough = g.clamp(x("Roughness"), K.min_roughness("GGX"), 1.0)
+    coat_rough = g.clamp(x("Coat Roughness"), K.min_roughness("GGX"), 1.0)
+    r_fd = node_math.folded_roughness(g, v["beta_d"], rough, v["roughness_wide"])
+    r_fm = node_math.folded_roughness(g, v["beta_m"], rough, v["roughness_wide"])
+    r_fc = node_math.folded_roughness(g, v["beta_c"], coat_rough, v["coat_roughness_wide"])
+    eevee = Slot("EEVEE folded", {"Roughness": g.mix(m, r_fd, r_fm),
+                                  "Base Color": g.vmix(m, base, v["base_m"]), "IOR": v["ior_d"],
+                                  "Coat IOR": v["coat_ior"], "Coat Roughness": r_fc})
+    shown.update({"beta dielectric": v["beta_d"], "beta metal": v["beta_m"],
+                  "beta coat": v["beta_c"], "IOR dielectric": v["ior_d"],
+                  "reflectivity metal": v["base_m"], "roughness wide": v["roughness_wide"],
+                  "coat IOR": v["coat_ior"], "coat roughness wide": v["coat_roughness_wide"],
+                  "split": split})
+    baked = {k: v[k] for k in BAKED}
+    return cycles, eevee, shown, baked
+
+
+# --------------------------------------------------------------------------------------------
+# Metallic and Glossy BSDFs
+# --------------------------------------------------------------------------------------------
+
+
+def _metallic(g, x, cfg):
+    _section(g, "Haze mapping (β, the Fresnel raised so that F(0) = r)")
+    bh = x.haze("haziness")
+    on = _on(g, bh)
+    rough, aniso, rot = x("Roughness"), x("Anisotropy"), x("Rotation")
+    if cfg.fresnel == "PHYSICAL_CONDUCTOR":
+        rc, edge = node_math.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
+        m = _part(g, x, cfg, kind="CONDUCTOR", rc=rc, edge=edge, rough=rough, aniso=aniso,
+                  rot=rot, haziness=bh)
+        own = {"IOR": g.select(on, m["ior"], x("IOR", True), label="IOR (η, raised)"),
+               "Extinction": g.select(on, m["extinction"], x("Extinction", True),
+                                      label="Extinction (κ, raised)")}
+        shown = {"ior": own["IOR"], "extinction": own["Extinction"]}
+    else:
+        base = x("Base Color", True)
+        m = _part(g, x, cfg, kind="DIELECTRIC", rc=base, edge=0.0, rough=rough, aniso=aniso,
+                  rot=rot, haziness=bh, lobe="F82_TINT", tint=x("Edge Tint", True))
+        own = {"Base Color": g.select(on, m["reflectivity"], base, label="Base Color (raised)")}
+        shown = {}
+    _section(g, "What each BSDF gets")
+    beta = g.mul(m["beta"], on, label="β")
+    wide = dict(own, Roughness=m["roughness_wide"], Anisotropy=m["anisotropy_wide"],
+                Rotation=m["rotation_wide"])
+    cycles = Mix("Mix lobes", beta, Slot("narrow", dict(own)), Slot("wide", wide))
+    eevee = Slot("EEVEE folded", dict(own, Roughness=node_math.folded_roughness(
+        g, beta, m["roughness"], m["roughness_wide"])))
+    shown.update({"beta": beta, "reflectivity": m["reflectivity"],
+                  "roughness wide": m["roughness_wide"]})
+    return cycles, eevee, shown
+
+
+def _glossy(g, x, cfg):
+    _section(g, "Haze mapping (β in the lobes' colours)")
+    bh = x.haze("haziness")
+    on = _on(g, bh)
+    aniso, rot = node_math.glossy_to_metallic(g, x("Anisotropy"), x("Rotation"))
+    colour = x("Color", True)
+    m = _part(g, x, cfg, kind="LEGACY", rc=colour, edge=0.0, rough=x("Roughness"), aniso=aniso,
+              rot=rot, haziness=bh)
+    _section(g, "What each BSDF gets")
+    narrow = g.select(on, m["colour_narrow"], colour, label="Color k_n")
+    wide = {"Color": g.select(on, m["colour_wide"], (0.0, 0.0, 0.0), label="Color k_w"),
+            "Roughness": m["roughness_wide"], "Anisotropy": m["anisotropy_wide"],
+            "Rotation": m["rotation_wide"]}
+    # no Fresnel: the lobes' colours carry β (Add Shader, as Eq. 1's legacy form)
+    cycles = Mix("Add lobes", None, Slot("narrow", {"Color": narrow}), Slot("wide", wide), add=True)
+    beta = g.mul(m["beta"], on, label="β")
+    folded = node_math.folded_roughness(g, beta, m["roughness"], m["roughness_wide"])
+    eevee = Slot("EEVEE folded", {"Color": g.select(on, m["reflectivity"], colour),
+                                  "Roughness": folded})
+    return cycles, eevee, {"beta": beta, "reflectivity": m["reflectivity"],
+                           "roughness wide": m["roughness_wide"]}
+
+
+_BUILDERS = {"PRINCIPLED": _principled, "METALLIC": _metallic, "GLOSSY": _glossy}
+
+
+def build(config):
+    """The :class:`Layer` of ``config``."""
+    if config.bsdf not in _BUILDERS:
+        raise ValueError(f"a haze layer wraps a {', '.join(BSDF_TYPES)} BSDF, not {config.bsdf!r}")
+    if config.baked and config.bsdf != "PRINCIPLED":
+        raise ValueError("converted maps (baked) are for a Principled core only")
+    g = Graph()
+    g.sections = []
+    cycles, eevee, shown, *baked = _BUILDERS[config.bsdf](g, _Inputs(g), config)
+    return Layer(config, g, cycles, eevee, shown, list(g.sections), baked[0] if baked else {})
