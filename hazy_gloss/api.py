@@ -98,12 +98,14 @@ def remove_eevee_output(mat):
 
 
 def sync_haze(mat):
-    """Bring ``mat``'s haze layer up to date after its BSDF was edited, or read a lean /
-    in-shader material's node-editor edits back into its parameters (a handler does this for
-    materials in use; call it for a material no object uses).  Returns whether it changed."""
+    """Read a lean / in-shader material's node-editor edits back into its parameters, bring a
+    haze layer's export fallback up to date with its node, upgrade a haze layer saved by an
+    earlier Hazy Gloss (a handler does this for materials in use; call it for a material no
+    object uses).  A haze layer itself needs nothing: its node computes from its inputs.
+    Returns whether anything changed."""
     from .blender import sync as _sync
     _material.check_material(mat, "sync_haze")
-    return _sync.sync(mat)
+    return _sync.sync(mat, force=True)
 
 
 def update_material(mat, **changes):

@@ -90,10 +90,19 @@ def _set_request(mat, mode):
 
 def remove_eevee_output(mat):
     """Remove the EEVEE-only output and forget the request.  Returns whether there was one."""
+    _refuse_linked(mat)
     had = remove_nodes(mat)
     _set_request(mat, None)
     _refresh_fallback(mat)
     return had
+
+
+def _refuse_linked(mat):
+    """Linked and overridden materials are read-only here, as for every other entry point."""
+    if mat is not None and (mat.library is not None or
+                            getattr(mat, "override_library", None) is not None):
+        from .context import edit_problem
+        raise ValueError(edit_problem(mat))
 
 
 def _refresh_fallback(mat):
@@ -156,10 +165,7 @@ def _eevee_output_of_user(tree):
 def add_eevee_output(mat, *, mode="auto"):
     """Give the layered material ``mat`` an EEVEE-only output (:func:`build_eevee_output`) and
     bring an export fallback up to date with it."""
-    from .context import edit_problem
-    problem = edit_problem(mat)
-    if problem is not None:
-        raise ValueError(problem)
+    _refuse_linked(mat)
     info = build_eevee_output(mat, mode=mode)
     _refresh_fallback(mat)
     return info

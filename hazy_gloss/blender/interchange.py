@@ -95,11 +95,17 @@ def _socket_value(sock):
         return None
 
 
-def _snap_socket(sock, is_input):
+def _links_into(tree):
+    """{(node name, input identifier): link} of a tree (``socket.links`` walks every link of
+    the tree in Python: one table instead, for trees of hundreds of nodes)."""
+    return {(lk.to_node.name, lk.to_socket.identifier): lk for lk in tree.links}
+
+
+def _snap_socket(sock, is_input, into=None):
     link = None
     if is_input and sock.is_linked:
-        lk = sock.links[0]
-        if getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
+        lk = into.get((sock.node.name, sock.identifier)) if into is not None else sock.links[0]
+        if lk is not None and getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
             link = (lk.from_node.name, lk.from_socket.identifier)
     return layered.Socket(sock.identifier, sock.name, sock.type, _socket_value(sock), link,
                           bool(getattr(sock, "enabled", True)),
@@ -120,11 +126,11 @@ def _image_info(img):
     return info
 
 
-def _bnode(n, core=None, prefix=""):
+def _bnode(n, core=None, prefix="", into=None):
     props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
     props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
-    b = layered.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True) for x in n.inputs],
-                      [_snap_socket(x, False) for x in n.outputs], props, n.label,
+    b = layered.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True, into) for x in n.inputs],
+                      [_snap_socket(x, False, into) for x in n.outputs], props, n.label,
                       material.role(n), core is not None and n == core, bool(n.mute))
     if n.bl_idname == "ShaderNodeTexImage":
         b.image = _image_info(n.image)
@@ -136,43 +142,76 @@ def _bnode(n, core=None, prefix=""):
     return b
 
 
-def _inline_group(gnode, nodes):
-    """A layer node's group as nodes of the material's tree (named "<node>/<inner>"): links from
-    its Group Input become what feeds the layer node's input of that name (a link or a value),
-    links out of its outputs come from what feeds its Group Output."""
-    prefix = gnode.name + "/"
-    outer = {s.name: s for s in gnode.inputs}
-    for n in gnode.node_tree.nodes:
-        if n.bl_idname in ("NodeFrame", "NodeGroupInput", "NodeGroupOutput"):
+def _valid(lk):
+    return lk is not None and getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False)
+
+
+def _as_type(value, stype):
+    if value is None:
+        return None
+    if stype in ("RGBA", "VECTOR") and not hasattr(value, "__len__"):
+        return (value,) * (4 if stype == "RGBA" else 3)
+    if stype == "VALUE" and hasattr(value, "__len__"):
+        return float(value[0])
+    return value
+
+
+def _inline_group(gnode, nodes, feed, prefix=""):
+    """A group node's inside as nodes of the material's tree (named "<node>/<inner>", nested
+    groups likewise): a link from its Group Input becomes what ``feed(input identifier)`` gives
+    ((node, socket) link or None, value); returns {output identifier: (link, value)} for what
+    its Group Output gets."""
+    tree = gnode.node_tree
+    into = _links_into(tree)
+    p = prefix + gnode.name + "/"
+    subs = {}
+
+    def source(lk):
+        src = lk.from_socket
+        n = src.node
+        if n.bl_idname == "NodeGroupInput":
+            return feed(src.identifier)
+        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+            return sub(n).get(src.identifier, (None, None))
+        if n.bl_idname == "NodeReroute":
+            up = into.get((n.name, n.inputs[0].identifier))
+            return source(up) if _valid(up) else (None, None)
+        return (p + n.name, src.identifier), None
+
+    def sub(n):
+        if n.name not in subs:
+            def sub_feed(identifier, n=n):
+                s_ = next((x for x in n.inputs if x.identifier == identifier), None)
+                lk_ = into.get((n.name, identifier)) if s_ is not None else None
+                if _valid(lk_):
+                    return source(lk_)
+                return None, (_socket_value(s_) if s_ is not None else None)
+            subs[n.name] = {}
+            subs[n.name] = _inline_group(n, nodes, sub_feed, p)
+        return subs[n.name]
+
+    for n in tree.nodes:
+        if n.bl_idname in ("NodeFrame", "NodeGroupInput", "NodeGroupOutput", "NodeReroute"):
             continue
-        b = _bnode(n, prefix=prefix)
+        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+            sub(n)
+            continue
+        b = _bnode(n, prefix=p, into=into)
         for sock, snap in zip(n.inputs, b.inputs):
-            if not sock.is_linked:
+            lk = into.get((n.name, sock.identifier))
+            if not _valid(lk):
                 continue
-            src = sock.links[0].from_socket
-            if src.node.bl_idname == "NodeGroupInput":
-                o = outer.get(src.name)
-                link = None
-                if o is not None and o.is_linked:
-                    lk = o.links[0]
-                    if getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
-                        link = (lk.from_node.name, lk.from_socket.identifier)
-                value = _socket_value(o) if o is not None else None
-                if value is not None and snap.type in ("RGBA", "VECTOR") and not hasattr(value, "__len__"):
-                    value = (value,) * (4 if snap.type == "RGBA" else 3)
-                elif value is not None and snap.type == "VALUE" and hasattr(value, "__len__"):
-                    value = float(value[0])
-                snap.link, snap.value = link, value
-            else:
-                snap.link = (prefix + src.node.name, src.identifier)
+            link, value = source(lk)
+            snap.link = link
+            if link is None:
+                snap.value = _as_type(value, snap.type)
         nodes[b.name] = b
-    gout = next((n for n in gnode.node_tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
+    gout = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
     redirect = {}
-    for s in (gout.inputs if gout is not None else ()):
-        if s.name and s.is_linked:
-            src = s.links[0].from_socket
-            redirect[next(o.identifier for o in gnode.outputs if o.name == s.name)] = (
-                prefix + src.node.name, src.identifier)
+    for s_ in (gout.inputs if gout is not None else ()):
+        lk = into.get((gout.name, s_.identifier)) if s_.name else None
+        if _valid(lk):
+            redirect[s_.identifier] = source(lk)
     return redirect
 
 
@@ -197,13 +236,20 @@ def tree_snapshot(mat):
     core = _layer.find_core(tree, state.get("core")) if legacy else None
     gnode = _layer.layer_node(mat) if state and not legacy else None
     nodes, redirect = {}, {}
+    into = _links_into(tree)
     for n in tree.nodes:
         if n.bl_idname in ("NodeFrame",):
             continue
         if gnode is not None and n == gnode:
-            redirect = _inline_group(n, nodes)
+            def feed(identifier, n=n):
+                sock = next(x for x in n.inputs if x.identifier == identifier)
+                lk = into.get((n.name, identifier))
+                if _valid(lk):
+                    return (lk.from_node.name, lk.from_socket.identifier), None
+                return None, _socket_value(sock)
+            redirect = {k: v[0] for k, v in _inline_group(n, nodes, feed).items()}
             continue
-        b = _bnode(n, core)
+        b = _bnode(n, core, into=into)
         if b.core:
             b.base = {k: dict(v) for k, v in state.get("base", {}).items()}
         nodes[b.name] = b
@@ -802,7 +848,8 @@ def _layer_fallback(mat):
     first = next((n for n in tree.nodes if n.bl_idname in _USD_FIRST), None)
     if first is not None and first != fb:
         what = ("the layer's core: the narrow lobe, with the inputs the haze raises"
-                if first == core else "not the fallback")
+                if first == core else "your BSDF as it was before haze (kept beside the layer node)"
+                if first.get(K.ORIGINAL_NODE_KEY) else "not the fallback")
         notes.append(f"Blender's USD exporter takes the first Principled / Diffuse BSDF of the "
                      f"node list for its UsdPreviewSurface: “{first.name}”, {what}. Its MaterialX "
                      f"network (the USD export option) and glTF get the fallback")

@@ -41,6 +41,9 @@ HAZE = HAZE_DEFAULTS
 #: A haze value fed by a link (a map, a procedural mask): its value is per shading point.
 TEXTURE = "texture"
 PARKED_SUFFIX = " (before haze)"
+#: constants.ROLE of the layer node (the add-on's node: it builds and removes it).
+LAYER_ROLE = "Haze layer"
+_PARKED_LABEL = " — before haze (Remove Haze restores it)"
 _RESTORE = ("name", "label", "location", "width", "hide", "mute", "parent", "use_custom_color",
             "color")
 
@@ -55,16 +58,26 @@ def core_type(node):
 
 
 def _raw_state(mat):
-    d = stamp.group(mat, K.STAMP) if mat is not None else None
+    """The layer's record from the stamp, sanitised (blender.stamp.check_layer_node: entries that
+    do not read are left out), or None."""
+    try:
+        d = stamp.group(mat, K.STAMP) if mat is not None else None
+    except (TypeError, ValueError):
+        return None
     raw = d.get("layer") if d is not None else None
     if isinstance(raw, dict) and raw.get("version") == LAYER_VERSION:
-        return raw
+        return stamp.check_layer_node(raw)
     return None
 
 
+def _tagged(tree, key):
+    return next((n for n in tree.nodes if n.get(key)), None) if tree is not None else None
+
+
 def layer_state(mat):
-    """The layer's record (a dict with "node", "original", "restore", "settings", "problems"),
-    the legacy layer's state (blender.legacy_layer, with "legacy": True), or None."""
+    """The layer's record (a dict with "node", "original", "restore", "problems"), the legacy
+    layer's state (blender.legacy_layer, with "legacy": True), or None.  A tree that holds a
+    layer node whose stamp lost its record is a damaged layer ("lost": True)."""
     if mat is None:
         return None
     raw = _raw_state(mat)
@@ -72,6 +85,13 @@ def layer_state(mat):
         state = dict(raw)
         state["problems"] = _problems(mat, raw)
         return state
+    tree = getattr(mat, "node_tree", None)
+    node = _tagged(tree, K.LAYER_NODE_KEY)
+    if node is not None and node.bl_idname == "ShaderNodeGroup" and \
+            layer_group.is_layer_group(node.node_tree):
+        what = stamp.describe(mat)
+        return {"version": LAYER_VERSION, "lost": True, "problems": [
+            (f"the stamp is {what}, but the tree holds the haze layer node “{node.name}”", None)]}
     old = legacy_layer.layer_state(mat)
     if old is not None:
         old = dict(old)
@@ -92,32 +112,39 @@ def is_baked(mat):
     state = layer_state(mat) or {}
     if state.get("legacy"):
         return legacy_layer.is_baked(mat)
-    return bool(state.get("baked"))
+    node = layer_node(mat)
+    return node is not None and bool(group_config(node).get("baked"))
+
+
+def group_config(node):
+    """What the layer node's group is built for (its stamp): bsdf, settings, smooth, baked."""
+    return stamp.group(node.node_tree, K.GROUP_STAMP) or {} if node.node_tree is not None else {}
 
 
 def layer_node(mat):
-    """The layer's group node, or None."""
+    """The layer's group node (by the stamp's name, else by its tag), or None."""
     tree = getattr(mat, "node_tree", None)
-    raw = _raw_state(mat)
-    if tree is None or raw is None:
+    if tree is None:
         return None
-    node = tree.nodes.get(str(raw.get("node", "")))
-    if node is not None and node.bl_idname == "ShaderNodeGroup" and node.get(K.LAYER_NODE_KEY):
+    raw = _raw_state(mat) or {}
+    node = tree.nodes.get(raw.get("node", "")) if raw.get("node") else None
+    if node is not None and node.bl_idname == "ShaderNodeGroup" and node.get(K.LAYER_NODE_KEY) \
+            and layer_group.is_layer_group(node.node_tree):
         return node
     return next((n for n in tree.nodes if n.bl_idname == "ShaderNodeGroup"
                  and n.get(K.LAYER_NODE_KEY) and layer_group.is_layer_group(n.node_tree)), None)
 
 
 def original_node(mat):
-    """The artist's BSDF kept beside the layer node, or None."""
+    """The artist's BSDF kept beside the layer node (by the stamp's name, else its tag), or None."""
     tree = getattr(mat, "node_tree", None)
-    raw = _raw_state(mat)
-    if tree is None or raw is None:
+    if tree is None:
         return None
-    node = tree.nodes.get(str(raw.get("original", "")))
+    raw = _raw_state(mat) or {}
+    node = tree.nodes.get(raw.get("original", "")) if raw.get("original") else None
     if node is not None and node.get(K.ORIGINAL_NODE_KEY):
         return node
-    return next((n for n in tree.nodes if n.get(K.ORIGINAL_NODE_KEY)), None)
+    return _tagged(tree, K.ORIGINAL_NODE_KEY)
 
 
 def find_core(tree, name=None):
@@ -246,12 +273,13 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
     node.node_tree = ng
     node.name = name
     node[K.LAYER_NODE_KEY] = True
+    node[K.ROLE] = LAYER_ROLE
     node.label = core.label
     node.parent = core.parent
     node.location = core.location
     node.width = max(core.width, 240.0)
     node.use_custom_color, node.color = core.use_custom_color, core.color
-    moved = _take_inputs(tree, core, node)
+    _take_inputs(tree, core, node)
     for dest in [link.to_socket for link in core.outputs[0].links]:
         tree.links.new(node.outputs["BSDF"], dest)  # (replaces the link from the core)
     _move_animation(tree, core, node)
@@ -259,20 +287,16 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
     # the artist's node, kept as it was: collapsed and muted beside the layer node
     core[K.ORIGINAL_NODE_KEY] = True
     core.hide, core.mute = True, True
-    core.label = (core.label or name) + " — before haze (Remove Haze restores it)"
+    core.label = (core.label or name) + _PARKED_LABEL
     core.location = (core.location.x, core.location.y + 60.0)
     _write_state(mat, {"version": LAYER_VERSION, "node": node.name, "original": core.name,
-                       "restore": restore, "settings": dict(settings),
-                       "smooth": int(bool(use_smooth)),
-                       "keep_body_colour": int(bool(keep_body_colour)), "moved": moved,
-                       "baked": int(bool(baked))})
+                       "restore": restore})
     return node
 
 
 def _take_inputs(tree, src, dst):
     """``dst``'s inputs get ``src``'s values and links (by name); ``src`` keeps its values and
-    loses its links.  Returns the names of the linked inputs moved."""
-    moved = []
+    loses its links."""
     for sock in layer_group.bsdf_inputs(src):
         target = dst.inputs.get(sock.name)
         if target is None:
@@ -282,8 +306,6 @@ def _take_inputs(tree, src, dst):
         for link in list(sock.links):
             tree.links.new(link.from_socket, target)
             tree.links.remove(link)
-            moved.append(sock.name)
-    return moved
 
 
 def _give_back(tree, src, dst):
@@ -380,8 +402,18 @@ def _remove_eevee_nodes(mat):
 
 def _restore_node(tree, core, restore):
     name = restore.get("name")
+    if not name and core.name.endswith(PARKED_SUFFIX):  # (a damaged record: the name it had)
+        name = core.name[:-len(PARKED_SUFFIX)]
     if isinstance(name, str) and name and (tree.nodes.get(name) is None or tree.nodes.get(name) == core):
         core.name = name
+    if "label" not in restore and core.label.endswith(_PARKED_LABEL):
+        core.label = core.label[:-len(_PARKED_LABEL)]
+        if core.label == (name or core.name):
+            core.label = ""
+    if "mute" not in restore:
+        core.mute = False
+    if "hide" not in restore:
+        core.hide = False
     for key in ("label", "hide", "mute", "use_custom_color"):
         if key in restore:
             try:
@@ -433,12 +465,12 @@ def haze_of(mat):
     if is_legacy(mat):
         return legacy_layer.haze_of(mat)
     node = layer_node(mat)
-    raw = _raw_state(mat) or {}
     h = dict(HAZE)
     h["smoothness"] = None
-    h["keep_body_colour"] = bool(raw.get("keep_body_colour", False))
     if node is None:
         return h
+    cfg = group_config(node)
+    h["keep_body_colour"] = bool(cfg.get("body", False))
     vals = {}
     for param in K.HAZE_SOCKETS:
         sock = _haze_socket(node, param)
@@ -449,7 +481,7 @@ def haze_of(mat):
     for key in ("coat_haziness", "coat_haze_extent"):
         if key in vals:
             h[key] = vals[key]
-    if raw.get("smooth") and "smoothness" in vals:
+    if cfg.get("smooth") and "smoothness" in vals:
         h["smoothness"] = vals["smoothness"]
     return h
 
@@ -472,16 +504,12 @@ def apply(mat, haze, *, core=None):
                              f"again")
         wrap(mat, core, haze, keep_body_colour=bool(haze.get("keep_body_colour")))
         return {}
-    raw = dict(_raw_state(mat))
+    cfg = group_config(node)
     smooth = haze.get("smoothness") is not None
-    body = bool(haze.get("keep_body_colour", raw.get("keep_body_colour", False)))
-    if smooth != bool(raw.get("smooth")) or body != bool(raw.get("keep_body_colour")):
-        settings = dict(raw.get("settings", {}))
-        kind = (stamp.group(node.node_tree, K.GROUP_STAMP) or {}).get("bsdf", "PRINCIPLED")
-        ng = layer_group.ensure_group(kind, settings, smooth)
+    if smooth != bool(cfg.get("smooth")) and not cfg.get("baked"):
+        ng = layer_group.ensure_group(cfg.get("bsdf", "PRINCIPLED"), dict(cfg.get("settings", {})),
+                                      smooth)
         swap_group(node, ng)
-        raw["smooth"], raw["keep_body_colour"] = int(smooth), int(body)
-        _write_state(mat, raw)
     set_haze(node, haze)
     return {}
 
@@ -568,20 +596,34 @@ def graph_of(node):
     return lay
 
 
-def values(node):
-    """What the layer's group computes from the node's unlinked input values (the panel's
-    Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
+def _evaluate(node, outputs):
     lay = graph_of(node)
     vals, linked = _inputs_of(node)
-    needed = {e.name for e in lay.graph.used(lay.shown) if e.op == "input"}
+    needed = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
     inputs = {}
     for name in needed:
         v = vals.get(name, 0.0)
         vector = lay.graph.inputs[name].vector
         inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
-    out = evaluate(lay.shown, inputs)
+    out = evaluate(outputs, inputs)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
+
+
+def values(node):
+    """What the layer's group computes from the node's unlinked input values (the panel's
+    Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
+    return _evaluate(node, graph_of(node).shown)
+
+
+def slot_values(node, role):
+    """{input: value} the group gives its BSDF slot ``role`` (core.layer_graph: "A narrow",
+    ..., "EEVEE folded") for the node's unlinked input values (inputs it passes on are left
+    out)."""
+    lay = graph_of(node)
+    slot = next(s for tree in (lay.cycles, lay.eevee) for s in layer_graph.slots_of(tree)
+                if s.role == role)
+    return _evaluate(node, slot.writes)[0]
 
 
 def read(mat):
@@ -606,7 +648,7 @@ def read(mat):
         v = s.default_value
         return tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
 
-    settings = (_raw_state(mat) or {}).get("settings", {})
+    settings = group_config(node).get("settings", {})
     aniso, rot = ("Anisotropic", "Anisotropic Rotation") if kind == "PRINCIPLED" else ("Anisotropy", "Rotation")
     p = dict(layered=True, core=node.name, core_type=kind,
              distribution=settings.get("distribution", "GGX"), roughness=val("Roughness"),

@@ -332,29 +332,17 @@ def build(ng, kind, settings, smooth, baked=False):
         for param in haze_params(kind, smooth):
             sources[layer_graph.haze_name(param)] = gin.outputs[K.HAZE_SOCKETS[param][0]]
 
-    # -- the math, one frame per section ---------------------------------------------------
-    tb = TreeBuilder(ng, prefix="")
-    made = {}
-    outs = emit(tb, lay.graph, lay.outputs(), sources, nodes_by_expr=made)
-    by_section, placed = {}, set()
-    for index, node in sorted(made.items()):
-        if node.name not in placed:
-            placed.add(node.name)
-            by_section.setdefault(lay.section_of(lay.graph.nodes[index]), []).append(node)
+    # -- the math: one node group per section (readable, and far quicker to build: every
+    #    node edit in Blender updates the whole tree it is in) ------------------------------
+    outs, part_nodes = _emit_sections(ng, lay, sources)
     y = 0.0
-    width = 0.0
-    for title, _ in lay.sections:
-        nodes = by_section.get(title, [])
-        if not nodes:
-            continue
-        _relayout(nodes)
-        top = max(n.location.y for n in nodes)
-        bottom = min(n.location.y for n in nodes)
-        right = max(n.location.x for n in nodes)
-        _frame(ng, title, nodes, 0.0, y - top)
-        y -= (top - bottom) + 2.5 * _ROW
-        width = max(width, right)
-    gin.location = (-2.0 * _COLUMN, 0.0)
+    for n in part_nodes:
+        n.location = (0.0, y)
+        y -= 60.0 + 22.0 * (len(n.inputs) + len(n.outputs))
+    width = 2.0 * _COLUMN
+    _frame(ng, "The haze mapping (Eq. 3-8 and the corrections), one group per part: Tab to open",
+           part_nodes, 0.0, 0.0)
+    gin.location = (-3.0 * _COLUMN, 0.0)
 
     # -- the BSDF slots and their mixes ---------------------------------------------------
     x_lobes = width + 3.0 * _COLUMN
@@ -375,6 +363,100 @@ def build(ng, kind, settings, smooth, baked=False):
     for s in gin2.outputs:
         s.hide = bool(s.name) and not s.is_linked
     return lay
+
+
+def _emit_sections(ng, lay, sources):
+    """Emit ``lay``'s graph into ``ng`` with each section (core.layer_graph's frames) in a node
+    group of its own: its inputs are the values it reads from the group's inputs and earlier
+    sections, its outputs what later sections and the BSDF slots read.  Returns (the slots'
+    and mixes' values: sockets of ``ng`` or constants, the section nodes)."""
+    g = lay.graph
+    wanted = lay.outputs()
+    order = g.used(wanted)
+    section = {e.index: lay.section_of(e) for e in order if e.op != "input"}
+    final = {e.index for e in _exprs(wanted) if not e.is_const}
+    readers = {}
+    for e in order:
+        for a in e.args:
+            if not a.is_const:
+                readers.setdefault(a.index, set()).add(section.get(e.index))
+    sockets = {e.index: sources[e.name] for e in order if e.op == "input"}
+    nodes = []
+    tag = _short_tag(lay.config)
+    for n_sec, (title, _) in enumerate(lay.sections):
+        members = [e for e in order if section.get(e.index) == title]
+        if not members:
+            continue
+        inside = {e.index for e in members}
+        ext = []
+        for e in members:
+            for a in e.args:
+                if not a.is_const and a.index not in inside and a not in ext:
+                    ext.append(a)
+        exported = [e for e in members if e.index in final or (readers.get(e.index, set()) - {title})]
+        sub = _section_group(f".HG {tag} {n_sec} {title.split(':')[0]}", title, g, ext, exported)
+        node = ng.nodes.new("ShaderNodeGroup")
+        node.node_tree = sub
+        node.label = title.split(":")[0]
+        node.width = 220.0
+        for i, a in enumerate(ext):
+            ng.links.new(sockets[a.index], node.inputs[i])
+        for i, e in enumerate(exported):
+            sockets[e.index] = node.outputs[i]
+        nodes.append(node)
+    values = {k: (sockets[e.index] if not e.is_const else
+                  (tuple(float(x) for x in e.value) if e.vector else float(e.value)))
+              for k, e in wanted.items() if e is not None}
+    return values, nodes
+
+
+def _exprs(outputs):
+    return [e for e in outputs.values() if e is not None]
+
+
+def _short_tag(cfg):
+    import hashlib
+    return hashlib.sha1(repr((cfg.key(), GROUP_VERSION)).encode()).hexdigest()[:6]
+
+
+def _socket_name(e):
+    return (e.label or e.name or f"value {e.index}")[:60]
+
+
+def _section_group(name, title, g, ext, exported):
+    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``)."""
+    old = bpy.data.node_groups.get(name)
+    if old is not None and old.users == 0:
+        bpy.data.node_groups.remove(old)
+    sub = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    sub[K.GROUP_STAMP] = {"kind": "layer part", "version": GROUP_VERSION}
+    iface = sub.interface
+    for a in ext:
+        iface.new_socket(name=_socket_name(a), in_out="INPUT",
+                         socket_type="NodeSocketVector" if a.vector else "NodeSocketFloat")
+    for e in exported:
+        iface.new_socket(name=_socket_name(e), in_out="OUTPUT",
+                         socket_type="NodeSocketVector" if e.vector else "NodeSocketFloat")
+    gin = sub.nodes.new("NodeGroupInput")
+    gout = sub.nodes.new("NodeGroupOutput")
+    known = {a.index: gin.outputs[i] for i, a in enumerate(ext)}
+    tb = TreeBuilder(sub, prefix="")
+    made = {}
+    out = emit(tb, g, exported, {}, known=known, nodes_by_expr=made)
+    for i, v in enumerate(out):
+        sub.links.new(v, gout.inputs[i])
+    nodes, seen = [], set()
+    for _, n in sorted(made.items()):
+        if n.name not in seen:
+            seen.add(n.name)
+            nodes.append(n)
+    if nodes:
+        _relayout(nodes)
+        _frame(sub, title, nodes, 0.0, 0.0)
+        right = max(n.location.x for n in nodes)
+        gout.location = (right + 2.0 * _COLUMN, 0.0)
+    gin.location = (-2.0 * _COLUMN, 0.0)
+    return sub
 
 
 def _relayout(nodes):
@@ -399,7 +481,7 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
             bsdf = ng.nodes.new(BSDF_NODES[kind])
             for p, v in settings.items():
                 setattr(bsdf, p, v)
-            bsdf.label = f"{_LABEL[kind][5:]}: {node.role}"
+            bsdf.name = bsdf.label = node.role
             bsdf.hide = False
             bsdf.location = (x0, -count[0] * 700.0)
             count[0] += 1
@@ -418,7 +500,7 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
             return bsdf.outputs[0]
         a, b = visit(node.a, depth + 1), visit(node.b, depth + 1)
         mix = ng.nodes.new("ShaderNodeAddShader" if node.add else "ShaderNodeMixShader")
-        mix.label = node.role
+        mix.name = mix.label = node.role
         first = 0 if node.add else 1
         if not node.add:
             fac = outs[(node.role, "factor")]

@@ -535,8 +535,11 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     value = float(sock.default_value)
     img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
                               float_buffer=True, is_data=True)
-    img.generated_color = (value, value, value, 1.0)
-    img.pack()
+    import numpy as np
+    px = np.full(size * size * 4, value, np.float32)
+    px[3::4] = 1.0
+    img.pixels.foreach_set(px)
+    img.pack()  # (a generated image is packed only once it has pixels: as OpenEXR)
     tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = tex_image = img

@@ -338,6 +338,54 @@ def check_layer(mat, raw):
     return state
 
 
+def describe(mat):
+    """What the material's stamp is, in a few words (for "the stamp is ..., but ...")."""
+    try:
+        d = group(mat, K.STAMP)
+    except StampError:
+        d = None
+    if d is None:
+        return _kind_of(raw_material(mat)) if K.STAMP in mat else "missing"
+    return "a group without its \"layer\" entry" if "layer" not in d else \
+        "a group whose \"layer\" entry does not read"
+
+
+def _finite_list(v, n):
+    return isinstance(v, (list, tuple)) and len(v) == n and all(_finite_number(x) for x in v)
+
+
+def check_layer_node(raw):
+    """The record of a haze layer of today's form (blender.layer, LAYER_VERSION 2) with what
+    does not read left out: the layer node and the kept BSDF are then found by their tags, and
+    Remove Haze restores what the record still holds."""
+    out = {"version": raw.get("version")}
+    for key in ("node", "original"):
+        if isinstance(raw.get(key), str) and raw[key]:
+            out[key] = raw[key]
+    restore = raw.get("restore")
+    r = {}
+    if isinstance(restore, dict):
+        for key in ("name", "label", "parent"):
+            if isinstance(restore.get(key), str):
+                r[key] = restore[key]
+        for key in ("hide", "mute", "use_custom_color"):
+            if isinstance(restore.get(key), (bool, int)) and not isinstance(restore.get(key), float):
+                r[key] = bool(restore[key])
+        if _finite_list(restore.get("location"), 2):
+            r["location"] = [float(x) for x in restore["location"]]
+        if _finite_number(restore.get("width")) and 0.0 < float(restore["width"]) < 1e5:
+            r["width"] = float(restore["width"])
+        if _finite_list(restore.get("color"), 3):
+            r["color"] = [min(max(float(x), 0.0), 1.0) for x in restore["color"]]
+    out["restore"] = r
+    baked_from = raw.get("baked_from")
+    if isinstance(baked_from, dict):
+        out["baked_from"] = {k: v for k, v in baked_from.items() if isinstance(k, str)
+                             and isinstance(v, dict) and len(v) == 1
+                             and (isinstance(v.get("link"), str) or "value" in v)}
+    return out
+
+
 def lost_layer(mat, d):
     """The state of a haze layer whose stamp no longer says so — the stamp is not a group, or
     a group without ``"layer"`` nor ``"kind"`` — while the tree still has the layer's core

@@ -33,7 +33,7 @@ def sync(mat, *, force=False):
         adopted, _ = material.adopt_node_edits(mat)
         return bool(adopted)
     if not layer.is_legacy(mat):
-        return False
+        return _follow_fallback(mat, force)
     state = layer.layer_state(mat) or {}
     problem = stamp.layer_problem(mat, state.get("problems", []))
     if problem is not None:  # upgrading would take the damaged values for the user's
@@ -57,6 +57,24 @@ def sync(mat, *, force=False):
         return False
     _fingerprints.pop(key, None)
     refresh_derived(mat)
+    return True
+
+
+def _follow_fallback(mat, force):
+    """A layer's export fallback (a copy of the user's BSDF for glTF / USD, not rendered)
+    follows edits of the layer node's inputs.  Returns whether it was refreshed."""
+    from . import interchange
+    if interchange.FALLBACK_STAMP not in mat:
+        return False
+    node = layer.layer_node(mat)
+    if node is None:
+        return False
+    key = ("fallback", mat.session_uid)
+    now = legacy_layer.fingerprint(node)
+    if not force and _fingerprints.get(key) == now:
+        return False
+    _fingerprints[key] = now
+    refresh_fallback(mat)
     return True
 
 

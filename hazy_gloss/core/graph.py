@@ -276,8 +276,9 @@ class Graph:
         return self.at_least(self.at_least(r, g), b, **kw)
 
     # -- bookkeeping ---------------------------------------------------------------------------
-    def used(self, outputs):
-        """The non-constant expressions ``outputs`` depend on, in topological order."""
+    def used(self, outputs, stop=()):
+        """The non-constant expressions ``outputs`` depend on, in topological order; the
+        expressions whose index is in ``stop`` are included but not followed further."""
         seen = set()
         order = []
         stack = [e for e in _flatten(outputs) if not e.is_const]
@@ -286,7 +287,8 @@ class Graph:
             if e.index in seen:
                 continue
             seen.add(e.index)
-            stack.extend(a for a in e.args if not a.is_const)
+            if e.index not in stop:
+                stack.extend(a for a in e.args if not a.is_const)
         for e in self.nodes:
             if e.index in seen:
                 order.append(e)

@@ -87,7 +87,8 @@ def _number(name, value):
 
 def _in_range(name, x):
     lo, hi = RANGES[name]
-    if x < lo or (hi is not None and x > hi) or (hi is None and math.isinf(x)) or \
+    unbounded = hi is None or math.isinf(hi)  # then the message says "finite": inf is refused
+    if x < lo or (hi is not None and x > hi) or (unbounded and math.isinf(x)) or \
             (name == "rotation" and math.isinf(x)):
         rng = f"[{lo:g}, {hi:g}]" if hi is not None and not math.isinf(hi) else f">= {lo:g} and finite"
         if name == "rotation":

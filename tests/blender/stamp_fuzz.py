@@ -507,10 +507,12 @@ def _set_stamp(mat, stamp):
 
 
 def _user_nodes(mat):
+    """Names of the user's nodes (a BSDF kept beside a haze layer node carries the suffix
+    " (before haze)" until Remove Haze gives its name back: the same node)."""
     tree = mat.node_tree
     if tree is None:
         return set()
-    return {n.name for n in tree.nodes
+    return {n.name.removesuffix(" (before haze)") for n in tree.nodes
             if "hazy_gloss_role" not in n and not n.name.startswith("HG ")
             and n.bl_idname != "ShaderNodeOutputMaterial"}
 

@@ -97,9 +97,17 @@ def test_eevee_output_keeps_the_user_tree_and_cycles(env, name):
     ours = env.E.eevee_nodes(mat.node_tree)
     outs = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
     assert [n.target for n in outs if n in ours.values()] == ["EEVEE"]
-    assert sum(n.bl_idname in ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfMetallic",
-                               "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
-               for n in ours.values()) == 1  # one BSDF for EEVEE
+    assert not any(n.bl_idname.startswith("ShaderNodeBsdf") for n in ours.values())
+    # EEVEE's output comes from the layer node's EEVEE socket (its group's one folded BSDF),
+    # through copies of the user's shader nodes in between
+    node = env.layer.layer_node(mat)
+    out = ours["layer eevee output"]
+    src = out.inputs["Surface"].links[0].from_socket
+    while src.node != node:
+        assert src.node in ours.values()
+        src = next(s for s in src.node.inputs if s.is_linked and s.type == "SHADER"
+                   and _reaches(s, node)).links[0].from_socket
+    assert src.name == "EEVEE"
     assert len(ours) == info["nodes"]
     assert snapshot(mat, env.ownership.role) == before  # nothing of the user's or the layer's
     assert np.array_equal(render(mat), cycles)  # Cycles renders the user's output as before
@@ -111,37 +119,40 @@ def test_eevee_output_keeps_the_user_tree_and_cycles(env, name):
     assert not env.E.remove_eevee_output(mat)
 
 
-def _value(sock):
-    v = sock.default_value
-    return float(v)
+def _reaches(sock, node):
+    stack = [sock]
+    while stack:
+        s = stack.pop()
+        for lk in s.links:
+            if lk.from_node == node:
+                return True
+            stack.extend(i for i in lk.from_node.inputs if i.type == "SHADER")
+    return False
 
 
 def test_folded_roughness_keeps_the_peak(env):
     """The EEVEE BSDF's Roughness and Coat Roughness are the single lobes whose GGX peak
-    F(0)/(π α²) equals the layer's (1 - β) F(0)/(π α_n²) + β F(0)/(π α_w²), from the layer's
-    own node values; and Cycles renders that folded BSDF with the layer's peak."""
+    F(0)/(π α²) equals the layer's (1 - β) F(0)/(π α_n²) + β F(0)/(π α_w²), from the values
+    the layer's group gives its slots (its graph evaluated for the node's values)."""
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
-    env.E.add_eevee_output(mat)
-    nodes = env.ownership.ours(mat.node_tree)
-    core = env.layer.find_core(mat.node_tree)
-    folded = nodes["layer eevee bsdf"]
+    node = env.layer.layer_node(mat)
+    folded = env.layer.slot_values(node, "EEVEE folded")
+    wide = env.layer.slot_values(node, "A wide")  # metal under the narrow coat
+    under_wide_coat = env.layer.slot_values(node, "B narrow")  # (m = 1: B is A under the wide coat)
+    vals, _ = env.layer.values(node)
 
     def peak_alpha(beta, r_n, r_w):
         a_n, a_w = r_n ** 2, r_w ** 2
         return 1.0 / math.sqrt((1.0 - beta) / a_n ** 2 + beta / a_w ** 2)
 
-    beta = _value(nodes["layer Mix metal"].inputs[0])
-    want = peak_alpha(beta, _value(core.inputs["Roughness"]),
-                      _value(nodes["layer metal wide"].inputs["Roughness"]))
-    assert _value(folded.inputs["Roughness"]) ** 2 == pytest.approx(want, rel=1e-5)
-    beta_c = _value(nodes["layer Mix coat"].inputs[0])
-    want_c = peak_alpha(beta_c, _value(core.inputs["Coat Roughness"]),
-                        _value(nodes["layer metal narrow coat wide"].inputs["Coat Roughness"]))
-    assert _value(folded.inputs["Coat Roughness"]) ** 2 == pytest.approx(want_c, rel=1e-5)
-    assert _value(folded.inputs["Coat IOR"]) == pytest.approx(_value(core.inputs["Coat IOR"]))
-    assert tuple(folded.inputs["Base Color"].default_value) == \
-        pytest.approx(tuple(core.inputs["Base Color"].default_value))
+    want = peak_alpha(vals["beta metal"], node.inputs["Roughness"].default_value, wide["Roughness"])
+    assert folded["Roughness"] ** 2 == pytest.approx(want, rel=1e-5)
+    want_c = peak_alpha(vals["beta coat"], node.inputs["Coat Roughness"].default_value,
+                        under_wide_coat["Coat Roughness"])
+    assert folded["Coat Roughness"] ** 2 == pytest.approx(want_c, rel=1e-5)
+    assert folded["Coat IOR"] == pytest.approx(wide["Coat IOR"])
+    assert folded["Base Color"] == pytest.approx(wide["Base Color"])  # the raised metal colour
 
 
 @pytest.mark.parametrize("name", ["dielectric", "metal"])
@@ -212,7 +223,7 @@ def test_auto_refuses_and_layer_rebuilds_remove_it(env):
     env.api.update_material(mat, coat_haziness=0.0)
     assert env.E.requested_mode(mat) == "auto"
     assert env.E.has_eevee_output(mat)
-    env.E._remove_nodes(mat)  # as a layer rebuild outside update_material does
+    env.E.remove_nodes(mat)  # as an edit of the path to the output would need
     assert not env.E.has_eevee_output(mat)
     assert env.E.sync_eevee_output(mat)
     assert env.E.has_eevee_output(mat)
@@ -233,22 +244,20 @@ def test_auto_refuses_and_layer_rebuilds_remove_it(env):
 
 def test_the_output_follows_the_layer_and_the_panel(env, hg):
     """Asked for once (api or the panel's EEVEE setting), the EEVEE output follows every later
-    change: a haze change through update_material (values in place) and a core edit synced
-    by the handler's sync() rebuild it with the new folded roughness; "Full Layer" removes it."""
+    change by itself (its BSDF is computed in the layer node's group): more haze folds into a
+    wider lobe, an edit of the node's Roughness too, with no Python run; "Full Layer" removes
+    it."""
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
     assert env.api.add_eevee_output(mat)["added"]
-    folded = lambda: env.ownership.ours(mat.node_tree)["layer eevee bsdf"]  # noqa: E731
-    r0 = _value(folded().inputs["Roughness"])
+    node = env.layer.layer_node(mat)
+    r0 = env.layer.slot_values(node, "EEVEE folded")["Roughness"]
     env.api.update_material(mat, haziness=0.8)
     assert env.E.has_eevee_output(mat)
-    r1 = _value(folded().inputs["Roughness"])
+    r1 = env.layer.slot_values(node, "EEVEE folded")["Roughness"]
     assert r1 > r0 * 1.01  # more haze: a wider folded lobe
-    core = env.layer.find_core(mat.node_tree)
-    core.inputs["Roughness"].default_value = 0.5  # the user edits the core
-    sync = importlib.import_module(f"{hg.__name__}.blender.sync")
-    assert sync.sync(mat)
-    assert _value(folded().inputs["Roughness"]) > r1 * 1.2
+    node.inputs["Roughness"].default_value = 0.5  # the user edits the node
+    assert env.layer.slot_values(node, "EEVEE folded")["Roughness"] > r1 * 1.2
     settings = mat.hazy_gloss_settings
     assert settings.eevee_output == "AUTO"
     settings.eevee_output = "FULL"

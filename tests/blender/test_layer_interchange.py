@@ -144,19 +144,52 @@ def _close(a, b, rel=2e-6, abs_=1e-7):
     return np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=rel, atol=abs_)
 
 
+class Seen:
+    """A socket of a node inside the layer node's group as the renderer sees it: a link from
+    the Group Input is the layer node's own input of that name (its link or value)."""
+
+    def __init__(self, sock, outer):
+        self.sock, self.outer = sock, outer
+        self.name = sock.name
+        src = sock.links[0].from_node if sock.is_linked else None
+        self.through = outer.inputs.get(sock.name if src is None else sock.links[0].from_socket.name) \
+            if src is not None and src.bl_idname == "NodeGroupInput" else None
+
+    @property
+    def is_linked(self):
+        return self.through.is_linked if self.through is not None else self.sock.is_linked
+
+    @property
+    def default_value(self):
+        return (self.through if self.through is not None else self.sock).default_value
+
+    @property
+    def links(self):
+        return self.sock.links
+
+
+class Inputs:
+    def __init__(self, node, outer):
+        self.node, self.outer = node, outer
+
+    def __getitem__(self, key):
+        s = self.node.inputs[key]
+        return Seen(s, self.outer) if self.outer is not None else s
+
+
 class Walk:
-    """Walks the Blender tree from the Material Output Cycles uses, and the MaterialX graph in
-    step, checking every BSDF and mix against the Blender node it was written from."""
+    """Walks the Blender tree from the Material Output Cycles uses (into the layer node's
+    group, as the exporters inline it), and the MaterialX graph in step, checking every BSDF
+    and mix against the Blender node it was written from."""
 
     def __init__(self, env, mat, ng):
         self.env, self.mat, self.ng = env, mat, ng
         self.vname = env.doc.valid_name
         self.seen = {"principled": 0, "metallic": 0, "glossy": 0, "mix": 0, "add": 0}
+        self.outer = None
 
-    def mx_of(self, bnode):
-        n = self.ng.getNode(self.vname(bnode.name))
-        assert n is not None, f"no MaterialX node for {bnode.name}"
-        return n
+    def name(self, b):
+        return self.vname((self.outer.name + "/" if self.outer is not None else "") + b.name)
 
     @staticmethod
     def unwrap(mx_node):
@@ -171,8 +204,12 @@ class Walk:
         link = next((lk for lk in sock.links if not lk.is_muted), None)
         assert link is not None
         b = link.from_node
-        mx_node = self.unwrap(mx_node)
         t = b.bl_idname
+        if t == "ShaderNodeGroup":  # the layer node: its group's inside
+            gout = next(n for n in b.node_tree.nodes if n.bl_idname == "NodeGroupOutput")
+            self.outer = b
+            return self.check(gout.inputs[link.from_socket.name], mx_node)
+        mx_node = self.unwrap(mx_node)
         if t == "ShaderNodeBsdfPrincipled":
             self.principled(b, mx_node)
         elif t == "ShaderNodeBsdfMetallic":
@@ -180,7 +217,7 @@ class Walk:
         elif t in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"):
             self.glossy(b, mx_node)
         elif t == "ShaderNodeMixShader":
-            assert mx_node.getCategory() == "mix" and mx_node.getName() == self.vname(b.name)
+            assert mx_node.getCategory() == "mix" and mx_node.getName() == self.name(b)
             fac = b.inputs[0]
             if not fac.is_linked:
                 got = float(mx_node.getInput("mix").getValue())
@@ -199,10 +236,10 @@ class Walk:
             raise AssertionError(f"unexpected {t}")
 
     def principled(self, b, n):
-        assert n.getCategory() == "open_pbr_surface" and n.getName() == self.vname(b.name)
+        assert n.getCategory() == "open_pbr_surface" and n.getName() == self.name(b)
         self.seen["principled"] += 1
         v = _values(n)
-        ins = b.inputs
+        ins = Inputs(b, self.outer)
         lin = lambda name: ins[name].is_linked  # noqa: E731
         if not lin("Base Color"):
             assert _close(v["base_color"], _bval(ins["Base Color"]))
@@ -233,9 +270,15 @@ class Walk:
     def metallic(self, b, n):
         self.seen["metallic"] += 1
         v = _values(n)
-        ins = b.inputs
+        ins = Inputs(b, self.outer)
+        if ins["Roughness"].is_linked or ins["Anisotropy"].is_linked:
+            return  # the layer's math feeds the wide lobe (checked per pixel below)
         want = cycles_alpha(ins["Roughness"].default_value, ins["Anisotropy"].default_value)
         assert _close(v["roughness"], want, rel=1e-6)
+        fresnel = ("IOR", "Extinction") if b.fresnel_type == "PHYSICAL_CONDUCTOR" else \
+            ("Base Color", "Edge Tint")
+        if any(ins[k].is_linked for k in fresnel):
+            return  # raised by the layer's math
         if b.fresnel_type == "PHYSICAL_CONDUCTOR":
             assert n.getCategory() == "conductor_bsdf"
             assert _close(v["ior"], _bval(ins["IOR"])) and _close(v["extinction"], _bval(ins["Extinction"]))
@@ -249,7 +292,9 @@ class Walk:
         self.seen["glossy"] += 1
         assert n.getCategory() == "generalized_schlick_bsdf"
         v = _values(n)
-        ins = b.inputs
+        ins = Inputs(b, self.outer)
+        if ins["Roughness"].is_linked or ins["Anisotropy"].is_linked or ins["Color"].is_linked:
+            return
         assert _close(v["roughness"], glossy_alpha(ins["Roughness"].default_value,
                                                    ins["Anisotropy"].default_value), rel=1e-6)
         assert _close(v["color0"], _bval(ins["Color"])) and _close(v["color90"], _bval(ins["Color"]))
@@ -288,11 +333,9 @@ def test_layer_exports_the_tree_it_holds(env, name, tmp_path):
     top = ng.getOutput("out").getConnectedNode()
     w = Walk(env, mat, ng)
     w.check(_renderer_output(mat).inputs["Surface"], top)
-    layer_nodes = env.layer._layer_nodes(mat.node_tree)
-    bsdfs = [n for n in layer_nodes.values() if n.bl_idname.startswith("ShaderNodeBsdf")]
-    mixes = [n for n in layer_nodes.values() if n.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader")]
-    assert w.seen["principled"] + w.seen["metallic"] + w.seen["glossy"] == len(bsdfs) + 1  # + the core
-    assert w.seen["mix"] + w.seen["add"] >= len(mixes) >= 1
+    assert w.outer == env.layer.layer_node(mat)  # the walk went through the layer node
+    assert w.seen["principled"] + w.seen["metallic"] + w.seen["glossy"] >= 2
+    assert w.seen["mix"] + w.seen["add"] >= 1
     if name == "rusty metal (noise into Metallic)":  # a procedural texture: said, not hidden
         assert any("Noise Texture" in n and "not exported" in n for n in rep.notes), rep.notes
 
@@ -343,6 +386,19 @@ def _upstream(node, cat):
     return None
 
 
+def _upstream_files(node):
+    files, stack, seen = set(), [node], set()
+    while stack:
+        n = stack.pop()
+        if n is None or n.getName() in seen:
+            continue
+        seen.add(n.getName())
+        if n.getCategory() == "image":
+            files.add(n.getInputValue("file"))
+        stack.extend(i.getConnectedNode() for i in n.getInputs())
+    return files
+
+
 def test_images_keep_their_files_and_colour_spaces(env, tmp_path):
     mat, b = TL.principled("Textured", **{"Roughness": 0.3})
     tree = mat.node_tree
@@ -374,15 +430,15 @@ def test_images_keep_their_files_and_colour_spaces(env, tmp_path):
     for path, n in images.items():
         cs = n.getInput("file").getColorSpace()
         assert cs == ("srgb_texture" if want[path].colorspace_settings.name == "sRGB" else "raw"), (path, cs)
-    # the metallic map is the factor of the layer's metal mix (and of no BSDF's metalness)
-    mix = ng.getNode("HG_layer_Mix_metallic")
+    # the metallic map is the factor of the layer's mix of its parts
+    mix = ng.getNode(env.doc.valid_name("Principled BSDF/Mix parts or coat"))
     src = _upstream(mix.getInput("mix").getConnectedNode(), "image")
     assert src is not None and src.getInputValue("file") == "metal.exr"
-    for n in ng.getNodes():
-        if n.getCategory() == "open_pbr_surface":
-            assert n.getInput("base_metalness").getConnectedNode() is None
-            assert _upstream(n.getInput("base_color").getConnectedNode(), "image").getInputValue("file") == "albedo.png"
-            assert n.getInput("geometry_normal").getConnectedNode().getCategory() == "normalmap"
+    surfaces = [n for n in ng.getNodes() if n.getCategory() == "open_pbr_surface"]
+    assert surfaces
+    for n in surfaces:  # (through the selects of the metallic split: both maps are upstream)
+        assert "albedo.png" in _upstream_files(n.getInput("base_color").getConnectedNode())
+        assert n.getInput("geometry_normal").getConnectedNode().getCategory() == "normalmap"
 
 
 def _aov(tree, name, socket):
@@ -430,10 +486,19 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
     rep = env.api.export_materialx(mat, str(tmp_path / "live.mtlx"))
     assert rep.validated, rep.validation
     assert any("per pixel" in n for n in rep.notes)
-    nodes = env.layer._layer_nodes(tree)
-    wide, mix = nodes["layer dielectric wide"], nodes["layer Mix dielectric"]
-    probes = {"texel": tex.outputs["Color"], "wide": wide.inputs["Roughness"].links[0].from_socket,
-              "ior": b.inputs["IOR"].links[0].from_socket, "beta": mix.inputs[0].links[0].from_socket}
+    node = env.layer.layer_node(mat)
+    ng = node.node_tree.copy()  # (a copy: the probe outputs stay out of the shared group)
+    inner = {n.name: n for n in ng.nodes}
+    wide, narrow, mix = inner["A wide"], inner["A narrow"], inner["Mix A"]
+    gout = next(n for n in ng.nodes if n.bl_idname == "NodeGroupOutput")
+    probes = {"texel": tex.outputs["Color"]}
+    for k, s in (("wide", wide.inputs["Roughness"]), ("ior", narrow.inputs["IOR"]),
+                 ("beta", mix.inputs[0])):
+        ng.interface.new_socket(name=f"probe {k}", in_out="OUTPUT", socket_type="NodeSocketFloat")
+        ng.links.new(s.links[0].from_socket, gout.inputs[f"probe {k}"])
+    node.node_tree = ng
+    for k in ("wide", "ior", "beta"):
+        probes[k] = node.outputs[f"probe {k}"]
     for k, s in probes.items():
         _aov(tree, k, s)
     scenes.setup_render("CYCLES", samples=1, resolution=(16, 16), bounces=0)
@@ -446,9 +511,10 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
     img_node = next(n for n in ng.getNodes() if n.getCategory() == "image")
     texel = got["texel"].astype(np.float32)
     ev = mx_eval.Evaluator(ng, texel.size, {img_node.getName(): np.repeat(texel[:, None], 3, 1)})
-    mxv = {"wide": ev.value("HG_layer_dielectric_wide", "specular_roughness"),
-           "ior": ev.value("Principled_BSDF", "specular_ior"),
-           "beta": ev.value("HG_layer_Mix_dielectric", "mix")}
+    vn = env.doc.valid_name
+    mxv = {"wide": ev.value(vn("Principled BSDF/A wide"), "specular_roughness"),
+           "ior": ev.value(vn("Principled BSDF/A narrow"), "specular_ior"),
+           "beta": ev.value(vn("Principled BSDF/Mix A"), "mix")}
     worst = {}
     for k, v in mxv.items():
         want = got[k] if k == "ior" else np.clip(got[k], 0.0, 1.0)  # the sockets' saturation
@@ -485,25 +551,30 @@ def test_baked_layer_exports_its_maps(env, tmp_path):
     ng = doc.getNodeGraphs()[0]
     files = {os.path.normpath(os.path.join(str(tmp_path), n.getInputValue("file")))
              for n in ng.getNodes() if n.getCategory() == "image"}
-    baked = env.layer.layer_state(mat)["baked"]["maps"]
+    node = env.layer.layer_node(mat)
+    lg = importlib.import_module(env.hg.__name__ + ".core.layer_graph")
+    baked = {key: node.inputs[name].links[0].from_node.image.name
+             for key, (name, _) in lg.BAKED.items()}
     want = {os.path.normpath(bpy.path.abspath(bpy.data.images[name].filepath)) for name in baked.values()}
     assert want and want <= files, (want - files)
-    # every socket the layer links to a baked map reads that map in the document
+    # the wide lobe's roughness and the raised IOR read those maps in the document
     tree = mat.node_tree
     vname = env.doc.valid_name
-    checked = 0
-    for n in tree.nodes:
-        if n.bl_idname != "ShaderNodeBsdfPrincipled":
-            continue
-        mxn = ng.getNode(vname(n.name))
-        for bl, key in (("Roughness", "specular_roughness"), ("IOR", "specular_ior")):
-            s = n.inputs[bl]
-            if s.is_linked and s.links[0].from_node.bl_idname == "ShaderNodeTexImage":
-                f = os.path.normpath(bpy.path.abspath(s.links[0].from_node.image.filepath))
-                up = _upstream(mxn.getInput(key).getConnectedNode(), "image")
-                assert os.path.normpath(os.path.join(str(tmp_path), up.getInputValue("file"))) == f
-                checked += 1
-    assert checked >= 2
+    for slot, bl, key, bkey in (("A wide", "Roughness", "specular_roughness", "roughness_wide"),
+                                ("A narrow", "IOR", "specular_ior", "ior_d")):
+        mxn = ng.getNode(vname(f"{node.name}/{slot}"))
+        f = os.path.normpath(bpy.path.abspath(bpy.data.images[baked[bkey]].filepath))
+        up = mxn.getInput(key).getConnectedNode()
+        files_up = set()
+        stack = [up]
+        while stack:
+            x = stack.pop()
+            if x is None:
+                continue
+            if x.getCategory() == "image":
+                files_up.add(os.path.normpath(os.path.join(str(tmp_path), x.getInputValue("file"))))
+            stack.extend(i.getConnectedNode() for i in x.getInputs())
+        assert f in files_up, (slot, f, files_up)
     # its export fallback is the user's BSDF at haziness 0: the PBR maps, not the baked ones
     env.api.add_export_fallback(mat)
     fb = env.ix.material.ours(tree)["Export fallback"]
@@ -558,13 +629,10 @@ def test_usd_holds_the_same_network(env, tmp_path):
         # the preview is the user's BSDF at haziness 0
         pv = m.ComputeSurfaceSource()[0]
         assert pv.GetIdAttr().Get() == "UsdPreviewSurface"
-        core = env.layer.find_core(mat.node_tree)
-        base = env.layer.layer_state(mat)["base"]
-        if core.bl_idname == "ShaderNodeBsdfPrincipled":
-            bc = base.get("Base Color", {}).get("value", _bval(core.inputs["Base Color"]))
-            assert _close(pv.GetInput("diffuseColor").Get(), tuple(bc)[:3], rel=1e-6)
-            assert pv.GetInput("ior").Get() == pytest.approx(
-                base.get("IOR", {}).get("value", core.inputs["IOR"].default_value), rel=1e-6)
+        core = env.layer.layer_node(mat)  # its inputs are the user's own values
+        if "IOR" in core.inputs and "Base Color" in core.inputs and "Coat Weight" in core.inputs:
+            assert _close(pv.GetInput("diffuseColor").Get(), _bval(core.inputs["Base Color"]), rel=1e-6)
+            assert pv.GetInput("ior").Get() == pytest.approx(core.inputs["IOR"].default_value, rel=1e-6)
         assert pv.GetInput("roughness").Get() == pytest.approx(core.inputs["Roughness"].default_value, rel=1e-6)
     res = env.api.import_materialx(path)
     assert len(res) == 0 and all("not supported yet" in im.notes[0] for im in res.report)
@@ -610,10 +678,11 @@ def test_layer_fallback_gives_the_exporters_the_users_bsdf(env, tmp_path):
     preview_is_fallback = {}
     for mat, _ in mats.values():
         notes = env.api.add_export_fallback(mat)
-        core = env.layer.find_core(mat.node_tree)
-        said = any("UsdPreviewSurface" in n and "core" in n for n in notes)
-        # a Principled core precedes the fallback; a Metallic / Glossy core is no Principled
-        assert said == (core.bl_idname == "ShaderNodeBsdfPrincipled"), (mat.name, notes)
+        kept = env.layer.original_node(mat)
+        said = any("UsdPreviewSurface" in n and "before haze" in n for n in notes)
+        # the user's Principled, kept beside the layer node, precedes the fallback in the node
+        # list; a Metallic / Glossy BSDF is no Principled
+        assert said == (kept.bl_idname == "ShaderNodeBsdfPrincipled"), (mat.name, notes)
         preview_is_fallback[mat.name] = not said
     glb, usda = str(tmp_path / "s.glb"), str(tmp_path / "s.usda")
     bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB")
@@ -722,7 +791,7 @@ def _check_outputs(env, mat):
     fallback, the user's output the same as the renderers."""
     tree = mat.node_tree
     mine = env.ix.material.ours(tree)
-    final_sock = env.layer._final(tree) or env.layer.find_core(tree).outputs[0]
+    final_sock = env.layer.layer_node(mat).outputs["BSDF"]
     user_out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
                     and not env.ix.material.is_ours(n))
     for t in ("Cycles", "Eevee"):
@@ -765,17 +834,17 @@ def test_haze_updates_keep_the_fallback_outputs(env, tmp_path):
     assert len(outs) == 1 and outs[0].is_active_output and _feeds(outs[0].inputs["Surface"]) == b
     assert not env.ix.material.ours(mat.node_tree)
     env.api.make_hazy(mat, haziness=0.3)  # and Make Hazy finds the user's BSDF again
-    assert env.layer.find_core(mat.node_tree) == b
+    assert env.layer.original_node(mat) == b
 
 
 def test_fallback_follows_edits_of_the_core(env, tmp_path):
     mat, b = TL.principled("Edited", **{"Base Color": (0.2, 0.4, 0.1, 1.0), "Roughness": 0.3})
     _hazy(env, mat, haziness=0.5)
     env.api.add_export_fallback(mat)
-    b.inputs["Roughness"].default_value = 0.45  # a user edit of the core
-    b.inputs["IOR"].default_value = 1.7  # an owned input: the layer adopts it as the user's
+    node = env.layer.layer_node(mat)
+    node.inputs["Roughness"].default_value = 0.45  # user edits of the layer node
+    node.inputs["IOR"].default_value = 1.7
     env.api.sync_haze(mat)
     fb = env.ix.material.ours(mat.node_tree)["Export fallback"]
     assert fb.inputs["Roughness"].default_value == pytest.approx(0.45)
     assert fb.inputs["IOR"].default_value == pytest.approx(1.7)
-    assert b.inputs["IOR"].default_value > 1.7  # the core renders the raised IOR again

@@ -19,19 +19,27 @@ def _by_id(sockets, identifier):
     raise KeyError(identifier)
 
 
-def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_expr=None):
+def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_expr=None,
+         known=None):
     """Build the nodes ``outputs`` (an Expr or a dict/list of them) need with TreeBuilder ``tb``.
 
     ``sources``: input name -> socket or constant.  Returns ``outputs`` with every Expr replaced
     by a socket or a Python constant (the shader backend), or, for the compositor, vectors by a
     tuple of three lanes.  ``reuse``: the nodes an earlier emit of a graph with the same
     signature created (``tb.created`` order): they are updated in place instead of new ones
-    (constants and links set again), so a change of values rebuilds nothing."""
+    (constants and links set again), so a change of values rebuilds nothing.
+    ``nodes_by_expr``: a dict filled with {expression index: the node made for it} (shader
+    backend; lanes of one vector share their Separate node).  ``known``: {expression index:
+    socket} of expressions made elsewhere (a node group's inputs): used, not built."""
     emitter = (_ShaderEmitter if backend == "SHADER" else _CompositorEmitter)(tb, sources)
     if reuse is not None:
         tb.reuse = list(reuse)
+    known = known or {}
     try:
-        for e in graph.used(outputs):
+        for e in graph.used(outputs, stop=known):
+            if e.index in known:
+                emitter.sockets[e.index] = known[e.index]
+                continue
             emitter.visit(e)
             if nodes_by_expr is not None and e.op != "input":
                 nodes_by_expr[e.index] = emitter.sockets[e.index].node
