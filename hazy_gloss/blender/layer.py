@@ -100,6 +100,21 @@ def layer_state(mat):
 
 
 def is_layered(mat):
+    """Whether ``mat`` has a haze layer (of today's form or the legacy one, damaged or not).
+    Cheap for the common case (a stamp without a "layer" entry and no tagged node), which
+    every slider change of a hazy material asks."""
+    if mat is None:
+        return False
+    try:
+        d = mat.get(K.STAMP)
+        has_entry = d is not None and hasattr(d, "keys") and "layer" in d
+    except (TypeError, AttributeError):
+        has_entry = False
+    if not has_entry:
+        tree = getattr(mat, "node_tree", None)
+        if tree is None or not any(n.get(K.LAYER_NODE_KEY) or n.get(legacy_layer.CORE_KEY)
+                                   for n in tree.nodes):
+            return False
     return layer_state(mat) is not None
 
 
