@@ -322,7 +322,7 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             elif e is not None and not e.vector and a.ndim == 1:
                 a = a[0]
             feeds[k] = a
-        values = evaluate(lay.baked, feeds)
+        values = evaluate(lay.baked, feeds, g.tables)
         ext_ = _EXT["OPEN_EXR"]
         paths = {k: _final_path(out_dir, prefix, _slug(k), None, ext_) for k in lay.baked}
         _check_targets(list(paths.values()), {os.path.realpath(p) for s in sources.values()

@@ -276,7 +276,8 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
                          f"Principled, Metallic or Glossy BSDF")
     settings = layer_group.settings_of(core)
     use_smooth = haze.get("smoothness") is not None if smooth is None else smooth
-    ng = layer_group.ensure_group(kind, settings, use_smooth, baked)
+    ng = layer_group.ensure_group(kind, settings, use_smooth, baked,
+                                  bool(keep_body_colour) and kind == "PRINCIPLED" and not baked)
     restore = {"name": core.name, "label": core.label, "location": list(core.location),
                "width": float(core.width), "hide": bool(core.hide), "mute": bool(core.mute),
                "parent": core.parent.name if core.parent is not None else "",
@@ -521,9 +522,11 @@ def apply(mat, haze, *, core=None):
         return {}
     cfg = group_config(node)
     smooth = haze.get("smoothness") is not None
-    if smooth != bool(cfg.get("smooth")) and not cfg.get("baked"):
-        ng = layer_group.ensure_group(cfg.get("bsdf", "PRINCIPLED"), dict(cfg.get("settings", {})),
-                                      smooth)
+    kind = cfg.get("bsdf", "PRINCIPLED")
+    body = bool(haze.get("keep_body_colour", cfg.get("body"))) and kind == "PRINCIPLED"
+    if (smooth != bool(cfg.get("smooth")) or body != bool(cfg.get("body"))) and \
+            not cfg.get("baked"):
+        ng = layer_group.ensure_group(kind, dict(cfg.get("settings", {})), smooth, False, body)
         swap_group(node, ng)
     set_haze(node, haze)
     return {}
@@ -604,7 +607,8 @@ def graph_of(node):
     """The core.layer_graph.Layer of a layer node's group (cached per configuration)."""
     st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
     cfg = layer_group.config_for(st.get("bsdf", "PRINCIPLED"), st.get("settings", {}),
-                                 smooth=bool(st.get("smooth")), baked=bool(st.get("baked")))
+                                 smooth=bool(st.get("smooth")), baked=bool(st.get("baked")),
+                                 body=bool(st.get("body")))
     lay = _LAYERS.get(cfg.key())
     if lay is None:
         lay = _LAYERS[cfg.key()] = layer_graph.build(cfg)
@@ -617,10 +621,10 @@ def _evaluate(node, outputs):
     needed = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
     inputs = {}
     for name in needed:
-        v = vals.get(name, 0.0)
+        v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
         vector = lay.graph.inputs[name].vector
         inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
-    out = evaluate(outputs, inputs)
+    out = evaluate(outputs, inputs, lay.graph.tables)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
 
@@ -771,7 +775,34 @@ def notes(mat):
         if betas and max(betas) <= 0.0:
             out.append("no haze shows: the core already reflects all it can (a colour channel at "
                        "or above 1 leaves no room for a halo)")
+    if group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
+        note = _body_note(node, vals, linked)
+        if note:
+            out.append(note)
     return out
+
+
+def _body_note(node, vals, linked):
+    """What Keep Body Colour cannot keep for the node's values (a base that would need a
+    colour above 1): core.body_colour's measure of it, for the panel (the shader computes the
+    compensation itself)."""
+    from ..core import body_colour
+    if {"Base Color", "Roughness", "IOR", "Specular Tint", "Specular IOR Level"} & set(linked):
+        return None
+    inp = node.inputs
+    r = float(inp["Roughness"].default_value)
+    rw = float(vals["roughness wide"])
+    try:
+        bc = body_colour.compensation(
+            r * r, float(inp["IOR"].default_value), float(vals["IOR dielectric"]),
+            float(vals["beta dielectric"]), rw * rw,
+            base_color=tuple(inp["Base Color"].default_value)[:3],
+            tint=tuple(inp["Specular Tint"].default_value)[:3],
+            level=float(inp["Specular IOR Level"].default_value),
+            distribution=group_config(node).get("settings", {}).get("distribution", "GGX"))
+    except (ValueError, FloatingPointError):
+        return None
+    return bc.warning()
 
 
 _SUMMARIES = {}

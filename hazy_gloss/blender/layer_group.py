@@ -14,7 +14,7 @@ from __future__ import annotations
 import bpy
 
 from .. import constants as K
-from ..core import bsdf_interfaces, layer_graph
+from ..core import bsdf_interfaces, layer_graph, node_body_colour
 from ..core.multiscatter import cycles_version
 from . import stamp
 from .nodes.builder import TreeBuilder
@@ -55,14 +55,14 @@ def kind_of(node):
     return None
 
 
-def config_for(kind, settings, *, smooth=False, baked=False):
+def config_for(kind, settings, *, smooth=False, baked=False, body=False):
     """The layer_graph.Config of a BSDF kind and its node settings."""
     return layer_graph.Config(kind, settings.get("distribution", "GGX"),
                               fresnel=settings.get("fresnel_type", ""), smooth=bool(smooth),
-                              version=cycles_version(None), baked=bool(baked))
+                              version=cycles_version(None), baked=bool(baked), body=bool(body))
 
 
-def group_name(kind, settings, smooth=False, baked=False):
+def group_name(kind, settings, smooth=False, baked=False, body=False):
     """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth) 5.3" (< 64 bytes)."""
     parts = [_DIST_LABEL.get(settings.get("distribution"), settings.get("distribution", ""))]
     for key in ("subsurface_method", "fresnel_type"):
@@ -73,47 +73,52 @@ def group_name(kind, settings, smooth=False, baked=False):
         parts.append("Smooth")
     if baked:
         parts.append("Converted")
+    if body:
+        parts.append("Body")
     return f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
 
 
-def _stamp_of(kind, settings, smooth, baked=False):
+def _stamp_of(kind, settings, smooth, baked=False, body=False):
     d = {"kind": "layer", "version": GROUP_VERSION, "bsdf": kind, "settings": dict(settings),
          "smooth": int(bool(smooth)), "blender": version_tag()}
     if baked:
         d["baked"] = 1
+    if body:
+        d["body"] = 1
     return d
 
 
-def fits(ng, kind, settings, smooth, baked=False):
+def fits(ng, kind, settings, smooth, baked=False, body=False):
     if ng is None or ng.library is not None:
         return False
-    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked)
+    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked, body)
 
 
 def is_layer_group(ng):
     return ng is not None and (stamp.group(ng, K.GROUP_STAMP) or {}).get("kind") == "layer"
 
 
-def ensure_group(kind, settings, smooth=False, baked=False):
+def ensure_group(kind, settings, smooth=False, baked=False, body=False):
     """The group of this configuration: found by its stamp (a renamed group is taken), else
     appended from the per-user cache, else built (and cached); an outdated group of the same
     name is rebuilt in place (its users keep their links and values)."""
-    name = group_name(kind, settings, smooth, baked)
+    config = (kind, settings, smooth, baked, body)
+    name = group_name(*config)
     ng = bpy.data.node_groups.get(name)
-    if fits(ng, kind, settings, smooth, baked):
+    if fits(ng, *config):
         return ng
-    found = next((g for g in bpy.data.node_groups if fits(g, kind, settings, smooth, baked)), None)
+    found = next((g for g in bpy.data.node_groups if fits(g, *config)), None)
     if found is not None:
         return found
     stale = ng is not None and ng.library is None and is_layer_group(ng)
     if not stale:
-        cached = _from_cache(name, (kind, settings, smooth, baked))
+        cached = _from_cache(name, config)
         if cached is not None:
             return cached
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    build(ng, kind, settings, smooth, baked)
-    ng[K.GROUP_STAMP] = _stamp_of(kind, settings, smooth, baked)
+    build(ng, *config)
+    ng[K.GROUP_STAMP] = _stamp_of(*config)
     _to_cache(ng)
     return ng
 
@@ -125,6 +130,7 @@ def ensure_group(kind, settings, smooth=False, baked=False):
 
 _SOURCES = ("blender/layer_group.py", "blender/nodes/emit.py", "blender/nodes/builder.py",
             "core/layer_graph.py", "core/node_math.py", "core/node_multiscatter.py",
+            "core/node_body_colour.py", "core/body_colour.py",
             "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
 _digest = []
 
@@ -307,7 +313,7 @@ def _frame(ng, title, nodes, x0, y0):
     return frame
 
 
-def build(ng, kind, settings, smooth, baked=False):
+def build(ng, kind, settings, smooth, baked=False, body=False):
     """(Re)build ``ng`` for this configuration.  An existing interface is kept when it is the
     same (the group nodes' links and values stay)."""
     ng.nodes.clear()
@@ -316,7 +322,7 @@ def build(ng, kind, settings, smooth, baked=False):
         setattr(template, p, v)
     _rebuild_interface(ng, kind, template, smooth, baked)
     ng.nodes.remove(template)
-    cfg = config_for(kind, settings, smooth=smooth, baked=baked)
+    cfg = config_for(kind, settings, smooth=smooth, baked=baked, body=body)
     lay = layer_graph.build(cfg)
 
     gin = ng.nodes.new("NodeGroupInput")
@@ -331,6 +337,13 @@ def build(ng, kind, settings, smooth, baked=False):
     else:
         for param in haze_params(kind, smooth):
             sources[layer_graph.haze_name(param)] = gin.outputs[K.HAZE_SOCKETS[param][0]]
+    if body:  # the view cosine Keep Body Colour reads, on the BSDF's normal
+        lw = ng.nodes.new("ShaderNodeLayerWeight")
+        lw.label = "View cosine (Keep Body Colour)"
+        lw.inputs["Blend"].default_value = 0.5
+        ng.links.new(gin.outputs["Normal"], lw.inputs["Normal"])
+        lw.location = (-1.5 * _COLUMN, 300.0)
+        sources[node_body_colour.FACING] = lw.outputs["Facing"]
 
     # -- the math: one node group per section (readable, and far quicker to build: every
     #    node edit in Blender updates the whole tree it is in) ------------------------------

@@ -21,6 +21,10 @@ the numpy mapping without rendering.
 - RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
   Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
   the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).
+- TABLE(u, v): a lookup in a float table of the graph (:meth:`Graph.table`, H x W values):
+  an Image Texture of a float Non-Color image (Linear, Extend) read at the texture coordinate
+  (u, v), as Cycles' kernel reads images (kernel/util/image.h interp_linear: x = u W - 0.5,
+  bilinear between texels, indices clamped); a vector with the value in every lane.
 - Building folds constants (in float32 with the same semantics, as Cycles' own constant folding
   does) and merges identical sub-expressions, so a graph fed constants emits only the nodes
   that depend on linked inputs, and never two nodes computing the same thing.
@@ -34,7 +38,7 @@ __all__ = ("Expr", "Graph", "evaluate", "ramp_table", "SCALAR_OPS", "VECTOR_OPS"
 #: Math node operations used here, with their arity.
 SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "SQRT": 1, "MINIMUM": 2, "MAXIMUM": 2, "LESS_THAN": 2,
-              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3}
+              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3, "FLOOR": 1}
 #: Vector Math node operations used here (SCALE: vector × scalar).
 VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1, "FLOOR": 1,
@@ -91,6 +95,7 @@ class Graph:
         self.nodes = []  # every non-constant Expr, in creation order (a topological order)
         self._memo = {}
         self.inputs = {}
+        self.tables = {}  # name -> (H, W) float32 (the images TABLE reads)
 
     # -- leaves --------------------------------------------------------------------------------
     def input(self, name, *, vector=False):
@@ -127,7 +132,7 @@ class Graph:
 
     def _make(self, op, args, *, vector, clamp=False, lane=None, label=None, stops=None):
         args = tuple(self.value(a) for a in args)
-        if all(a.is_const for a in args):
+        if all(a.is_const for a in args) and op != "TABLE":
             return self.const(_apply(op, [a.value for a in args], [a.vector for a in args],
                                      clamp=clamp, lane=lane, stops=stops))
         key = (op, tuple(id(a) for a in args), clamp, lane, stops)
@@ -248,6 +253,23 @@ class Graph:
         if x.vector:
             raise TypeError("a ramp is read at a scalar")
         return self._make("RAMP", (x,), vector=True, stops=stops, **kw)
+
+    def table(self, name, data, u, v, **kw):
+        """A lookup in the float table ``data`` (H x W; registered as ``name``) at the texture
+        coordinate (u, v) in [0, 1]²: texel (i, j) is centred at ((j + ½)/W, (i + ½)/H)."""
+        data = np.ascontiguousarray(np.asarray(data, dtype=_F32))
+        if data.ndim != 2 or min(data.shape) < 1:
+            raise ValueError("a table is a 2-D array")
+        have = self.tables.get(name)
+        if have is not None and (have.shape != data.shape or not np.array_equal(have, data)):
+            raise ValueError(f"table {name!r} is registered with other values")
+        self.tables[name] = data
+        u, v = self.value(u), self.value(v)
+        if u.vector or v.vector:
+            raise TypeError("a table is read at two scalars")
+        if u.is_const and v.is_const:
+            return self.const(tuple(np.repeat(_table_lookup(data, u.value, v.value), 3)))
+        return self._make("TABLE", (u, v), vector=True, stops=name, **kw)
 
     def vclamp01(self, v, **kw):
         """A vector clamped to [0, 1] per lane, NaN -> 0 (SATURATE: one colour Mix node); a
@@ -411,6 +433,25 @@ def _ramp_lookup(table, f):
 _RAMP_CACHE = {}
 
 
+def _table_lookup(data, u, v):
+    """kernel/util/image.h interp_linear with EXTENSION_EXTEND on a float image, one channel."""
+    h, w = data.shape
+    u, v = np.asarray(u, _F32), np.asarray(v, _F32)
+    x = (u * _F32(w) - _F32(0.5)).astype(_F32)
+    y = (v * _F32(h) - _F32(0.5)).astype(_F32)
+    with np.errstate(invalid="ignore"):
+        ix = np.where(np.isfinite(x), np.floor(x), 0.0).astype(np.int64)
+        iy = np.where(np.isfinite(y), np.floor(y), 0.0).astype(np.int64)
+    tx = np.where(np.isfinite(x), x - ix.astype(_F32), _F32(0)).astype(_F32)
+    ty = np.where(np.isfinite(y), y - iy.astype(_F32), _F32(0)).astype(_F32)
+    nix, niy = np.clip(ix + 1, 0, w - 1), np.clip(iy + 1, 0, h - 1)
+    ix, iy = np.clip(ix, 0, w - 1), np.clip(iy, 0, h - 1)
+    one = _F32(1)
+    out = ((one - ty) * (one - tx) * data[iy, ix] + (one - ty) * tx * data[iy, nix]
+           + ty * (one - tx) * data[niy, ix] + ty * tx * data[niy, nix])
+    return np.asarray(out, _F32)
+
+
 def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
     """One operation on float32 values; ``vector_args`` says which operands are vectors
     (S + (3,)) — scalar operands of a vector operation are broadcast over the lanes."""
@@ -421,6 +462,9 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
             if table is None:
                 table = _RAMP_CACHE.setdefault(stops, ramp_table(stops))
             return _ramp_lookup(table, vals[0])
+        if op == "TABLE":  # (stops: the table itself, handed in by evaluate)
+            u, v = np.broadcast_arrays(vals[0], vals[1])
+            return np.repeat(_table_lookup(stops, u, v)[..., None], 3, axis=-1)
         if op == "VDOT_PRODUCT":
             a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
                                          for v, is_vec in zip(vals, vector_args)))
@@ -448,11 +492,13 @@ def _apply(op, vals, vector_args, *, clamp=False, lane=None, stops=None):
     return _saturate(out) if clamp else out
 
 
-def evaluate(outputs, inputs):
+def evaluate(outputs, inputs, tables=None):
     """Values of ``outputs`` (an Expr, a list or a dict of them) for ``inputs`` (name ->
-    float32 array, vectors shaped (..., 3)), with Blender's node semantics in float32."""
+    float32 array, vectors shaped (..., 3)), with Blender's node semantics in float32.
+    ``tables``: the graph's (Graph.tables), for TABLE lookups."""
     exprs = _flatten(outputs)
     cache = {}
+    tables = tables or {}
 
     def val(e):
         if e.is_const:
@@ -466,9 +512,12 @@ def evaluate(outputs, inputs):
                 raise KeyError(f"no value for input {e.name!r}")
             cache[e.index] = np.asarray(inputs[e.name], dtype=_F32)
         else:
+            if e.op == "TABLE" and e.value not in tables:
+                raise KeyError(f"no table {e.value!r} (evaluate(..., tables=graph.tables))")
             cache[e.index] = _apply(e.op, [val(a) for a in e.args], [a.vector for a in e.args],
                                     clamp=e.clamp, lane=e.lane,
-                                    stops=e.value if e.op == "RAMP" else None)
+                                    stops=(e.value if e.op == "RAMP" else
+                                           tables[e.value] if e.op == "TABLE" else None))
 
     def out(o):
         if isinstance(o, dict):

@@ -37,7 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .. import constants as K
-from . import node_math
+from . import node_body_colour, node_math
 from .graph import Graph
 
 __all__ = ("Config", "Slot", "Mix", "Layer", "build", "input_name", "haze_name", "baked_name",
@@ -70,7 +70,9 @@ class Config:
     Metallic BSDF's fresnel_type; ``smooth``: the Bézier haze curve (Eqs. 12-15) instead of
     Eq. 7; ``version``: the Cycles whose Multiscatter tables the math reproduces (None: the
     running one); ``baked``: the haze mapping's per-point values (BAKED) are inputs, read from
-    maps texture conversion wrote (Principled only)."""
+    maps texture conversion wrote (Principled only); ``body``: Keep Body Colour (the
+    dielectric part's Base Color compensated for the raised specular's layering,
+    core.node_body_colour; Principled only)."""
 
     bsdf: str
     distribution: str = "GGX"
@@ -78,10 +80,11 @@ class Config:
     smooth: bool = False
     version: tuple = None
     baked: bool = False
+    body: bool = False
 
     def key(self):
         return (self.bsdf, self.distribution, self.fresnel, self.smooth,
-                tuple(self.version) if self.version else None, self.baked)
+                tuple(self.version) if self.version else None, self.baked, self.body)
 
 
 @dataclass
@@ -290,9 +293,30 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
     # α_w depends on α_n and λ_h only: the same for both parts
     v.update(roughness_wide=md["roughness_wide"], anisotropy_wide=md["anisotropy_wide"],
              rotation_wide=md["rotation_wide"])
+    if cfg.body:
+        _section(g, "Keep Body Colour: the base under the raised specular as it was")
+        kw = dict(tint=x("Specular Tint", True), level=x("Specular IOR Level"),
+                  multiscatter=cfg.distribution == "MULTI_GGX", version=cfg.version)
+        c = node_body_colour.compensation(
+            g, mu=node_body_colour.mu_from_facing(g), beta=v["beta_d"], ior=ior,
+            ior_hazy=v["ior_d"], rough_n=_roughness_index(g, rough, aniso),
+            rough_w=_roughness_index(g, v["roughness_wide"], v["anisotropy_wide"]), **kw)
+        v["base_d"] = g.select(on, g.vmath("MINIMUM", g.vmath("MULTIPLY", base, c), 1.0), base,
+                               label="Base Color (body kept)")
     shown = {"reflectivity dielectric": md["reflectivity"],
              "haze room dielectric": md.get("halo_max", md["halo_intensity"])}
     return v, split, shown
+
+
+def _roughness_index(g, roughness, anisotropy):
+    """(α_x α_y)^¼ of a Principled lobe as the kernel sets it up (α = R², split by the
+    anisotropy, each clamped to 1): the roughness index of Cycles' tables."""
+    r = g.clamp(roughness, 0.0, 1.0)
+    a = g.clamp(anisotropy, 0.0, 1.0)
+    s = g.sqrt(g.madd(a, -0.9, 1.0))
+    r2 = g.mul(r, r)
+    ax = g.minimum(g.div(r2, s), 1.0)
+    return g.sqrt(g.sqrt(g.mul(ax, g.mul(r2, s))))
 
 
 def _principled_baked(g, x, m, a_metal, b_metal):
@@ -322,7 +346,7 @@ def _principled(g, x, cfg):
         an Expr 1 (wide) / 0 (narrow)."""
         w = {"Metallic": g.select(split, g.select(part_metal, 1.0, 0.0), metallic),
              "IOR": g.select(part_metal, ior, v["ior_d"]),
-             "Base Color": g.select(part_metal, v["base_m"], base)}
+             "Base Color": g.select(part_metal, v["base_m"], v.get("base_d", base))}
         if lobe_wide:
             w.update({"Roughness": v["roughness_wide"], "Anisotropic": v["anisotropy_wide"],
                       "Anisotropic Rotation": v["rotation_wide"]})
@@ -434,8 +458,10 @@ def build(config):
     """The :class:`Layer` of ``config``."""
     if config.bsdf not in _BUILDERS:
         raise ValueError(f"a haze layer wraps a {', '.join(BSDF_TYPES)} BSDF, not {config.bsdf!r}")
-    if config.baked and config.bsdf != "PRINCIPLED":
-        raise ValueError("converted maps (baked) are for a Principled core only")
+    if (config.baked or config.body) and config.bsdf != "PRINCIPLED":
+        raise ValueError("converted maps and Keep Body Colour are for a Principled core only")
+    if config.baked and config.body:
+        raise ValueError("Keep Body Colour is not available with converted maps")
     g = Graph()
     g.sections = []
     cycles, eevee, shown, *baked = _BUILDERS[config.bsdf](g, _Inputs(g), config)

@@ -31,7 +31,8 @@ def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_
     ``nodes_by_expr``: a dict filled with {expression index: the node made for it} (shader
     backend; lanes of one vector share their Separate node).  ``known``: {expression index:
     socket} of expressions made elsewhere (a node group's inputs): used, not built."""
-    emitter = (_ShaderEmitter if backend == "SHADER" else _CompositorEmitter)(tb, sources)
+    emitter = (_ShaderEmitter(tb, sources, graph.tables) if backend == "SHADER"
+               else _CompositorEmitter(tb, sources))
     if reuse is not None:
         tb.reuse = list(reuse)
     known = known or {}
@@ -64,9 +65,10 @@ def _const(e):
 class _ShaderEmitter:
     MATH = "ShaderNodeMath"
 
-    def __init__(self, tb, sources):
+    def __init__(self, tb, sources, tables=None):
         self.tb = tb
         self.sources = sources
+        self.tables = tables or {}
         self.sockets = {}
         self.depth = {}
         self.separated = {}
@@ -156,6 +158,16 @@ class _ShaderEmitter:
             tb.feed(n.inputs["Fac"], self.value(e.args[0]))
             self.sockets[e.index] = n.outputs["Color"]
             return
+        if e.op == "TABLE":  # an Image Texture of the table's float image at (u, v)
+            n = self._node("ShaderNodeTexImage", e, interpolation="Linear", extension="EXTEND")
+            n.image = table_image(e.value, self.tables[e.value])
+            uv = self.tb.node("ShaderNodeCombineXYZ")
+            self.tb.place(uv, max(self.depth[e.index] - 1, 0))
+            tb.feed(uv.inputs[0], self.value(e.args[0]))
+            tb.feed(uv.inputs[1], self.value(e.args[1]))
+            tb.link(uv.outputs[0], n.inputs["Vector"])
+            self.sockets[e.index] = n.outputs["Color"]
+            return
         if e.op.startswith("V"):
             op = e.op[1:]
             n = self._node("ShaderNodeVectorMath", e, operation=op)
@@ -171,6 +183,30 @@ class _ShaderEmitter:
         for sock, a in zip(n.inputs, e.args):
             tb.feed(sock, self.value(a))
         self.sockets[e.index] = n.outputs[0]
+
+
+def table_image(name, data):
+    """The packed float image (Non-Color, full float) that holds a graph table, made once per
+    file and checked by its values' hash (an image of that name holding other values is
+    replaced under a new name, never overwritten: another group may read it)."""
+    import hashlib
+
+    import bpy
+    digest = hashlib.sha1(np.ascontiguousarray(data, np.float32).tobytes()).hexdigest()[:12]
+    full = f".Hazy Gloss table {name} {digest}"
+    img = bpy.data.images.get(full)
+    if img is not None and img.get("hazy_gloss_table") == digest:
+        return img
+    h, w = data.shape
+    img = bpy.data.images.new(full, w, h, alpha=False, float_buffer=True, is_data=True)
+    px = np.ones((h, w, 4), np.float32)
+    px[..., :3] = np.asarray(data, np.float32)[..., None]
+    img.pixels.foreach_set(px.ravel())
+    if hasattr(img, "use_half_precision"):
+        img.use_half_precision = False
+    img.pack()
+    img["hazy_gloss_table"] = digest
+    return img
 
 
 def _ramp_is(ramp, stops):
