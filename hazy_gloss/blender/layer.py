@@ -779,7 +779,58 @@ def notes(mat):
         note = _body_note(node, vals, linked)
         if note:
             out.append(note)
+    film = film_peak_change(node, vals, linked)
+    if film is not None and abs(film) > 1e-5:
+        out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
+                   f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
     return out
+
+
+def film_peak_change(node, vals=None, linked=None):
+    """How much a thin film moves the layer's peak (hazy / haze-free - 1, the channel that moves
+    most), for the node's unlinked values, or None without a film or haze: the layer raises
+    F(0) as without a film (Eq. 5), and the film's interference is not linear in F(0)
+    (core.thin_film: Cycles' normal-incidence reflectance)."""
+    from ..core import thin_film
+    if vals is None:
+        vals, linked = values(node)
+    inp = node.inputs
+    d = inp.get("Thin Film Thickness")
+    if d is None or d.is_linked or not thin_film.film_active(d.default_value):
+        return None
+    film = (float(d.default_value), float(inp["Thin Film IOR"].default_value))
+    cfg = group_config(node)
+    changes = []
+    if cfg.get("bsdf") == "PRINCIPLED":
+        tint = np.asarray(inp["Specular Tint"].default_value, float)[:3]
+        level = float(inp["Specular IOR Level"].default_value)
+        m = float(inp["Metallic"].default_value)
+        if m < 1.0 and vals.get("beta dielectric", 0.0) > 0.0:
+            ior, ior_h = float(inp["IOR"].default_value), float(vals["IOR dielectric"])
+            f0 = lambda e: ((e - 1.0) / (e + 1.0)) ** 2  # noqa: E731
+            rc = np.clip(f0(ior) * 2.0 * level * tint, 1e-9, 1.0)
+            rh = np.clip(f0(ior_h) * 2.0 * level * tint, 1e-9, 1.0)
+            a = thin_film.dielectric_reflectance(ior, level, tint, *film)
+            b = thin_film.dielectric_reflectance(ior_h, level, tint, *film)
+            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * rc / rh - 1.0)
+        if m > 0.0 and vals.get("beta metal", 0.0) > 0.0:
+            base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+            raised = np.clip(np.asarray(vals["reflectivity metal"], float), 1e-9, 1.0)
+            a = thin_film.metal_reflectance(base, tint, *film)
+            b = thin_film.metal_reflectance(raised, tint, *film)
+            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    elif cfg.get("bsdf") == "METALLIC" and vals.get("beta", 0.0) > 0.0 and \
+            cfg.get("settings", {}).get("fresnel_type") == "F82":
+        tint = np.asarray(inp["Edge Tint"].default_value, float)[:3]
+        base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+        raised = np.clip(np.asarray(vals["reflectivity"], float), 1e-9, 1.0)
+        a = thin_film.metal_reflectance(base, tint, *film)
+        b = thin_film.metal_reflectance(raised, tint, *film)
+        changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    if not changes:
+        return None
+    worst = np.concatenate([np.ravel(c) for c in changes])
+    return float(worst[np.argmax(np.abs(worst))])
 
 
 def _body_note(node, vals, linked):

@@ -176,8 +176,9 @@ def test_cli_converts_a_pbr_set_into_a_blend(env, tmp_path):
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert "beta_dielectric" in proc.stdout
     check = ("import bpy, sys; bpy.ops.wm.open_mainfile(filepath=sys.argv[1]); m = bpy.data.materials['Crate']; "
-             "st = m['hazy_gloss']['layer']; n = m.node_tree.nodes; "
-             "print('OK', 'baked' in st, n['Principled BSDF'].inputs['Normal'].is_linked)")
+             "n = m.node_tree.nodes; g = n['Principled BSDF'].node_tree['hazy_gloss_group']; "
+             "print('OK', 'layer' in m['hazy_gloss'] and g['baked'] == 1, "
+             "n['Principled BSDF'].inputs['Normal'].is_linked)")
     proc = subprocess.run([sys.executable, "-c", check, str(blend)], capture_output=True, text=True,
                           timeout=300)
     assert "OK True True" in proc.stdout, proc.stdout[-2000:] + proc.stderr[-2000:]

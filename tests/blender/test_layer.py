@@ -513,6 +513,15 @@ def test_peak_is_invariant(env, name):
     err = rel_diff(before, after)
     record("layer_peak", {name: err})
     assert before.max() > 0.05
+    if "film" in name:
+        # a film's interference is not linear in F(0): the peak moves, by what the layer says
+        said = env.layer.film_peak_change(env.layer.layer_node(mat))
+        ch = np.abs(after[4, 4] - before[4, 4]).argmax()
+        moved = float(after[4, 4, ch] / before[4, 4, ch] - 1.0)
+        record("layer_film_peak", {name: dict(measured=moved, said=said)})
+        assert said is not None and abs(moved - said) <= 0.05 * abs(said) + 2e-5, (moved, said)
+        assert any("thin film" in n and "%" in n for n in env.layer.notes(mat))
+        return
     assert err <= 1e-5, err
 
 
