@@ -51,7 +51,7 @@ def test_refused_setting_reaches_the_pipeline(env):
     msg = one_line(api.last_error(mat))
     assert "roughness must be in [0, 1], got 2" in msg.lower()
     assert api.read_parameters(mat)["roughness"] == pytest.approx(0.2)
-    with pytest.raises(ValueError, match=r"^M: Roughness must be in \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"^M: roughness must be in \[0, 1\]"):
         with api.strict_settings():
             s.roughness = 2.0
     with api.strict_settings():  # nothing refused: no exception, the error is cleared
