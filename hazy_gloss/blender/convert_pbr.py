@@ -25,8 +25,10 @@ from ..convert import ConversionError, did_you_mean
 from ..core.graph import evaluate
 from ..core.parameters import HAZE_DEFAULTS, RANGES
 from . import compat, layer
-from .convert import (_EXT, _Source, _Transaction, _Writer, _check_prefix, _check_readable,
-                      _check_targets, _final_path, _image_for, _out_path, _reason)
+from .. import imagestream as stream
+from .convert import (_EXT, UDIM_TOKEN, _MapFile, _Source, _Transaction, _check_codec,
+                      _check_prefix, _check_readable, _check_targets, _final_path, _image_for,
+                      _load_image, _out_path, _reason, openimageio)
 from .make_hazy import find_core_bsdf
 
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).
@@ -148,20 +150,23 @@ def _datablock(src, label):
         img.pixels.foreach_set(px.ravel())
         img.pack()
         return img
-    path = os.path.abspath(os.fsdecode(os.fspath(src)))
-    _check_readable(path, label)
-    try:
-        return bpy.data.images.load(path, check_existing=True)
-    except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {exc}") from None
+    return _load_image(os.path.abspath(os.fsdecode(os.fspath(src))), label)
 
 
-def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_format="OPEN_EXR",
-                exr_codec="ZIP", interpolation="Linear", distribution="MULTI_GGX",
-                smoothness=None, keep_body_colour=False, progress=None):
+def convert_pbr(inputs, out_dir, **options):
     """See hazy_gloss.api.convert_maps (the PBR-set form).  Returns a ConversionResult whose
-    ``.material`` is the material."""
+    ``.material`` is the material.  Blocking: runs :func:`convert_pbr_steps` to its end."""
+    return core.drain(convert_pbr_steps(inputs, out_dir, **options))
+
+
+def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
+                      file_format="OPEN_EXR", exr_codec="ZIP", interpolation="Linear",
+                      distribution="MULTI_GGX", smoothness=None, keep_body_colour=False,
+                      progress=None):
+    """The PBR-set conversion as a generator (yields after every strip; returns the result):
+    UDIM maps (a ``<UDIM>`` path) convert tile by tile into UDIM outputs."""
     t0, started = time.perf_counter(), time.time()
+    prog = progress if isinstance(progress, core.Progress) else core.Progress(progress)
     inputs = dict(inputs)
     if "opacity" in inputs:  # (the perceptual maps' "alpha" is the core roughness α)
         inputs["alpha"] = inputs.pop("opacity")
@@ -189,10 +194,6 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         else:
             raise ConversionError(f"{k}: expected an image path, a bpy Image, an array or a "
                                   f"constant, got {type(v).__name__}")
-    for k, v in maps.items():
-        if isinstance(v, (str, os.PathLike)) and "<UDIM>" in os.fsdecode(v):
-            raise ConversionError(f"{k}: UDIM sets are not supported for PBR sets yet; convert "
-                                  f"each tile as its own set")
     # the material and its Principled BSDF
     if material is not None:
         if material.library is not None:
@@ -208,27 +209,39 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
                                   f"to take the PBR set")
     else:
         mat, bsdf = None, None
-    # read every map before anything is created or written
+    # every map checked before anything is created or written
     sources = {}
     for k, v in maps.items():
         if k == "normal":
             continue  # linked, not evaluated
         role = "colour" if k == "base_color" else "data"
         sources[k] = _Source(k, role, v)
-    for src in sources.values():
-        src.check()
-    arrays = {k: s.read(None, warnings) for k, s in sources.items()}
-    if not arrays:
+    if not sources:
         raise ConversionError("a PBR set needs at least one map (all inputs are constants: use "
                               "Make Hazy on a material instead)")
-    core.check_sizes([(sources[k].label, a.shape[1::-1]) for k, a in arrays.items()])
-    h, w = next(iter(arrays.values())).shape[:2]
-    for k, a in arrays.items():
-        bad = ~np.isfinite(a)
-        if bad.any():
-            warnings.append(f"{sources[k].label}: {int(bad.any(axis=-1).sum() if a.ndim == 3 else bad.sum())} "
-                            f"texel(s) not finite, read as 0")
-            arrays[k] = np.where(bad, 0.0, a).astype(np.float32)
+    tiled = {k: s for k, s in sources.items() if s.tiles is not None}
+    tiles = []
+    if tiled:
+        sets = {k: sorted(s.tiles) for k, s in tiled.items()}
+        tiles = next(iter(sets.values()))
+        if any(t != tiles for t in sets.values()):
+            raise ConversionError("UDIM maps have different tiles: " + "; ".join(
+                f"{tiled[k].label} {', '.join(map(str, t))}" for k, t in sets.items()))
+    for src in sources.values():
+        src.check()
+    jobs = tiles or [None]
+    oiio = openimageio()
+    # each tile's size, before anything is written (all maps of a tile must agree)
+    sizes = {}
+    for tile in jobs:
+        named = []
+        for k, s in sources.items():
+            r = s.strips(tile, warnings, oiio)
+            named.append((s.label + (f" tile {tile}" if tile else ""), (r.width, r.height)))
+            r.close()
+        core.check_sizes(named)
+        sizes[tile] = named[0][1]
+    w, h = sizes[jobs[0]]
     out_dir = _out_path(out_dir)
     created = mat is None
     if created:
@@ -236,9 +249,9 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == layer.PRINCIPLED)
         bsdf.distribution = distribution
     tree = mat.node_tree
-    images, nodes, written = {}, {}, []
+    images, nodes = {}, {}
     txn = _Transaction(out_dir, started)
-    writer = None
+    files = {}
     try:
         for k, v in constants.items():
             if k in PBR_MAPS:
@@ -259,15 +272,15 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         ext = [constants.get("haze_extent_x", constants.get("haze_extent", 5.0)),
                constants.get("haze_extent_y", constants.get("haze_extent", 5.0))]
         for axis, key in ((0, "haze_extent_x"), (1, "haze_extent_y")):
-            if key in arrays or "haze_extent" in arrays:
+            if key in sources or "haze_extent" in sources:
                 ext[axis] = layer.TEXTURE
         haze["haze_extent"] = tuple(ext)
         for key in ("haziness", "coat_haziness", "coat_haze_extent"):
-            haze[key] = layer.TEXTURE if key in arrays else constants.get(key, HAZE_DEFAULTS[key])
-        if "haziness" not in arrays and "haziness" not in constants and "coat_haziness" not in \
-                arrays and "coat_haziness" not in constants:
+            haze[key] = layer.TEXTURE if key in sources else constants.get(key, HAZE_DEFAULTS[key])
+        if "haziness" not in sources and "haziness" not in constants and "coat_haziness" not in \
+                sources and "coat_haziness" not in constants:
             warnings.append("no haziness given: the layer holds no haze (haziness 0)")
-        # evaluate the layer's graph over the texels
+        # the layer's graph, evaluated strip by strip over the texels
         state = layer.layer_state(mat) or {}
         plan = layer.Plan(bsdf, haze, dict(state.get("base", {})))
         for nm_ in plan.owned():
@@ -275,17 +288,21 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
                 plan.base[nm_] = layer._current(bsdf.inputs[nm_])
         flat, g, graph_sources, _ = layer.output_keys(plan)
         warnings.extend(plan.notes)
-        feeds = {f"in:{PBR_MAPS[k][0]}": arrays[k] for k in arrays if k in PBR_MAPS}
+        feeds = {f"in:{PBR_MAPS[k][0]}": k for k in sources if k in PBR_MAPS}
         for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y"):
-            src = key if key in arrays else "haze_extent" if key.startswith("haze_extent_") else None
-            if src in arrays:
-                feeds[f"haze:{key}"] = arrays[src]
-        for n, sock in graph_sources.items():  # the user's own image textures are maps too
+            src = key if key in sources else "haze_extent" if key.startswith("haze_extent_") else None
+            if src in sources:
+                feeds[f"haze:{key}"] = src
+        own = {}  # the user's own image textures linked into the BSDF are maps too (read whole)
+        for n, sock in graph_sources.items():
             if n in feeds or not n.startswith("in:") or sock is None:
                 continue
             node = sock.node
             if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and \
                     sock.identifier in ("Color", "Alpha") and not node.inputs["Vector"].is_linked:
+                if node.image.source == "TILED":
+                    raise ConversionError(f"“{node.name}” ({node.image.name}, linked into {n[3:]}) "
+                                          f"is a UDIM image: give {n[3:]} as a map of the set")
                 colour = g.inputs[n].vector
                 a = _Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
                             else "data", node.image)
@@ -293,55 +310,59 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
                 v = a.read(None, warnings)
                 if sock.identifier == "Alpha":
                     v = _alpha_of(node.image)
-                if v.shape[:2] != (h, w):
+                if v.shape[:2] != (h, w) or len(jobs) > 1 and any(s != (w, h) for s in sizes.values()):
                     raise ConversionError(f"“{node.name}” ({node.image.name}, linked into "
                                           f"{n[3:]}) is {v.shape[1]}x{v.shape[0]}, the set "
                                           f"{w}x{h}: give {n[3:]} as a map of the set's size")
-                feeds[n] = v
-        missing = [n for n in graph_sources if n not in feeds]
+                own[n] = stream.ArrayStrips(v, n)
+        missing = [n for n in graph_sources if n not in feeds and n not in own]
         if missing:
             names = ", ".join(n[3:] for n in missing)
             raise ConversionError(f"{names} of “{bsdf.name}” is linked to a node conversion cannot "
                                   f"evaluate: give it as a map, or unlink it")
-        for k in list(feeds):  # vectors as (H, W, 3), scalars as (H, W)
-            e = g.inputs.get(k)
-            a = feeds[k]
-            if e is not None and e.vector and a.ndim == 2:
-                feeds[k] = np.repeat(a[..., None], 3, axis=-1)
-            elif e is not None and not e.vector and a.ndim == 3:
-                feeds[k] = a[..., 0]
         # what varies per texel is baked; a map the layer only passes on (the metallic mix
         # factor) is linked as it is
         live = {k: e for k, e in flat.items()
                 if not e.is_const and not (e.op == "input" and e.name.startswith("in:"))}
-        values = evaluate(live, feeds)
         ext_ = _EXT["OPEN_EXR"]
         first = {}  # one map per distinct value (the narrow and wide lobes share the IOR)
         for k, e in live.items():
             first.setdefault(id(e), k)
-        paths = {k: _final_path(out_dir, prefix, _slug(k), None, ext_) for k in first.values()}
-        _check_targets(list(paths.values()), {os.path.realpath(p) for s in sources.values()
-                                               for p in s.files()}, txn)
-        writer = _Writer("OPEN_EXR", exr_codec)
+        finals = {k: {t: _final_path(out_dir, prefix, _slug(k), t, ext_) for t in jobs}
+                  for k in first.values()}
+        paths = {k: _final_path(out_dir, prefix, _slug(k), UDIM_TOKEN if tiles else None, ext_)
+                 for k in first.values()}
+        _check_targets([p for per in finals.values() for p in per.values()],
+                       {os.path.realpath(p) for s in sources.values() for p in s.files()}, txn)
+        codec = _check_codec("OPEN_EXR", exr_codec)
         txn.make_folder()
-        for i, (k, path) in enumerate(paths.items()):
-            v = np.asarray(values[k], np.float32)
-            v = np.broadcast_to(v, (h, w) + v.shape[2:] if v.ndim >= 2 else (h, w))
-            writer.write(np.ascontiguousarray(v), txn.temp(path), path)
-            written.append(path)
-            if progress is not None:
-                progress(i + 1, len(paths), f"wrote {os.path.basename(path)}")
-        writer.close()
-        writer = None
+        bad = {}
+        for tile in jobs:
+            tw, th = sizes[tile]
+            prog.where = f"tile {tile} ({jobs.index(tile) + 1} of {len(jobs)})" if tile else ""
+            readers = {k: s.strips(tile, warnings, oiio) for k, s in sources.items()}
+            files = {k: _MapFile("OPEN_EXR", codec, txn.temp(finals[k][tile]), finals[k][tile],
+                                 tw, th) for k in first.values()}
+            try:
+                yield from _bake_strips(readers, own, feeds, g, live, first, files, (tw, th),
+                                        bad, prog)
+                for k, f in files.items():
+                    f.finish()
+                    prog.advance(0, f"wrote {os.path.basename(f.final)}")
+            finally:
+                for f in files.values():
+                    f.abort()
+                for r in readers.values():
+                    r.close()
+        for k, n in bad.items():
+            warnings.append(f"{sources[k].label}: {n} texel(s) not finite, read as 0")
+        prog.check()  # the last point where a cancel undoes the run
         txn.commit()
         images_out = {k: _image_for(p) for k, p in paths.items()}
         baked = {k: images_out[first[id(e)]] for k, e in live.items()}
-        layer.apply(mat, haze, core=bsdf, baked=dict(
-            maps=baked, vector=vector, interpolation=interpolation,
-            sources=sorted(k for k in graph_sources if k.startswith("in:"))))
+        attach_baked_layer(mat, haze, bsdf, baked, vector=vector, interpolation=interpolation,
+                           sources=sorted(k for k in graph_sources if k.startswith("in:")))
     except BaseException as exc:
-        if writer is not None:
-            writer.close()
         problems = [] if txn.committed else txn.rollback()
         if created and mat is not None:
             bpy.data.materials.remove(mat)
@@ -360,9 +381,75 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             raise ConversionError(f"{exc}; " + "; ".join(problems)) from None
         raise
     report = core.ConversionReport(kind="PBR", distribution=bsdf.distribution,
-                                   file_format="OPEN_EXR", size=(w, h), texels=w * h,
+                                   file_format="OPEN_EXR", size=(w, h), tiles=list(tiles),
+                                   texels=sum(a * b for a, b in sizes.values()),
                                    warnings=list(dict.fromkeys(warnings)))
     report.seconds = time.perf_counter() - t0
     result = core.ConversionResult({_slug(k): p for k, p in paths.items()}, report, [])
     result.material = mat
     return result
+
+
+def _bake_strips(readers, own, feeds, g, live, first, files, size, bad, prog):
+    """Evaluate the layer's graph on every strip of one tile and write its maps (strips on a
+    thread pool; elementwise node math, so a strip gives the rows of the whole)."""
+    w, h = size
+    rows = stream.strip_rows(w)
+    prog.begin(h)
+
+    def read(y0, y1):
+        strips = {k: r.rows(y0, y1) for k, r in readers.items()}
+        for k, r in own.items():
+            strips[k] = r.rows(y0, y1)
+        return strips
+
+    def compute(y0, y1, strips):
+        nonfinite = {}
+        for k, a in list(strips.items()):
+            m = ~np.isfinite(a)
+            if m.any():
+                nonfinite[k] = int(m.any(axis=-1).sum() if a.ndim == 3 else m.sum())
+                strips[k] = np.where(m, 0.0, a).astype(np.float32)
+        inputs = {}
+        for key, src in feeds.items():
+            inputs[key] = strips[src]
+        for key in own:
+            a = strips[key]
+            inputs[key] = a if a.ndim == 3 and a.shape[-1] == 3 else a[..., 0]
+        for k in list(inputs):  # vectors as (n, W, 3), scalars as (n, W)
+            e = g.inputs.get(k)
+            a = inputs[k]
+            if e is not None and e.vector and a.ndim == 2:
+                inputs[k] = np.repeat(a[..., None], 3, axis=-1)
+            elif e is not None and not e.vector and a.ndim == 3:
+                inputs[k] = a[..., 0]
+        values = evaluate({k: live[k] for k in first.values()}, inputs)
+        encoded = {}
+        for k in first.values():
+            v = np.asarray(values[k], np.float32)
+            v = np.broadcast_to(v, (y1 - y0, w) + v.shape[2:] if v.ndim >= 2 else (y1 - y0, w))
+            encoded[k] = files[k].encode(y0, v)
+        return nonfinite, encoded
+
+    def write(y0, y1, result):
+        nonfinite, encoded = result
+        for k, n in nonfinite.items():
+            bad[k] = bad.get(k, 0) + n
+        for k, e in encoded.items():
+            files[k].append(e)
+
+    done = 0
+    for y1, _ in stream.run_strips(h, rows, read, compute, write):
+        prog.advance(y1 - done, "baking the haze layer")
+        done = y1
+        yield
+
+
+def attach_baked_layer(mat, haze, bsdf, baked, *, vector=None, interpolation="Linear",
+                       sources=()):
+    """The one call from the conversion into the haze layer: Make Hazy's layer on ``bsdf``,
+    reading the baked maps ``baked`` ({layer output key: image datablock}) instead of node
+    math.  ``sources``: the BSDF inputs the maps were computed from."""
+    layer.apply(mat, haze, core=bsdf, baked=dict(maps=baked, vector=vector,
+                                                 interpolation=interpolation,
+                                                 sources=list(sources)))
