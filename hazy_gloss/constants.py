@@ -70,6 +70,7 @@ MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP i
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2  # bad input or usage: one line "hazy_gloss convert: error: ..." on stderr
 EXIT_NO_BPY = 3  # the bpy module is not importable
+EXIT_SETS_FAILED = 4  # --batch: some sets failed (each one line on stderr), the others converted
 EXIT_INTERRUPTED = {2: 130, 15: 143}  # SIGINT, SIGTERM: 128 + signal number, run undone
 #: OpenEXR codecs that store 32-bit floats exactly (measured in 4.5, 5.2 and 5.3): maps written
 #: with them are read back and compared bit for bit; the others only for size and finiteness.

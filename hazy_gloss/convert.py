@@ -650,6 +650,12 @@ class Progress:
     def begin(self, total):
         self.total += max(0, int(total))
 
+    def next_item(self, index, count, name):
+        """A batch: item ``index`` of ``count`` (a set of a library) starts; the fraction is
+        then (items done + this item's fraction) / count."""
+        self.outer = (int(index), max(1, int(count)), str(name))
+        self.total = self.done = 0
+
     def advance(self, units=0, message=None):
         self.done = min(self.total, self.done + max(0, int(units)))
         if message is not None:
@@ -658,21 +664,34 @@ class Progress:
             self.callback(self.done, max(self.total, 1), self.message)
         self.check()
 
+    outer = None
+
     @property
     def fraction(self):
-        return self.done / self.total if self.total else 0.0
+        inner = self.done / self.total if self.total else 0.0
+        if self.outer is None:
+            return inner
+        i, n, _ = self.outer
+        return min(1.0, (i + inner) / n)
 
     def seconds_left(self):
         """Time left, extrapolated from the rate so far (None before the first strip)."""
-        if not self.done or not self.total:
+        f = self.fraction
+        if f <= 0:
             return None
         spent = self.clock() - self.started
-        return spent * (self.total - self.done) / self.done
+        return spent * (1 - f) / f
 
     def status(self):
         left = self.seconds_left()
         eta = "" if left is None else f", {format_seconds(left)} left"
-        where = f"{self.where}: " if self.where else ""
+        parts = []
+        if self.outer is not None:
+            i, n, name = self.outer
+            parts.append(f"set {name} ({i + 1} of {n})")
+        if self.where:
+            parts.append(self.where)
+        where = f"{', '.join(parts)}: " if parts else ""
         return f"{where}{self.message} {100 * self.fraction:.0f}%{eta}".strip()
 
 
@@ -720,15 +739,36 @@ PBR_NAME_PARTS = {
 _PBR_IMAGE_EXT = (".png", ".jpg", ".jpeg", ".exr", ".tif", ".tiff", ".tga", ".bmp", ".webp", ".hdr")
 
 
+_UDIM_FILE = None
+
+
+def udim_sets(filenames):
+    """File names with the tiles of a UDIM set (``name.1001.png``, ``name_1002.png``: a 4-digit
+    tile 1001-2000 before the extension) folded into one ``name.<UDIM>.png``; others as they
+    are."""
+    import re
+    global _UDIM_FILE
+    if _UDIM_FILE is None:
+        _UDIM_FILE = re.compile(r"\A(?P<head>.*[._])(?P<tile>\d{4})(?P<ext>\.[^.]+)\Z")
+    out = []
+    for fn in filenames:
+        m = _UDIM_FILE.match(os.path.basename(fn))
+        if m and 1001 <= int(m["tile"]) <= 2000:
+            fn = os.path.join(os.path.dirname(fn), f"{m['head']}<UDIM>{m['ext']}")
+        if fn not in out:
+            out.append(fn)
+    return out
+
+
 def detect_pbr_set(filenames):
     """{map name: file name} for the files of one PBR set, by the name parts texture libraries
-    use (PBR_NAME_PARTS); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
+    use (PBR_NAME_PARTS; UDIM tiles are one ``<UDIM>`` name, :func:`udim_sets`); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
     refused when it is the only normal map (Blender's Normal Map node reads OpenGL normals).
     Raises ConversionError when two files claim one map or none is found."""
     import re
     found, clash, directx = {}, {}, []
     named = {}
-    for fn in sorted(filenames):
+    for fn in sorted(udim_sets(filenames)):
         stem, ext = os.path.splitext(os.path.basename(fn))
         if ext.lower() in _PBR_IMAGE_EXT:
             named[fn] = [w for w in re.split(r"[^a-z0-9]+", re.sub(

@@ -453,3 +453,93 @@ def attach_baked_layer(mat, haze, bsdf, baked, *, vector=None, interpolation="Li
     layer.apply(mat, haze, core=bsdf, baked=dict(maps=baked, vector=vector,
                                                  interpolation=interpolation,
                                                  sources=list(sources)))
+
+
+# --------------------------------------------------------------------------------------------
+# Sets in folders, and libraries of sets
+# --------------------------------------------------------------------------------------------
+
+
+def convert_set_steps(folder, out_dir, *, haze, material=None, name=None, overrides=None,
+                      interpolation="Linear", progress=None):
+    """The PBR set in ``folder`` (maps found by their names, core.detect_pbr_set, UDIM tiles
+    included; ``overrides`` {map: path} win) into a Principled material with a baked haze
+    layer; a generator like :func:`convert_pbr_steps`."""
+    try:
+        found = core.detect_pbr_set(os.listdir(folder)) if folder else {}
+    except ConversionError:
+        if not overrides:
+            raise
+        found = {}
+    except OSError as exc:
+        raise ConversionError(f"set folder {folder}: {exc.strerror or exc}") from None
+    inputs = {k: os.path.join(folder, f) for k, f in found.items()}
+    inputs.update(overrides or {})
+    for k, v in haze.items():
+        if k not in inputs:
+            inputs[k] = v
+    return (yield from convert_pbr_steps(inputs, out_dir, material=material, name=name,
+                                         interpolation=interpolation, progress=progress))
+
+
+def convert_set_folder(folder, out_dir, **options):
+    """Blocking :func:`convert_set_steps`."""
+    return core.drain(convert_set_steps(folder, out_dir, **options))
+
+
+class LibraryReport:
+    """What a library batch did: ``done`` [(set, ConversionResult)], ``failed`` [(set,
+    one-line reason)], ``cancelled`` (the set being converted then was undone; the sets done
+    before it stay)."""
+
+    def __init__(self, sets):
+        self.sets = list(sets)
+        self.done, self.failed, self.cancelled = [], [], False
+        self.seconds = 0.0
+
+    def summary(self):
+        text = (f"converted {len(self.done)} of {len(self.sets)} set(s) in "
+                f"{core.format_seconds(self.seconds)}")
+        if self.failed:
+            text += f"; {len(self.failed)} failed: " + ", ".join(n for n, _ in self.failed)
+        if self.cancelled:
+            text += "; cancelled (the set being converted was undone)"
+        return text
+
+
+def library_sets(folder):
+    """The sets of a library: its subfolders, sorted (hidden ones skipped)."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise ConversionError(f"library folder {folder}: {exc.strerror or exc}") from None
+    return [n for n in names if not n.startswith(".") and os.path.isdir(os.path.join(folder, n))]
+
+
+def convert_library_steps(folder, out_dir, *, haze, interpolation="Linear", progress=None):
+    """Every subfolder of ``folder`` is a set and becomes a material (maps into
+    ``out_dir/<set>``); each set all or nothing, a set that fails is reported and the others
+    go on.  A generator; returns a :class:`LibraryReport`."""
+    t0 = time.perf_counter()
+    prog = progress if isinstance(progress, core.Progress) else core.Progress(progress)
+    sets = library_sets(folder)
+    if not sets:
+        raise ConversionError(f"library folder {folder} has no subfolders (one set per subfolder)")
+    report = LibraryReport(sets)
+    for i, sub in enumerate(sets):
+        prog.next_item(i, len(sets), sub)
+        prog.where = ""
+        try:
+            res = yield from convert_set_steps(os.path.join(folder, sub), os.path.join(out_dir, sub),
+                                               haze=haze, name=sub, interpolation=interpolation,
+                                               progress=prog)
+        except core.ConversionCancelled:
+            report.cancelled = True
+            break
+        except ConversionError as exc:
+            report.failed.append((sub, str(exc)))
+            continue
+        res.material.use_fake_user = True  # kept in the file without an object
+        report.done.append((sub, res))
+    report.seconds = time.perf_counter() - t0
+    return report
