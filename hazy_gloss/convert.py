@@ -635,7 +635,7 @@ class Progress:
         self.total = 0
         self.done = 0
         self.message = ""
-        self.where = ""
+        self.levels = []
         self.cancelled = False
         self.started = self.clock()
 
@@ -650,10 +650,12 @@ class Progress:
     def begin(self, total):
         self.total += max(0, int(total))
 
-    def next_item(self, index, count, name):
-        """A batch: item ``index`` of ``count`` (a set of a library) starts; the fraction is
-        then (items done + this item's fraction) / count."""
-        self.outer = (int(index), max(1, int(count)), str(name))
+    def next_item(self, index, count, name, key="set"):
+        """Item ``index`` of ``count`` starts: a set of a library batch (``key`` "set") or a
+        UDIM tile of a set ("tile"); the fraction is then (items done + this item's fraction)
+        / count at each level, and the rows of the item start from 0."""
+        keep = [lv for lv in self.levels if lv[0] == "set"] if key != "set" else []
+        self.levels = keep + [(key, int(index), max(1, int(count)), str(name))]
         self.total = self.done = 0
 
     def advance(self, units=0, message=None):
@@ -664,15 +666,14 @@ class Progress:
             self.callback(self.done, max(self.total, 1), self.message)
         self.check()
 
-    outer = None
+    levels = ()
 
     @property
     def fraction(self):
-        inner = self.done / self.total if self.total else 0.0
-        if self.outer is None:
-            return inner
-        i, n, _ = self.outer
-        return min(1.0, (i + inner) / n)
+        f = self.done / self.total if self.total else 0.0
+        for _, i, n, _ in reversed(self.levels):
+            f = (i + f) / n
+        return min(1.0, f)
 
     def seconds_left(self):
         """Time left, extrapolated from the rate so far (None before the first strip)."""
@@ -685,12 +686,7 @@ class Progress:
     def status(self):
         left = self.seconds_left()
         eta = "" if left is None else f", {format_seconds(left)} left"
-        parts = []
-        if self.outer is not None:
-            i, n, name = self.outer
-            parts.append(f"set {name} ({i + 1} of {n})")
-        if self.where:
-            parts.append(self.where)
+        parts = [f"{key} {name} ({i + 1} of {n})" for key, i, n, name in self.levels]
         where = f"{', '.join(parts)}: " if parts else ""
         return f"{where}{self.message} {100 * self.fraction:.0f}%{eta}".strip()
 

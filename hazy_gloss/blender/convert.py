@@ -656,6 +656,20 @@ class _Source:
         return _read_file(path, self.role, label, warnings, colourspace)
 
 
+def udim_tiles(sources):
+    """The UDIM tiles of a set of _Source inputs ([] when none is tiled); every tiled input
+    must have the same tiles (else one line listing each one's)."""
+    tiled = {n: s for n, s in sources.items() if s.tiles is not None}
+    if not tiled:
+        return []
+    sets = {n: sorted(s.tiles) for n, s in tiled.items()}
+    first = next(iter(sets.values()))
+    if any(v != first for v in sets.values()):
+        raise ConversionError("UDIM inputs have different tiles: " + "; ".join(
+            f"{tiled[n].label} {', '.join(map(str, v))}" for n, v in sets.items()))
+    return first
+
+
 #: Inputs whose valid range is [0, 1] (integer arrays above 1 there are 8-bit values).
 _UNIT_RANGE = ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "haziness")
 
@@ -1361,15 +1375,7 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
     if shared_extent:
         sources.pop("haze_extent_y", None)
 
-    tiled = {n: s for n, s in sources.items() if s.tiles is not None}
-    tiles = []
-    if tiled:
-        sets = {n: sorted(s.tiles) for n, s in tiled.items()}
-        first = next(iter(sets.values()))
-        if any(v != first for v in sets.values()):
-            raise ConversionError("UDIM inputs have different tiles: " + "; ".join(
-                f"{tiled[n].label} {', '.join(map(str, v))}" for n, v in sets.items()))
-        tiles = first
+    tiles = udim_tiles(sources)
     for src in sources.values():  # every input file, before anything is written
         src.check()
     out_dir = _out_path(out_dir)
@@ -1385,42 +1391,22 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
     alpha_given = specs["roughness"].transform == "sqrt"
     run = _Run(specs, sources, shared_extent, resample, report, prog, alpha_given, tile_texels)
     try:
-        try:
-            txn.make_folder()
-            stale = txn.clean_stale(_all_map_names())
-            if stale:
-                report.warnings.append(f"removed {len(stale)} temporary file(s) left in "
-                                       f"{out_dir} by an interrupted earlier conversion")
-            anisotropic = yield from run.anisotropy(jobs)
-            out_specs = core.output_specs(kind, anisotropic)
-            report.anisotropic = anisotropic
-            paths = {}
-            for tile in jobs:
-                readers, (w, h) = run.open(tile)
-                if report.size == (0, 0):
-                    report.size = (w, h)
-                files = {s.name: None for s in out_specs}
-                try:
-                    for s in out_specs:
-                        final = _final_path(out_dir, prefix, s.name, tile, ext)
-                        files[s.name] = _MapFile(file_format, codec, txn.temp(final), final, w, h)
-                        paths[s.name] = _final_path(out_dir, prefix, s.name,
-                                                    UDIM_TOKEN if tile else None, ext)
-                    prog.where = f"tile {tile} ({jobs.index(tile) + 1} of {len(jobs)})" if tile else ""
-                    yield from run.strips(readers, files, out_specs, (w, h), kind, distribution,
-                                          smoothness, anisotropic, file_format, threads)
-                    for s in out_specs:
-                        files[s.name].finish()
-                        prog.advance(0, f"wrote {s.name}")
-                finally:
-                    for f in files.values():
-                        if f is not None:
-                            f.abort()
-                    for r in readers.values():
-                        r.close()
-                report.texels += w * h
-        finally:
-            run.close()
+        txn.make_folder()
+        stale = txn.clean_stale(_all_map_names())
+        if stale:
+            report.warnings.append(f"removed {len(stale)} temporary file(s) left in "
+                                   f"{out_dir} by an interrupted earlier conversion")
+        anisotropic = yield from run.anisotropy(jobs)
+        out_specs = core.output_specs(kind, anisotropic)
+        report.anisotropic = anisotropic
+        paths = {s.name: _final_path(out_dir, prefix, s.name, UDIM_TOKEN if tiles else None, ext)
+                 for s in out_specs}
+        for tile in jobs:
+            if tile:
+                prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
+            finals = {s.name: _final_path(out_dir, prefix, s.name, tile, ext) for s in out_specs}
+            yield from run.tile(tile, finals, txn, out_specs, kind, distribution, smoothness,
+                                anisotropic, file_format, codec, threads)
         retire = []
         if tiles:  # tiles of an earlier, larger set would join this one in a tiled image
             for s in out_specs:
@@ -1506,9 +1492,6 @@ class _Run:
             raise
         return readers, target
 
-    def close(self):
-        pass
-
     def _arrays(self, readers, y0, y1):
         arrays = dict(self.constants)
         for name, r in readers.items():
@@ -1536,14 +1519,13 @@ class _Run:
             readers, (w, h) = self.open(tile, names=names)
             try:
                 rows = stream.strip_rows(w, self.tile_texels)
-                self.prog.begin(h)
                 for y0 in range(0, h, rows):
                     y1 = min(h, y0 + rows)
                     arrays = self._arrays(readers, y0, y1)
                     for n in core.PARAMETERS:  # inputs not read here: their defaults
                         arrays.setdefault(n, np.float32(core.DEFAULTS[n]))
                     clean = core.sanitise_inputs(arrays, {}, alpha_given=self.alpha_given)
-                    self.prog.advance(y1 - y0, "checking anisotropy")
+                    self.prog.advance(0, "checking anisotropy" + (f" of tile {tile}" if tile else ""))
                     if core.is_anisotropic(clean):
                         return True
                     yield
@@ -1551,6 +1533,29 @@ class _Run:
                 for r in readers.values():
                     r.close()
         return False
+
+    def tile(self, tile, finals, txn, out_specs, kind, distribution, smoothness, anisotropic,
+             file_format, codec, threads):
+        """One tile (or the single image): its maps written to temporaries and verified."""
+        readers, (w, h) = self.open(tile)
+        if self.report.size == (0, 0):
+            self.report.size = (w, h)
+        files = {}
+        try:
+            for s in out_specs:
+                files[s.name] = _MapFile(file_format, codec, txn.temp(finals[s.name]),
+                                         finals[s.name], w, h)
+            yield from self.strips(readers, files, out_specs, (w, h), kind, distribution,
+                                   smoothness, anisotropic, file_format, threads)
+            for s in out_specs:
+                files[s.name].finish()
+                self.prog.advance(0, f"wrote {s.name}")
+        finally:
+            for f in files.values():
+                f.abort()
+            for r in readers.values():
+                r.close()
+        self.report.texels += w * h
 
     def strips(self, readers, files, out_specs, size, kind, distribution, smoothness,
                anisotropic, file_format, threads):

@@ -118,6 +118,13 @@ class _ModalConversion:
         _status(context, None)
         return self._end(context, job)
 
+    def done(self, warnings, info):
+        """The end of a conversion that went through: its warnings, then the result line."""
+        for w in warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, info)
+        return {"FINISHED"}
+
     def _end(self, context, job):
         if isinstance(job.error, core.ConversionCancelled):
             self.report({"WARNING"}, f"Hazy maps: {job.error}")
@@ -311,11 +318,9 @@ class HAZY_GLOSS_OT_convert_maps(_ModalConversion, bpy.types.Operator):
         def finish(context, result):
             if wire:
                 wire_material(mat, result, **settings)
-            for w in result.report.warnings:
-                self.report({"WARNING"}, w)
-            self.report({"INFO"}, f"Hazy maps: {result.report.summary(len(result))} -> "
-                                  f"{os.path.dirname(next(iter(result.values())))}")
-            return {"FINISHED"}
+            return self.done(result.report.warnings,
+                             f"Hazy maps: {result.report.summary(len(result))} -> "
+                             f"{os.path.dirname(next(iter(result.values())))}")
 
         return self.start(context, ConversionJob(steps, prog), finish)
 
@@ -438,11 +443,9 @@ class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
                     obj.active_material = mat
                 else:
                     obj.data.materials.append(mat)
-            for w in res.report.warnings:
-                self.report({"WARNING"}, w)
-            self.report({"INFO"}, f"“{mat.name}”: a Principled BSDF with the set and a baked haze "
-                                  f"layer ({len(res)} maps in {out_dir})")
-            return {"FINISHED"}
+            return self.done(res.report.warnings, f"“{mat.name}”: a Principled BSDF with the set "
+                                                  f"and a baked haze layer ({len(res)} maps in "
+                                                  f"{out_dir})")
 
         return self.start(context, ConversionJob(steps, prog), finish)
 

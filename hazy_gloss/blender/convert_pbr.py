@@ -28,7 +28,7 @@ from . import compat, layer
 from .. import imagestream as stream
 from .convert import (_EXT, UDIM_TOKEN, _MapFile, _Source, _Transaction, _check_codec,
                       _check_prefix, _check_readable, _check_targets, _final_path, _image_for,
-                      _load_image, _out_path, _reason, openimageio)
+                      _load_image, _out_path, _reason, openimageio, udim_tiles)
 from .make_hazy import find_core_bsdf
 
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).
@@ -219,14 +219,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
     if not sources:
         raise ConversionError("a PBR set needs at least one map (all inputs are constants: use "
                               "Make Hazy on a material instead)")
-    tiled = {k: s for k, s in sources.items() if s.tiles is not None}
-    tiles = []
-    if tiled:
-        sets = {k: sorted(s.tiles) for k, s in tiled.items()}
-        tiles = next(iter(sets.values()))
-        if any(t != tiles for t in sets.values()):
-            raise ConversionError("UDIM maps have different tiles: " + "; ".join(
-                f"{tiled[k].label} {', '.join(map(str, t))}" for k, t in sets.items()))
+    tiles = udim_tiles(sources)
     for src in sources.values():
         src.check()
     jobs = tiles or [None]
@@ -339,7 +332,8 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         bad = {}
         for tile in jobs:
             tw, th = sizes[tile]
-            prog.where = f"tile {tile} ({jobs.index(tile) + 1} of {len(jobs)})" if tile else ""
+            if tile:
+                prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
             readers = {k: s.strips(tile, warnings, oiio) for k, s in sources.items()}
             files = {k: _MapFile("OPEN_EXR", codec, txn.temp(finals[k][tile]), finals[k][tile],
                                  tw, th) for k in first.values()}
@@ -528,7 +522,6 @@ def convert_library_steps(folder, out_dir, *, haze, interpolation="Linear", prog
     report = LibraryReport(sets)
     for i, sub in enumerate(sets):
         prog.next_item(i, len(sets), sub)
-        prog.where = ""
         try:
             res = yield from convert_set_steps(os.path.join(folder, sub), os.path.join(out_dir, sub),
                                                haze=haze, name=sub, interpolation=interpolation,

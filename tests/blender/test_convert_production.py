@@ -185,7 +185,7 @@ def test_cancel_in_the_second_udim_tile_of_a_pbr_set(mods, tmp_path):
     job = _job(mods, mods.pbr.convert_set_steps(str(src), str(out), haze={"haziness": 0.4},
                                                 name="Crate", progress=prog), prog)
     while not job.step(0.0):
-        if prog.where.startswith("tile 1002"):
+        if "tile 1002 (2 of 2)" in prog.status():
             job.cancel()
     assert isinstance(job.error, mods.core.ConversionCancelled), job.error
     assert snapshot(out) == before and len(bpy.data.materials) == n_mats
@@ -217,6 +217,7 @@ def test_library_batch_in_the_cli(mods, tmp_path):
     errors = [ln for ln in r.stderr.splitlines() if ln.startswith("hazy_gloss convert: error:")]
     assert len(errors) == 1 and "Broken: " in errors[0] and "DirectX" in errors[0], r.stderr
     assert "100%" in r.stderr and "set Wood (3 of 3)" in r.stderr  # the progress bar
+    assert "set Crate (2 of 3), tile 1002 (2 of 2)" in r.stderr
     assert r.stdout.strip().splitlines()[-1].startswith("converted 2 of 3 set(s)"), r.stdout
     assert sorted(os.listdir(out)) == ["Crate", "Wood"]
     assert any(".1002." in f for f in os.listdir(out / "Crate"))
@@ -269,3 +270,31 @@ def test_damaged_files_that_pass_the_check_are_one_line(mods, tmp_path):
             assert "\n" not in str(exc)
             seen["refused"] += 1
     assert seen["values"] + seen["refused"] == 300 and seen["refused"] > 0, seen
+
+
+def test_openimageio_codecs_and_the_whole_image_fallback(mods, tmp_path):
+    """PIZ (written by OpenImageIO, proved by a decoded read-back) holds the floats the add-on's
+    ZIP writer holds; without OpenImageIO (HAZY_GLOSS_NO_OIIO=1: files read whole by Blender)
+    the CLI writes the same bytes as the streaming run, and says how it read them."""
+    paths, _ = make_inputs(tmp_path / "in", n=40, aniso=True)
+    exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".exr")
+    zip_ = mods.api.convert_maps(paths, str(tmp_path / "zip"))
+    piz = mods.api.convert_maps(paths, str(tmp_path / "piz"), exr_codec="PIZ")
+    assert set(zip_) == set(piz)
+    oiio = mods.bconv.openimageio()
+    for name in zip_:
+        assert exr.exr_header_check(piz[name])[0].compression == "PIZ"
+        a = oiio.ImageInput.open(piz[name]).read_image(0, 0, 0, 3, oiio.FLOAT)
+        b = exr.read_exr(zip_[name])
+        assert np.array_equal(a[::-1, :, 0], b["R"]), name
+    args = [sys.executable, "-m", "hazy_gloss", "convert", "--haziness", paths["haziness"],
+            "--core-reflectivity", paths["core_reflectivity"], "--roughness", paths["roughness"]]
+    streamed = subprocess.run(args + ["--out", str(tmp_path / "s")], env=_env(tmp_path),
+                              capture_output=True, text=True, timeout=300)
+    whole = subprocess.run(args + ["--out", str(tmp_path / "w")],
+                           env=dict(_env(tmp_path), HAZY_GLOSS_NO_OIIO="1"),
+                           capture_output=True, text=True, timeout=300)
+    assert streamed.returncode == 0 and whole.returncode == 0, whole.stderr
+    assert "OpenImageIO module was not found" in whole.stdout
+    assert "OpenImageIO" not in streamed.stdout
+    assert snapshot(tmp_path / "s") == snapshot(tmp_path / "w")

@@ -147,11 +147,14 @@ def test_progress_status_eta_and_cancel():
     p.advance(50, "mapping and writing")
     assert p.fraction == 0.25 and p.seconds_left() == pytest.approx(30.0)
     assert p.status() == "mapping and writing 25%, 30 s left"
-    p.where = "tile 1002 (2 of 5)"
-    assert p.status().startswith("tile 1002 (2 of 5): mapping")
     p.next_item(1, 4, "Wood")  # a batch: set 2 of 4 at 0 %
-    assert p.fraction == 0.25 and "set Wood (2 of 4)" in p.status()
-    assert C.progress_bar(p, width=8).startswith("[##------] ")
+    assert p.fraction == 0.25 and p.status().startswith("set Wood (2 of 4): ")
+    p.next_item(1, 2, 1002, key="tile")  # its second UDIM tile, half done
+    p.begin(10)
+    p.advance(5, "mapping and writing")
+    assert p.fraction == pytest.approx((1 + (1 + 0.5) / 2) / 4)
+    assert p.status().startswith("set Wood (2 of 4), tile 1002 (2 of 2): mapping and writing 44%")
+    assert C.progress_bar(p, width=8).startswith("[####----] ")
     p.cancel()
     with pytest.raises(C.ConversionCancelled):
         p.advance(1)
