@@ -498,7 +498,7 @@ def describe_maps(clean, *, kind, distribution, smoothness, anisotropic, shape):
 
 
 def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=None,
-                 tile_texels=1 << 18, alpha_given=False, anisotropic=None, threads=None):
+                 tile_texels=K.STRIP_TEXELS, alpha_given=False, anisotropic=None, threads=None):
     """Perceptual maps -> physical maps for the lean node tree, whole images in memory.
 
     ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked

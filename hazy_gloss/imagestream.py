@@ -30,15 +30,16 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from . import constants as K
+
 __all__ = ("ExrStripWriter", "PngStripWriter", "OiioStrips", "ArrayStrips", "StripError",
            "run_strips", "strip_rows", "worker_count", "EXR_CODECS", "ZIP_LEVEL", "PNG_LEVEL")
 
-#: Codecs :class:`ExrStripWriter` writes (OpenEXR ids); others go through OpenImageIO.
+#: Codecs :class:`ExrStripWriter` writes (OpenEXR ids, scanlines per chunk); others go
+#: through OpenImageIO.
 EXR_CODECS = {"NONE": (0, 1), "ZIPS": (2, 1), "ZIP": (3, 16)}
-#: zlib levels.  EXR ZIP: 4, OpenEXR's default (files within 1 % of Blender's); PNG: 3 (the
-#: maps are noisy floats: higher levels gain < 2 % for twice the time, measured at 2K).
-ZIP_LEVEL = 4
-PNG_LEVEL = 3
+ZIP_LEVEL = K.EXR_ZIP_LEVEL
+PNG_LEVEL = K.PNG_ZIP_LEVEL
 _READ_BLOCK = 8 << 20
 
 
@@ -56,7 +57,7 @@ def worker_count(limit=None):
     return max(1, min(n, limit or n))
 
 
-def strip_rows(width, texels=1 << 18, multiple=16):
+def strip_rows(width, texels=K.STRIP_TEXELS, multiple=16):
     """Rows per strip: about ``texels`` texels, a multiple of ``multiple`` (the EXR ZIP chunk)."""
     rows = max(1, int(texels) // max(int(width), 1))
     return max(multiple, rows // multiple * multiple)
@@ -168,7 +169,7 @@ class ExrStripWriter(_StripWriter):
         chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1)
                           for n in self.names) + b"\0"
         box = struct.pack("<4i", 0, 0, self.width - 1, self.height - 1)
-        return (struct.pack("<ii", 20000630, 2)
+        return (struct.pack("<ii", K.EXR_MAGIC, 2)
                 + attr("channels", "chlist", chlist)
                 + attr("compression", "compression", bytes([self.comp]))
                 + attr("dataWindow", "box2i", box) + attr("displayWindow", "box2i", box)

@@ -1,21 +1,24 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Texture batch conversion through bpy: read perceptual maps, write physical maps, wire them.
 
-The numeric part (validation, Blender's conventions, haze mapping over whole images, PNG
-encodings) is bpy-free in ``hazy_gloss/convert.py``; this module does what needs Blender:
+The numeric part (validation, Blender's conventions, haze mapping, PNG encodings) is bpy-free
+in ``hazy_gloss/convert.py``, the strip readers and writers in ``hazy_gloss/imagestream.py``;
+this module does what needs Blender:
 
-- reading images (files loaded privately with ``check_existing=False``, or datablocks read in
-  place, packed and unsaved ones included) and decoding them: colour maps to linear, data maps
-  raw (Non-Color), as measured in Blender 4.5 / 5.x (``Image.pixels`` of an 8-bit image holds the
-  file's encoded values whatever its colour space; float images are already scene-linear).
-  Every file is checked (:func:`_check_readable`: exists, an image format, not cut off) before
-  Blender sees it: Blender 5.0.1 segfaults on a truncated EXR;
-- writing float OpenEXR (default, lossless ZIP) or 16-bit PNG through ``Image.save_render`` of a
-  Non-Color image with a private scene's format settings, **all or nothing**
-  (:class:`_Transaction`): every target is checked before anything is written, every map goes to
-  a temporary name in the output folder and is read back and compared pixel for pixel, then all
-  are renamed into place; on any failure or interruption (KeyboardInterrupt, the CLI's SIGTERM)
-  the run's files are removed and the maps it replaced restored;
+- reading images in strips: files through Blender's own OpenImageIO module (:func:`openimageio`)
+  and decoded as Blender would (colour maps to linear, data maps raw); datablocks (packed and
+  unsaved ones included) read in place, whole, as measured in Blender 4.5 / 5.x
+  (``Image.pixels`` of an 8-bit image holds the file's encoded values whatever its colour
+  space; float images are already scene-linear).  Every file is checked
+  (:func:`_check_readable`: exists, an image format, not cut off) before it is read: Blender
+  5.0.1 segfaults on a truncated EXR;
+- writing float OpenEXR (default, lossless ZIP) or 16-bit PNG strip by strip, **all or
+  nothing** (:class:`_Transaction`): every target is checked before anything is written, every
+  map goes to a temporary name in the output folder and is proved by its bytes read back
+  (:class:`_MapFile`), then all are renamed into place; on any failure, interruption or cancel
+  (KeyboardInterrupt, the CLI's SIGTERM, Progress.cancel) the run's files are removed and the
+  maps it replaced restored.  The conversion is a generator (:func:`convert_maps_steps`) that
+  yields after every strip: the modal operator steps it between events;
 - wiring the written maps into a material's lean node tree (Image Texture nodes into the two
   lobes and the mix, via nodes.lobes.build_lobes).
 
@@ -615,7 +618,11 @@ class _Source:
             except stream.StripError:
                 reader = None  # a file OpenImageIO does not read: Blender's loader below
             if reader is not None:
-                mode = self._mode(reader, label, warnings)
+                try:
+                    mode = self._mode(reader, label, warnings)
+                except BaseException:
+                    reader.close()
+                    raise
                 if mode is not None:
                     return _Decoded(reader, self.role, mode)
                 reader.close()
@@ -1354,7 +1361,7 @@ def convert_maps(inputs, out_dir, **options):
 def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
                        file_format="OPEN_EXR", resample=False, prefix="", exr_codec="ZIP",
                        material=None, interpolation="Linear", progress=None,
-                       tile_texels=1 << 18, threads=None):
+                       tile_texels=K.STRIP_TEXELS, threads=None):
     """The conversion as a generator: it yields after every strip (the modal operator steps it
     between events) and returns the ConversionResult.  ``progress``: a callable(done, total,
     message) or a core.Progress (whose cancel() stops the run, undone, at the next strip)."""
