@@ -66,8 +66,9 @@ MAX_EXR_CHANNELS = 4096  # per part
 MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP image has 2048)
 EXR_MAGIC = 20000630  # the first 4 bytes of an OpenEXR file (little-endian int)
 #: Texture conversion in strips (hazy_gloss/imagestream.py): texels per strip (memory per map
-#: in flight), and the zlib levels of its writers (EXR ZIP: OpenEXR's default, files within
-#: 1 % of Blender's; PNG: the maps are noisy floats, higher levels gain < 2 % for twice the time).
+#: in flight), and the zlib levels of its writers (measured on a 1K β map: EXR ZIP level 4 within
+#: 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 % smaller than Blender's,
+#: level 6 3 % smaller still for more time).
 STRIP_TEXELS = 1 << 18
 EXR_ZIP_LEVEL = 4
 PNG_ZIP_LEVEL = 3
