@@ -138,21 +138,29 @@ def run_conversion(api, paths, out):
 
 
 def run_floor(bconv, core, paths, out, outputs):
-    """The conversion's image I/O without the mapping: the same sources read (load, pixels,
-    decoding), the same arrays written and read back (same format, codec, verification; the
-    conversion's renames into place are left out)."""
+    """The conversion's image I/O without the mapping: the same sources read (strips, decoding),
+    the same arrays written and verified by the same strip writers (the conversion's renames
+    into place are left out)."""
+    from hazy_gloss import imagestream as S
     t = time.perf_counter()
     specs, _ = core.resolve_inputs(paths)
     warnings = []
+    oiio = bconv.openimageio()
     for name, spec in specs.items():
         if not spec.is_constant:
-            bconv._Source(name, spec.role, spec.source).read(None, warnings)
-    writer = bconv._Writer("OPEN_EXR", "ZIP")
-    try:
-        for name, values in outputs.items():
-            writer.write(values, str(out / f"{name}.exr"))
-    finally:
-        writer.close()
+            r = bconv._Source(name, spec.role, spec.source).strips(None, warnings, oiio)
+            rows = S.strip_rows(r.width)
+            for y0 in range(0, r.height, rows):
+                r.rows(y0, min(r.height, y0 + rows))
+            r.close()
+    for name, values in outputs.items():
+        h, w = values.shape[:2]
+        f = bconv._MapFile("OPEN_EXR", "ZIP", str(out / f"{name}.exr"), str(out / f"{name}.exr"), w, h)
+        rows = S.strip_rows(w)
+        flipped = values[::-1]  # file order
+        for y0 in range(0, h, rows):
+            f.append(f.encode(y0, flipped[y0:y0 + rows]))
+        f.finish()
     return time.perf_counter() - t
 
 
@@ -161,7 +169,7 @@ def read_inputs(bconv, core, paths):
     arrays, warnings = {}, []
     for name, spec in specs.items():
         arrays[name] = spec.source if spec.is_constant else \
-            bconv._Source(name, spec.role, spec.source).read(None, warnings)
+            bconv._Source(name, spec.role, spec.source).read(None, warnings)  # whole, via Blender
     return arrays
 
 

@@ -14,6 +14,7 @@ Exit status (constants.EXIT_*; tested in tests/blender/test_convert.py and tests
   unreadable, truncated or non-image file, mismatched sizes, bad kind or constant, empty or
   unwritable --out, bad --prefix, unknown flag); nothing is written;
 - 3: the bpy module is not importable (one line);
+- 4: ``--batch``: some sets failed (one line each on stderr), the others were converted;
 - 130 (SIGINT, Ctrl+C) or 143 (SIGTERM): interrupted, one line; the maps this run wrote are
   removed and the maps it was replacing restored, so the output folder is as it was (a signal
   after the last map is in place says so instead: the new set is complete);
@@ -100,8 +101,15 @@ def build_parser():
                       help="PBR sets: save the material into this .blend (added to it if it "
                            "exists; Blender keeps the previous version as .blend1)")
     conv.add_argument("--name", default=None, help="PBR sets: the material's name")
+    conv.add_argument("--batch", metavar="FOLDER", default=None,
+                      help="a texture library: every subfolder of FOLDER is a PBR set and becomes "
+                           "a material, its maps in --out/<subfolder>; each set all or nothing, "
+                           "a summary at the end (haze inputs: constants for every set)")
     conv.add_argument("--json", action="store_true", help="print the report as JSON")
-    conv.add_argument("--quiet", action="store_true", help="print nothing on success")
+    conv.add_argument("--quiet", action="store_true",
+                      help="print nothing on success (no progress bar)")
+    conv.add_argument("--progress", action="store_true",
+                      help="show the progress bar on stderr even when it is not a terminal")
     _add_interchange(sub)
     return parser
 
@@ -207,7 +215,7 @@ def _run_convert(args, signals):
             return _error("--alpha is the core roughness α of perceptual maps; a PBR set's "
                           "opacity is --opacity: give one of them")
         inputs["alpha"] = inputs.pop("opacity")
-    if (args.blend or args.name) and not pbr:
+    if (args.blend or args.name) and not pbr and not args.batch:
         return _error("--blend and --name are for PBR sets (--base-color, --metallic, ...)")
     if args.blend and os.path.exists(args.blend) and not os.path.isfile(args.blend):
         return _error(f"--blend {args.blend}: not a file")
@@ -218,29 +226,39 @@ def _run_convert(args, signals):
                       "Blender", K.EXIT_NO_BPY)
     from . import api
     from .blender import convert as _  # noqa: F401  (imported before the signals raise)
-    from .convert import ConversionError
+    from .convert import ConversionError, Progress
+    bar = ProgressBar(sys.stderr, enabled=not args.quiet and not args.json and (
+        args.progress or _isatty(sys.stderr)))
+    progress = Progress(bar.update)
+    bar.progress = progress
     signals.arm()
     try:
+        if args.batch:
+            return _run_batch(args, inputs, progress, bar, cli, signals)
         if pbr:
             if args.blend and os.path.isfile(args.blend):
                 cli.open_blend(args.blend)
             result = api.convert_maps(inputs, args.out, smoothness=args.smoothness,
                                       distribution=args.distribution, prefix=args.prefix,
-                                      exr_codec=args.exr_codec, name=args.name)
+                                      exr_codec=args.exr_codec, name=args.name,
+                                      progress=progress)
             if args.blend:
                 cli.save_blend(args.blend, keep=(result.material,))
         else:
             result = api.convert_maps(inputs, args.out, kind=args.kind,
                                       smoothness=args.smoothness, distribution=args.distribution,
                                       file_format=args.file_format, resample=args.resample,
-                                      prefix=args.prefix, exr_codec=args.exr_codec)
+                                      prefix=args.prefix, exr_codec=args.exr_codec,
+                                      progress=progress)
     except ConversionError as exc:
+        bar.close()
         return _error(exc)
     except OSError as exc:  # not expected (the conversion turns them into ConversionError)
         return _error(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
     except MemoryError:
         return _error("not enough memory for these images")
     signals.hold()  # the maps are in place: a signal now is reported after the summary
+    bar.close()
     rep = result.report
     if args.json:
         print(json.dumps({"maps": dict(result), "texels": rep.texels, "size": list(rep.size),
@@ -254,6 +272,82 @@ def _run_convert(args, signals):
         for name, path in result.items():
             print(f"{name}: {path}")
     return K.EXIT_OK
+
+
+def _isatty(stream):
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+class ProgressBar:
+    """The CLI's progress bar: one line on ``stream`` redrawn in place (at most 5 times a
+    second), ended by :meth:`close`; nothing at all when not ``enabled``."""
+
+    def __init__(self, stream, enabled=True, interval=0.2):
+        import time
+        self.stream, self.enabled, self.interval = stream, enabled, interval
+        self.progress = None
+        self._clock, self._last, self._shown = time.monotonic, None, False
+
+    def update(self, done, total, message):
+        if not self.enabled or self.progress is None:
+            return
+        now = self._clock()
+        if self._last is not None and now - self._last < self.interval and done < total:
+            return
+        self._last = now
+        from .convert import progress_bar
+        self.stream.write("\r" + progress_bar(self.progress)[:119].ljust(119))
+        self.stream.flush()
+        self._shown = True
+
+    def close(self):
+        if self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown = False
+
+
+def _run_batch(args, inputs, progress, bar, cli, signals):
+    """--batch FOLDER: every subfolder a PBR set; a summary line at the end; exit 0 when every
+    set converted, 4 when some failed (one line each on stderr)."""
+    from .blender.convert_pbr import convert_library_steps
+    from .convert import ConversionError, drain
+    haze = {k: v for k, v in inputs.items() if k in ("haziness", "haze_extent", "haze_extent_x",
+                                                      "haze_extent_y", "coat_haziness",
+                                                      "coat_haze_extent")}
+    paths = [k for k, v in haze.items() if isinstance(v, str)]
+    others = [k for k in inputs if k not in haze]
+    if paths or others:
+        bar.close()
+        return _error("--batch takes the haze as constants for every set (the maps come from "
+                      f"each set's folder); got {', '.join(paths + others)}")
+    if not os.path.isdir(args.batch):
+        bar.close()
+        return _error(f"--batch {args.batch}: not a folder")
+    if args.blend and os.path.isfile(args.blend):
+        cli.open_blend(args.blend)
+    try:
+        report = drain(convert_library_steps(args.batch, args.out, haze=haze, progress=progress))
+    except ConversionError as exc:
+        bar.close()
+        return _error(exc)
+    if args.blend and report.done:
+        cli.save_blend(args.blend, keep=[r.material for _, r in report.done])
+    signals.hold()
+    bar.close()
+    for name, why in report.failed:
+        print(f"{PROG}: error: {name}: {why}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"sets": {n: dict(r) for n, r in report.done},
+                          "failed": dict(report.failed), "seconds": report.seconds}, indent=1))
+    elif not args.quiet:
+        for name, r in report.done:
+            print(f"{name}: {r.report.summary(len(r))}")
+        print(report.summary())
+    return K.EXIT_SETS_FAILED if report.failed else K.EXIT_OK
 
 
 def _add_interchange(sub):

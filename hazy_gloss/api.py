@@ -156,7 +156,10 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     atomically and returns ``{map name: path}`` with ``.report`` (texels, clamped texels per
     reason and parameter, seconds, warnings).  Options: resample=False, prefix="",
     exr_codec="ZIP", material=None (wire the maps into that material's lean tree),
-    interpolation="Linear", progress=None (callable(done, total, message)).
+    interpolation="Linear", progress=None (callable(done, total, message), or a
+    hazy_gloss.convert.Progress: its cancel() stops the run, undone, at the next strip).
+    Files are read and written in strips: memory does not grow with the image
+    (docs/textures.md, "Production sizes").
 
     All or nothing: every target is checked before anything is written, the maps are written
     to temporary names, read back and compared, then renamed into place together; on any

@@ -55,6 +55,12 @@ __all__ = (
     "group_clamped",
     "ConversionReport",
     "ConversionResult",
+    "ConversionCancelled",
+    "Progress",
+    "drain",
+    "sanitise_inputs",
+    "is_anisotropic",
+    "describe_maps",
 )
 
 FILE_FORMATS = ("OPEN_EXR", "PNG")
@@ -291,6 +297,28 @@ def linear_to_srgb(x):
     return out.astype(np.float32)
 
 
+def resample_axis(n_out, n_in):
+    """(i0, i1, f) of bilinear resampling along one axis: output texel k reads input texels i0
+    and i1 with weight f of i1 (texel centres aligned, edges clamped)."""
+    x = (np.arange(n_out, dtype=np.float64) + 0.5) * (n_in / n_out) - 0.5
+    x = np.clip(x, 0.0, n_in - 1)
+    i0 = np.floor(x).astype(np.intp)
+    i1 = np.minimum(i0 + 1, n_in - 1)
+    return i0, i1, (x - i0).astype(np.float32)
+
+
+def resample_block(arr, y0, y1, fy, xs):
+    """Rows of a bilinear resampling: ``arr`` the input rows, ``y0``/``y1``/``fy`` the rows
+    (indices into ``arr``) and weights of each output row, ``xs`` = resample_axis along x."""
+    x0, x1, fx = xs
+    if arr.ndim == 3:
+        fx = fx[:, None]
+    top = arr[y0][:, x0] * (1 - fx) + arr[y0][:, x1] * fx
+    bot = arr[y1][:, x0] * (1 - fx) + arr[y1][:, x1] * fx
+    fy = fy[:, None, None] if arr.ndim == 3 else fy[:, None]
+    return (top * (1 - fy) + bot * fy).astype(np.float32)
+
+
 def resample_bilinear(arr, size):
     """Resample an (H, W[, C]) array to ``size`` = (width, height), texel centres aligned
     (the convention of image editors), edges clamped.  float32 in and out."""
@@ -299,22 +327,8 @@ def resample_bilinear(arr, size):
     h0, w0 = arr.shape[:2]
     if (h0, w0) == (h, w):
         return arr
-
-    def axis(n_out, n_in):
-        x = (np.arange(n_out, dtype=np.float64) + 0.5) * (n_in / n_out) - 0.5
-        x = np.clip(x, 0.0, n_in - 1)
-        i0 = np.floor(x).astype(np.intp)
-        i1 = np.minimum(i0 + 1, n_in - 1)
-        return i0, i1, (x - i0).astype(np.float32)
-
-    y0, y1, fy = axis(h, h0)
-    x0, x1, fx = axis(w, w0)
-    if arr.ndim == 3:
-        fx = fx[:, None]
-    top = arr[y0][:, x0] * (1 - fx) + arr[y0][:, x1] * fx
-    bot = arr[y1][:, x0] * (1 - fx) + arr[y1][:, x1] * fx
-    fy = fy[:, None, None] if arr.ndim == 3 else fy[:, None]
-    return (top * (1 - fy) + bot * fy).astype(np.float32)
+    y0, y1, fy = resample_axis(h, h0)
+    return resample_block(arr, y0, y1, fy, resample_axis(w, w0))
 
 
 # --------------------------------------------------------------------------------------------
@@ -424,32 +438,11 @@ def _add_counts(total, new):
         total[k] = total.get(k, 0) + int(v)
 
 
-def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=None,
-                 tile_texels=1 << 18, alpha_given=False, anisotropic=None, threads=None):
-    """Perceptual maps -> physical maps for the lean node tree.
-
-    ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked
-    constant (from resolve_inputs).  ``alpha_given``: the roughness entry holds α (R = √α).
-    Every texel goes through :func:`hazy_gloss.core.lobes.describe` in float32, as one material
-    does.  Bad texels are clamped and counted in ``clamped`` (reason -> texels).
-    Tiles of ``tile_texels`` texels run on ``threads`` threads (default: one per CPU, at most 8);
-    the result does not depend on either (every operation is per texel).
-    ``anisotropic``: None decides from the data (any anisotropy > 0 or λ_x != λ_y); True forces
-    the anisotropic map set (UDIM tiles of one set must agree).
-    """
-    kind = str(kind).upper()
-    distribution = str(distribution).upper()
-    shapes = {n: np.shape(a)[:2] for n, a in arrays.items() if np.ndim(a) >= 2}
-    if not shapes:
-        raise ConversionError("no image input")
-    hw = set(shapes.values())
-    if len(hw) != 1:
-        raise ConversionError("input arrays have different shapes: " +
-                              ", ".join(f"{n} {s}" for n, s in shapes.items()))
-    (h, w), = hw
-    clamped = {}
-
-    # -- validate every input once (a haze extent shared by both axes counts once) -------------
+def sanitise_inputs(arrays, clamped, *, alpha_given=False):
+    """Every input of ``arrays`` (canonical name -> array or constant) checked per texel: NaN
+    and out-of-range texels clamped and counted in ``clamped`` (a haze extent shared by both
+    axes, the same array object, counts once).  Returns the clean dict (R = sqrt(alpha) when
+    ``alpha_given``).  Per texel only: a strip gives the rows of the whole image's result."""
     clean = {}
     seen = {}
     for name in PARAMETERS:
@@ -468,13 +461,70 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
         else:
             clean[name] = sanitise(a, name, clamped,
                                    range_name="haze_extent" if name.startswith("haze_extent") else None)
-    if alpha_given:  # R = √α
+    if alpha_given:  # R = sqrt(alpha)
         clean["roughness"] = np.sqrt(clean["roughness"]).astype(np.float32)
+    return clean
 
+
+def is_anisotropic(clean):
+    """Whether clean inputs need the anisotropic map set: some anisotropy > 0, or λ_x != λ_y."""
     aniso_in = clean["anisotropy"]
     lx_in, ly_in = clean["haze_extent_x"], clean["haze_extent_y"]
-    anisotropic = bool(anisotropic) or bool(np.any(aniso_in > 0)) or (
-        lx_in is not ly_in and bool(np.any(lx_in != ly_in)))
+    return bool(np.any(aniso_in > 0)) or (lx_in is not ly_in and bool(np.any(lx_in != ly_in)))
+
+
+def describe_maps(clean, *, kind, distribution, smoothness, anisotropic, shape):
+    """The physical maps of clean inputs (whole images, strips or tiles of them; ``shape`` =
+    (rows, W)): ({map name: float32 (rows, W) or (rows, W, 3)}, clamp counts of the renderer
+    limits).  Every operation is per texel (core.lobes.describe in float32)."""
+    lx = clean["haze_extent_x"]
+    ly = lx if clean["haze_extent_y"] is clean["haze_extent_x"] else clean["haze_extent_y"]
+    d = describe(kind, distribution, core_reflectivity=clean["core_reflectivity"],
+                 edge_tint=clean["edge_tint"], roughness=clean["roughness"],
+                 anisotropy=clean["anisotropy"], rotation=clean["rotation"],
+                 haziness=clean["haziness"], haze_extent=(lx, ly), smoothness=smoothness,
+                 anisotropic=anisotropic, strict=False, dtype=np.float32)
+    shape = tuple(shape)
+    out = {"beta": d.beta, "roughness": d.narrow.roughness, "roughness_wide": d.wide.roughness}
+    if anisotropic:
+        out.update(anisotropy=d.narrow.anisotropy, rotation=d.narrow.rotation,
+                   anisotropy_wide=d.wide.anisotropy, rotation_wide=d.wide.rotation)
+    for spec in _FRESNEL[kind]:
+        out[spec.name] = d.fresnel[spec.name if spec.name in d.fresnel else _FRESNEL_KEY[spec.name]]
+    for spec in output_specs(kind, anisotropic):
+        want = shape + ((3,) if spec.channels == 3 else ())
+        out[spec.name] = np.broadcast_to(np.asarray(out[spec.name], np.float32), want)
+    return out, d.clamped
+
+
+def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=None,
+                 tile_texels=K.STRIP_TEXELS, alpha_given=False, anisotropic=None, threads=None):
+    """Perceptual maps -> physical maps for the lean node tree, whole images in memory.
+
+    ``arrays``: canonical name (PARAMETERS) -> float32 array (H, W) / (H, W, 3) or a checked
+    constant (from resolve_inputs).  ``alpha_given``: the roughness entry holds α (R = √α).
+    Every texel goes through :func:`hazy_gloss.core.lobes.describe` in float32, as one material
+    does.  Bad texels are clamped and counted in ``clamped`` (reason -> texels).
+    Tiles of ``tile_texels`` texels run on ``threads`` threads (default: one per CPU, at most 8);
+    the result does not depend on either (every operation is per texel).
+    ``anisotropic``: None decides from the data (any anisotropy > 0 or λ_x != λ_y); True forces
+    the anisotropic map set (UDIM tiles of one set must agree).  The conversion of files
+    (blender/convert.py) runs the same three steps (:func:`sanitise_inputs`,
+    :func:`is_anisotropic`, :func:`describe_maps`) on strips instead.
+    """
+    kind = str(kind).upper()
+    distribution = str(distribution).upper()
+    shapes = {n: np.shape(a)[:2] for n, a in arrays.items() if np.ndim(a) >= 2}
+    if not shapes:
+        raise ConversionError("no image input")
+    hw = set(shapes.values())
+    if len(hw) != 1:
+        raise ConversionError("input arrays have different shapes: " +
+                              ", ".join(f"{n} {s}" for n, s in shapes.items()))
+    (h, w), = hw
+    clamped = {}
+    clean = sanitise_inputs(arrays, clamped, alpha_given=alpha_given)
+    anisotropic = bool(anisotropic) or is_anisotropic(clean)
     specs = output_specs(kind, anisotropic)
     maps = {s.name: np.empty((h, w, 3) if s.channels == 3 else (h, w), np.float32) for s in specs}
 
@@ -483,32 +533,15 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
     def run_tile(r0):
         """Map rows r0 .. r0 + rows into the preallocated outputs; returns its clamp counts."""
         r1 = min(h, r0 + rows)
-
-        def tile(name):
-            a = clean[name]
-            return a[r0:r1] if a.ndim >= 2 else a
-
-        lx = tile("haze_extent_x")
-        ly = lx if clean["haze_extent_y"] is clean["haze_extent_x"] else tile("haze_extent_y")
-        shape = (r1 - r0, w)
-        d = describe(kind, distribution, core_reflectivity=tile("core_reflectivity"),
-                     edge_tint=tile("edge_tint"), roughness=tile("roughness"),
-                     anisotropy=tile("anisotropy"), rotation=tile("rotation"),
-                     haziness=tile("haziness"), haze_extent=(lx, ly), smoothness=smoothness,
-                     anisotropic=anisotropic, strict=False, dtype=np.float32)
-        sl = np.s_[r0:r1]
-        maps["beta"][sl] = np.broadcast_to(d.beta, shape)
-        maps["roughness"][sl] = np.broadcast_to(d.narrow.roughness, shape)
-        maps["roughness_wide"][sl] = np.broadcast_to(d.wide.roughness, shape)
-        if anisotropic:
-            maps["anisotropy"][sl] = np.broadcast_to(d.narrow.anisotropy, shape)
-            maps["rotation"][sl] = np.broadcast_to(d.narrow.rotation, shape)
-            maps["anisotropy_wide"][sl] = np.broadcast_to(d.wide.anisotropy, shape)
-            maps["rotation_wide"][sl] = np.broadcast_to(d.wide.rotation, shape)
-        for spec in _FRESNEL[kind]:
-            values = d.fresnel[spec.name if spec.name in d.fresnel else _FRESNEL_KEY[spec.name]]
-            maps[spec.name][sl] = np.broadcast_to(values, shape + ((3,) if spec.channels == 3 else ()))
-        return d.clamped
+        tile = {n: (a[r0:r1] if a.ndim >= 2 else a) for n, a in clean.items()}
+        if clean["haze_extent_y"] is clean["haze_extent_x"]:
+            tile["haze_extent_y"] = tile["haze_extent_x"]
+        out, counts = describe_maps(tile, kind=kind, distribution=distribution,
+                                    smoothness=smoothness, anisotropic=anisotropic,
+                                    shape=(r1 - r0, w))
+        for name, values in out.items():
+            maps[name][r0:r1] = values
+        return counts
 
     starts = list(range(0, h, rows))
     workers = max(1, min(int(threads or os.cpu_count() or 1), len(starts), 8))
@@ -576,6 +609,115 @@ class ConversionResult(dict):
 
 
 # --------------------------------------------------------------------------------------------
+# Progress and cancel
+# --------------------------------------------------------------------------------------------
+
+
+class ConversionCancelled(ConversionError):
+    """The conversion was cancelled (Esc in the operator, :meth:`Progress.cancel`); like any
+    failure, nothing of it is left in the output folder."""
+
+
+class Progress:
+    """How far a conversion is, and its cancel flag.
+
+    The conversion calls :meth:`begin` with its total work (rows of every tile of every set)
+    and :meth:`advance` after each strip; :meth:`advance` raises :class:`ConversionCancelled`
+    once :meth:`cancel` was called (between two strips: the run is then undone like a failed
+    one).  ``callback(done, total, message)`` is called on every step (the API's
+    ``progress=``).  :meth:`status` is the one line the operator and the CLI show: what is
+    being done (map or step, UDIM tile, set), percent and time left."""
+
+    def __init__(self, callback=None, clock=None):
+        import time as _time
+        self.callback = callback
+        self.clock = clock or _time.monotonic
+        self.total = 0
+        self.done = 0
+        self.message = ""
+        self.levels = []
+        self.cancelled = False
+        self.started = self.clock()
+
+    def cancel(self):
+        """Ask the running conversion to stop at its next strip (and undo itself)."""
+        self.cancelled = True
+
+    def check(self):
+        if self.cancelled:
+            raise ConversionCancelled("cancelled; the output folder is unchanged")
+
+    def begin(self, total):
+        self.total += max(0, int(total))
+
+    def next_item(self, index, count, name, key="set"):
+        """Item ``index`` of ``count`` starts: a set of a library batch (``key`` "set") or a
+        UDIM tile of a set ("tile"); the fraction is then (items done + this item's fraction)
+        / count at each level, and the rows of the item start from 0."""
+        keep = [lv for lv in self.levels if lv[0] == "set"] if key != "set" else []
+        self.levels = keep + [(key, int(index), max(1, int(count)), str(name))]
+        self.total = self.done = 0
+
+    def advance(self, units=0, message=None):
+        self.done = min(self.total, self.done + max(0, int(units)))
+        if message is not None:
+            self.message = message
+        if self.callback is not None:
+            self.callback(self.done, max(self.total, 1), self.message)
+        self.check()
+
+    levels = ()
+
+    @property
+    def fraction(self):
+        f = self.done / self.total if self.total else 0.0
+        for _, i, n, _ in reversed(self.levels):
+            f = (i + f) / n
+        return min(1.0, f)
+
+    def seconds_left(self):
+        """Time left, extrapolated from the rate so far (None before the first strip)."""
+        f = self.fraction
+        if f <= 0:
+            return None
+        spent = self.clock() - self.started
+        return spent * (1 - f) / f
+
+    def status(self):
+        left = self.seconds_left()
+        eta = "" if left is None else f", {format_seconds(left)} left"
+        parts = [f"{key} {name} ({i + 1} of {n})" for key, i, n, name in self.levels]
+        where = f"{', '.join(parts)}: " if parts else ""
+        return f"{where}{self.message} {100 * self.fraction:.0f}%{eta}".strip()
+
+
+def format_seconds(s):
+    """'12 s', '3 min 05 s', '2 h 04 min'."""
+    s = max(0, int(round(s)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+def progress_bar(progress, width=30):
+    """A text progress bar of a :class:`Progress` (the CLI's): '[#####-----]  50% ...'."""
+    n = int(round(width * progress.fraction))
+    return f"[{'#' * n}{'-' * (width - n)}] {progress.status()}"
+
+
+def drain(steps):
+    """Run a conversion generator to its end; returns its result (what the blocking API does,
+    where the modal operator steps the same generator between events)."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+# --------------------------------------------------------------------------------------------
 # PBR texture sets: which file is which map
 # --------------------------------------------------------------------------------------------
 
@@ -593,15 +735,36 @@ PBR_NAME_PARTS = {
 _PBR_IMAGE_EXT = (".png", ".jpg", ".jpeg", ".exr", ".tif", ".tiff", ".tga", ".bmp", ".webp", ".hdr")
 
 
+_UDIM_FILE = None
+
+
+def udim_sets(filenames):
+    """File names with the tiles of a UDIM set (``name.1001.png``, ``name_1002.png``: a 4-digit
+    tile 1001-2000 before the extension) folded into one ``name.<UDIM>.png``; others as they
+    are."""
+    import re
+    global _UDIM_FILE
+    if _UDIM_FILE is None:
+        _UDIM_FILE = re.compile(r"\A(?P<head>.*[._])(?P<tile>\d{4})(?P<ext>\.[^.]+)\Z")
+    out = []
+    for fn in filenames:
+        m = _UDIM_FILE.match(os.path.basename(fn))
+        if m and 1001 <= int(m["tile"]) <= 2000:
+            fn = os.path.join(os.path.dirname(fn), f"{m['head']}<UDIM>{m['ext']}")
+        if fn not in out:
+            out.append(fn)
+    return out
+
+
 def detect_pbr_set(filenames):
     """{map name: file name} for the files of one PBR set, by the name parts texture libraries
-    use (PBR_NAME_PARTS); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
+    use (PBR_NAME_PARTS; UDIM tiles are one ``<UDIM>`` name, :func:`udim_sets`); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
     refused when it is the only normal map (Blender's Normal Map node reads OpenGL normals).
     Raises ConversionError when two files claim one map or none is found."""
     import re
     found, clash, directx = {}, {}, []
     named = {}
-    for fn in sorted(filenames):
+    for fn in sorted(udim_sets(filenames)):
         stem, ext = os.path.splitext(os.path.basename(fn))
         if ext.lower() in _PBR_IMAGE_EXT:
             named[fn] = [w for w in re.split(r"[^a-z0-9]+", re.sub(

@@ -39,7 +39,7 @@ class ExrError(ImageFileError):
     ``"<path>: <defect>"``."""
 
 
-_MAGIC = 20000630
+_MAGIC = K.EXR_MAGIC
 #: Version field: bit 9 single-part tiled, 10 long names, 11 deep data, 12 multi-part.
 _TILED, _LONG_NAMES, _DEEP, _MULTIPART = 0x200, 0x400, 0x800, 0x1000
 #: compression id -> (name, scanlines per chunk); OpenEXR 3.4's ids.

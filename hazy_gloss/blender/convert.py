@@ -1,21 +1,24 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Texture batch conversion through bpy: read perceptual maps, write physical maps, wire them.
 
-The numeric part (validation, Blender's conventions, haze mapping over whole images, PNG
-encodings) is bpy-free in ``hazy_gloss/convert.py``; this module does what needs Blender:
+The numeric part (validation, Blender's conventions, haze mapping, PNG encodings) is bpy-free
+in ``hazy_gloss/convert.py``, the strip readers and writers in ``hazy_gloss/imagestream.py``;
+this module does what needs Blender:
 
-- reading images (files loaded privately with ``check_existing=False``, or datablocks read in
-  place, packed and unsaved ones included) and decoding them: colour maps to linear, data maps
-  raw (Non-Color), as measured in Blender 4.5 / 5.x (``Image.pixels`` of an 8-bit image holds the
-  file's encoded values whatever its colour space; float images are already scene-linear).
-  Every file is checked (:func:`_check_readable`: exists, an image format, not cut off) before
-  Blender sees it: Blender 5.0.1 segfaults on a truncated EXR;
-- writing float OpenEXR (default, lossless ZIP) or 16-bit PNG through ``Image.save_render`` of a
-  Non-Color image with a private scene's format settings, **all or nothing**
-  (:class:`_Transaction`): every target is checked before anything is written, every map goes to
-  a temporary name in the output folder and is read back and compared pixel for pixel, then all
-  are renamed into place; on any failure or interruption (KeyboardInterrupt, the CLI's SIGTERM)
-  the run's files are removed and the maps it replaced restored;
+- reading images in strips: files through Blender's own OpenImageIO module (:func:`openimageio`)
+  and decoded as Blender would (colour maps to linear, data maps raw); datablocks (packed and
+  unsaved ones included) read in place, whole, as measured in Blender 4.5 / 5.x
+  (``Image.pixels`` of an 8-bit image holds the file's encoded values whatever its colour
+  space; float images are already scene-linear).  Every file is checked
+  (:func:`_check_readable`: exists, an image format, not cut off) before it is read: Blender
+  5.0.1 segfaults on a truncated EXR;
+- writing float OpenEXR (default, lossless ZIP) or 16-bit PNG strip by strip, **all or
+  nothing** (:class:`_Transaction`): every target is checked before anything is written, every
+  map goes to a temporary name in the output folder and is proved by its bytes read back
+  (:class:`_MapFile`), then all are renamed into place; on any failure, interruption or cancel
+  (KeyboardInterrupt, the CLI's SIGTERM, Progress.cancel) the run's files are removed and the
+  maps it replaced restored.  The conversion is a generator (:func:`convert_maps_steps`) that
+  yields after every strip: the modal operator steps it between events;
 - wiring the written maps into a material's lean node tree (Image Texture nodes into the two
   lobes and the mix, via nodes.lobes.build_lobes).
 
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import array
 import glob
+import hashlib
 import os
 import re
 import shutil
@@ -42,6 +46,7 @@ import numpy as np
 
 from .. import constants as K
 from .. import convert as core
+from .. import imagestream as stream
 from ..convert import ConversionError
 from ..core.graph import Graph
 from . import compat, material
@@ -52,6 +57,7 @@ from .nodes.lobes import build_lobes, tangent as tangent_node
 UDIM_TOKEN = "<UDIM>"
 STAMP = K.MAPS_STAMP
 _LINEAR_NAMES = ("Linear Rec.709", "Linear", "Linear BT.709")
+_DATA_NAMES = ("Non-Color", "Raw", "Generic Data")
 _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
 
@@ -593,6 +599,59 @@ class _Source:
                 error = exc
         raise ConversionError(f"{error}{said.suffix()}") from None
 
+    def strips(self, tile, warnings, oiio):
+        """A row reader (_Decoded) of this input for ``tile``: files stream through
+        OpenImageIO; arrays are served in place; datablocks (and files without OpenImageIO,
+        or in a colour space only Blender converts) are read whole through Blender."""
+        if self.array is not None:
+            return _Decoded(stream.ArrayStrips(self.array, self.label), self.role)
+        path = None
+        if self.image is None:
+            path = self.path if self.tiles is None else self.tiles.get(tile, None)
+            if path is None:
+                raise ConversionError(f"{self.label}: UDIM tile {tile} is missing")
+        label = self.label if self.tiles is None else f"{self.label} tile {tile}"
+        if path is not None and oiio is not None:
+            _check_readable(path, label)
+            try:
+                reader = stream.OiioStrips(oiio, path, label)
+            except stream.StripError:
+                reader = None  # a file OpenImageIO does not read: Blender's loader below
+            if reader is not None:
+                try:
+                    mode = self._mode(reader, label, warnings)
+                except BaseException:
+                    reader.close()
+                    raise
+                if mode is not None:
+                    return _Decoded(reader, self.role, mode)
+                reader.close()
+        return _Decoded(stream.ArrayStrips(self.read(tile, warnings), label), self.role)
+
+    def _mode(self, reader, label, warnings):
+        """How a file's values become the conversion's (docs/textures.md "Colour spaces"),
+        from the colour space Blender gives such a file (8- and 16-bit integer formats sRGB,
+        float formats scene linear) or a tiled datablock's; None: only Blender converts it."""
+        tag = getattr(self, "colourspace", None) or ("Linear Rec.709" if reader.is_float
+                                                     else "sRGB")
+        data = tag == "Non-Color" or tag in _DATA_NAMES
+        if self.role == "data":
+            if not data and tag not in _LINEAR_NAMES:
+                warnings.append(f"{label}: data map tagged {tag}; its raw values are used "
+                                "(data maps are Non-Color)")
+            return "raw"
+        if data:
+            warnings.append(f"{label}: colour map tagged Non-Color; its values are used as linear")
+            return "raw"
+        if tag in _LINEAR_NAMES:
+            return "raw"
+        if tag == "sRGB":
+            return "bytes" if reader.byte else "srgb"
+        if reader.byte:
+            raise ConversionError(f"{label}: 8-bit colour maps in colour space {tag!r} are not "
+                                  "supported; use sRGB, Linear Rec.709 or a float (EXR/16-bit) image")
+        return None
+
     def _read(self, tile, warnings):
         if self.image is not None:
             return _read_datablock(self.image, self.role, self.label, warnings)
@@ -602,6 +661,20 @@ class _Source:
         label = self.label if self.tiles is None else f"{self.label} tile {tile}"
         colourspace = getattr(self, "colourspace", None)
         return _read_file(path, self.role, label, warnings, colourspace)
+
+
+def udim_tiles(sources):
+    """The UDIM tiles of a set of _Source inputs ([] when none is tiled); every tiled input
+    must have the same tiles (else one line listing each one's)."""
+    tiled = {n: s for n, s in sources.items() if s.tiles is not None}
+    if not tiled:
+        return []
+    sets = {n: sorted(s.tiles) for n, s in tiled.items()}
+    first = next(iter(sets.values()))
+    if any(v != first for v in sets.values()):
+        raise ConversionError("UDIM inputs have different tiles: " + "; ".join(
+            f"{tiled[n].label} {', '.join(map(str, v))}" for n, v in sets.items()))
+    return first
 
 
 #: Inputs whose valid range is [0, 1] (integer arrays above 1 there are 8-bit values).
@@ -729,142 +802,243 @@ def _read_datablock(img, role, label, warnings):
 
 
 # --------------------------------------------------------------------------------------------
+# OpenImageIO (Blender's own) and the strip readers
+# --------------------------------------------------------------------------------------------
+
+_OIIO = []
+
+
+def openimageio():
+    """Blender's bundled OpenImageIO Python module, or None.
+
+    Inside Blender ``import OpenImageIO`` works (it is in Blender's Python's site-packages);
+    the ``bpy`` module from PyPI ships the same module in ``bpy/<version>/python/lib/.../
+    site-packages`` without putting it on ``sys.path``: it is loaded from there by its file,
+    leaving ``sys.path`` alone.  ``HAZY_GLOSS_NO_OIIO=1`` turns it off (the whole-image
+    fallback through Blender's loader; for tests)."""
+    if _OIIO:
+        return _OIIO[0]
+    mod = None
+    if not os.environ.get("HAZY_GLOSS_NO_OIIO"):
+        try:
+            import OpenImageIO as mod  # noqa: N813
+        except ImportError:
+            mod = _bundled_oiio()
+    _OIIO.append(mod)
+    return mod
+
+
+def _bundled_oiio():
+    import importlib.util
+    try:
+        root = bpy.utils.resource_path("LOCAL")
+    except (AttributeError, RuntimeError):
+        return None
+    pattern = os.path.join(root, "python", "lib*", "*", "site-packages", "OpenImageIO")
+    found = glob.glob(pattern) + glob.glob(os.path.join(root, "python", "lib", "site-packages",
+                                                        "OpenImageIO"))
+    for folder in found:
+        init = os.path.join(folder, "__init__.py")
+        if not os.path.isfile(init):
+            continue
+        try:
+            spec = importlib.util.spec_from_file_location("OpenImageIO", init,
+                                                          submodule_search_locations=[folder])
+            mod = importlib.util.module_from_spec(spec)
+            sys.modules["OpenImageIO"] = mod
+            spec.loader.exec_module(mod)
+            return mod
+        except Exception:  # an incompatible build: the whole-image fallback
+            sys.modules.pop("OpenImageIO", None)
+    return None
+
+
+class _Decoded:
+    """Rows of one input, decoded as the conversion uses them: colour maps (n, W, 3) linear,
+    data maps (n, W) raw.  ``mode``: "raw" (data, linear or already decoded values), "bytes"
+    (8-bit sRGB: the 256-entry IEC table), "srgb" (16-bit sRGB: the IEC curve)."""
+
+    def __init__(self, reader, role, mode="raw"):
+        self.reader, self.role, self.mode = reader, role, mode
+        self.width, self.height = reader.width, reader.height
+        self.label = getattr(reader, "label", "")
+
+    def rows(self, y0, y1):
+        try:
+            a = self.reader.rows(y0, y1, 3 if self.role == "colour" else 1)
+        except stream.StripError as exc:
+            raise ConversionError(f"{self.label}: {exc}") from None
+        if self.role == "colour":
+            a = a[..., :3] if a.shape[-1] >= 3 else np.repeat(a[..., :1], 3, axis=-1)
+            if self.mode == "bytes":
+                return core.srgb_bytes_to_linear(a)
+            if self.mode == "srgb":
+                return core.srgb_to_linear(a)
+            return np.asarray(a, np.float32)
+        return np.asarray(a[..., 0], np.float32)
+
+    def close(self):
+        self.reader.close()
+
+
+# --------------------------------------------------------------------------------------------
 # Writing
 # --------------------------------------------------------------------------------------------
 
+_CODECS = []
 
-class _Writer:
-    """Writes float arrays as Non-Color images through a private scene's format settings
-    (``Image.save_render`` honours codec and depth; a Non-Color image gets no view transform),
-    and reads every file back: it must load with the right size and exactly the pixels Blender
-    will read (lossless EXR: the floats; 16-bit PNG: the 16-bit codes of the values; a lossy
-    EXR codec: finite values).  Blender's PNG writer reports success on a file cut off by a full
-    disk; this is where that is caught."""
 
-    def __init__(self, file_format, exr_codec="ZIP"):
-        self.file_format = file_format
-        self.exact = True
-        self.scene = bpy.data.scenes.new(".hazy_gloss_convert")
-        self._buf = self._rbuf = None
-        try:
-            s = self.scene.render.image_settings
-            if hasattr(s, "media_type"):  # 5.0
-                s.media_type = "IMAGE"
-            s.file_format = file_format
-            s.color_mode = "RGB"
-            if file_format == "OPEN_EXR":
-                s.color_depth = "32"
-                codec = exr_codec.upper() if isinstance(exr_codec, str) else exr_codec
-                try:
-                    s.exr_codec = codec
-                except TypeError:  # the codecs of 32-bit float EXR (B44 is for half floats)
-                    codecs = []
-                    for item in s.bl_rna.properties["exr_codec"].enum_items:
-                        try:
-                            s.exr_codec = item.identifier
-                            codecs.append(item.identifier)
-                        except TypeError:
-                            pass
-                    lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
-                    raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
-                                          f"{', '.join(lossless)}); got {_short(exr_codec)}") from None
-                self.exact = codec in K.LOSSLESS_EXR_CODECS
-            else:
-                s.color_depth = "16"
-        except BaseException:
-            self.close()
-            raise
-
-    def _save(self, img, path):
-        """The one call that writes a file (a seam for the tests' full-disk simulation)."""
-        img.save_render(path, scene=self.scene)
-
-    def write(self, values, path, final=None):
-        """Write ``values`` ((H, W) or (H, W, 3) float32) to ``path`` and verify it; messages
-        name ``final`` (the map's final path) when given."""
-        final = final or path
-        h, w = values.shape[:2]
-        n = w * h * 4
-        if self._buf is None or self._buf.size != n:
-            self._buf = None
-            self._buf = np.empty(n, dtype=np.float32)
-        view = self._buf.reshape(h, w, 4)
-        view[..., :3] = values[..., None] if values.ndim == 2 else values
-        view[..., 3] = 1.0
-        img = bpy.data.images.new(".hazy_gloss_out", w, h, alpha=False, float_buffer=True,
-                                  is_data=True)
-        error = None
-        try:
-            img.pixels.foreach_set(self._buf)
-            with _BlenderMessages() as said:
-                try:
-                    self._save(img, path)
-                except RuntimeError as exc:
-                    said.swallow()
-                    error = _one_line(exc)
-        finally:
-            bpy.data.images.remove(img)
-        if error is not None:
-            raise ConversionError(f"could not write {final}: {error}{said.suffix()}")
-        with _BlenderMessages() as said:
+def exr_codecs():
+    """The EXR codecs Blender offers for 32-bit float (measured once: the enum items a 32-bit
+    EXR format accepts; B44 is for half floats)."""
+    if _CODECS:
+        return _CODECS[0]
+    scene = bpy.data.scenes.new(".hazy_gloss_codecs")
+    try:
+        s = scene.render.image_settings
+        if hasattr(s, "media_type"):  # 5.0
+            s.media_type = "IMAGE"
+        s.file_format, s.color_mode, s.color_depth = "OPEN_EXR", "RGB", "32"
+        codecs = []
+        for item in s.bl_rna.properties["exr_codec"].enum_items:
             try:
-                self.verify(path, final, w, h)
-            except ConversionError as exc:
-                said.swallow()
-                error = exc
-        if error is not None:
-            raise ConversionError(f"{error}{said.suffix()}") from None
+                s.exr_codec = item.identifier
+                codecs.append(item.identifier)
+            except TypeError:
+                pass
+    finally:
+        bpy.data.scenes.remove(scene)
+    _CODECS.append(tuple(codecs))
+    return _CODECS[0]
 
-    def verify(self, path, final, w, h):
-        """Read ``path`` back (after the file checks) and compare it with the written buffer."""
-        try:
-            _check_readable(path, "read back")
-        except ConversionError as exc:
-            raise ConversionError(f"could not write {final} (disk full?): {exc}") from None
-        try:
-            img = bpy.data.images.load(path, check_existing=False)
-        except RuntimeError as exc:
-            raise ConversionError(f"could not write {final}: it does not load back "
-                                  f"({_one_line(exc)})") from None
-        try:
-            img.colorspace_settings.name = "Non-Color"
-            img.alpha_mode = "CHANNEL_PACKED"
-            size, c = tuple(img.size), img.channels
-            if size != (w, h) or c < 3:
-                raise ConversionError(f"could not write {final} (disk full?): it loads back as "
-                                      f"{size[0]}x{size[1]} with {c} channels, not {w}x{h} RGB")
-            if self._rbuf is None or self._rbuf.size != w * h * c:
-                self._rbuf = None
-                self._rbuf = np.empty(w * h * c, dtype=np.float32)
-            img.pixels.foreach_get(self._rbuf)
-        finally:
-            bpy.data.images.remove(img)
-        got = self._rbuf.reshape(h, w, c)
-        want = self._buf.reshape(h, w, 4)
-        rows = max(1, (1 << 20) // max(w, 1))  # compare in blocks: bounded temporaries
-        bad = 0
-        for r0 in range(0, h, rows):
-            g, e = got[r0:r0 + rows, :, :3], want[r0:r0 + rows, :, :3]
-            if self.file_format == "PNG":  # Blender: code = floor(v * 65535 + 0.5), v = code / 65535
-                e = np.floor(np.clip(e, 0, 1) * np.float32(65535) + np.float32(0.5))
-                e = e.astype(np.float32) * np.float32(1 / 65535)
-            elif not self.exact:
-                bad += int(np.count_nonzero(~np.isfinite(g).all(axis=-1)))
-                continue
-            bad += int(np.count_nonzero((g != e).any(axis=-1)))
-        if bad:
-            raise ConversionError(f"could not write {final}: {bad} of {w * h} texels read back "
-                                  "differently from what was written (disk full or a failing "
-                                  "device?)")
+
+def _check_codec(file_format, exr_codec):
+    if file_format != "OPEN_EXR":
+        return "ZIP"
+    codecs = exr_codecs()
+    codec = exr_codec.upper() if isinstance(exr_codec, str) else exr_codec
+    if codec not in codecs:
+        lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
+        raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
+                              f"{', '.join(lossless)}); got {_short(exr_codec)}")
+    if codec not in stream.EXR_CODECS and openimageio() is None:
+        raise ConversionError(f"exr_codec {codec} needs Blender's OpenImageIO module, which is "
+                              f"not available here; use {', '.join(stream.EXR_CODECS)}")
+    return codec
+
+
+class _OiioExrWriter:
+    """Codecs the add-on does not encode itself (PIZ, RLE, PXR24, DWA, HTJ2K): written by
+    OpenImageIO strip by strip; the proof is then a decoded read-back (lossless codecs: the
+    sha256 of the floats read equals that of the floats written; lossy: every value finite)."""
+
+    def __init__(self, oiio, path, width, height, codec):
+        self.oiio, self.path, self.width, self.height = oiio, path, width, height
+        self.codec, self.row = codec, 0
+        self.exact = codec in K.LOSSLESS_EXR_CODECS
+        self._hash = hashlib.sha256()
+        spec = oiio.ImageSpec(width, height, 3, oiio.FLOAT)
+        spec.attribute("compression", codec.lower())
+        self.out = oiio.ImageOutput.create(path)
+        if self.out is None or not self.out.open(path, spec):
+            why = self.out.geterror() if self.out is not None else oiio.geterror()
+            raise ConversionError(f"could not write {path} with EXR codec {codec}: "
+                                  f"{_one_line(why)}")
+
+    def encode(self, y0, values):
+        v = np.asarray(values, np.float32)
+        if v.ndim == 2:
+            v = np.repeat(v[..., None], 3, axis=-1)
+        return y0, np.ascontiguousarray(v)
+
+    def append(self, encoded):
+        y0, v = encoded
+        if not self.out.write_scanlines(y0, y0 + v.shape[0], 0, v):
+            raise OSError(f"{_one_line(self.out.geterror())}")
+        self._hash.update(v.tobytes())
+        self.row += v.shape[0]
 
     def close(self):
-        self._buf = self._rbuf = None
-        if self.scene is not None:
-            bpy.data.scenes.remove(self.scene)
-            self.scene = None
+        out, self.out = self.out, None
+        if out is not None and not out.close():
+            raise OSError(_one_line(out.geterror()))
+
+    def abort(self):
+        if self.out is not None:
+            self.out.close()
+            self.out = None
+
+    def verify(self, check):
+        check(self.path)
+        reader = stream.OiioStrips(self.oiio, self.path)
+        try:
+            if (reader.width, reader.height) != (self.width, self.height):
+                raise stream.StripError(f"{self.path} reads back as {reader.width}x"
+                                        f"{reader.height}, not {self.width}x{self.height}")
+            h = hashlib.sha256()
+            rows = stream.strip_rows(self.width)
+            for y0 in range(0, self.height, rows):
+                v = reader.rows(y0, min(self.height, y0 + rows), 3)
+                if not self.exact and not np.isfinite(v).all():
+                    raise stream.StripError(f"{self.path} reads back with non-finite values")
+                h.update(np.ascontiguousarray(v, np.float32).tobytes())
+        finally:
+            reader.close()
+        if self.exact and h.hexdigest() != self._hash.hexdigest():
+            raise stream.StripError(f"{self.path} reads back with other values than written "
+                                    "(disk full or a failing device?)")
 
 
-# --------------------------------------------------------------------------------------------
+class _MapFile:
+    """One output map written to its temporary in strips (hazy_gloss.imagestream) and proved
+    complete at the end: the file read back as bytes hashes to the bytes encoded, and its
+    structure passes the file check.  I/O errors become one-line ConversionErrors naming
+    ``final``."""
+
+    def __init__(self, file_format, codec, tmp, final, width, height):
+        self.tmp, self.final = tmp, final
+        try:
+            if file_format == "PNG":
+                self.writer = stream.PngStripWriter(tmp, width, height)
+            elif codec in stream.EXR_CODECS:
+                self.writer = stream.ExrStripWriter(tmp, width, height, codec=codec)
+            else:
+                self.writer = _OiioExrWriter(openimageio(), tmp, width, height, codec)
+        except OSError as exc:
+            raise ConversionError(f"could not write {final}: {_reason(exc)}") from None
+
+    def encode(self, y0, values):
+        return self.writer.encode(y0, values)
+
+    def append(self, encoded):
+        try:
+            self.writer.append(encoded)
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+
+    def close_file(self):
+        """The one call that completes a file (a seam for the tests' full-disk simulation)."""
+        self.writer.close()
+
+    def finish(self):
+        try:
+            self.close_file()
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+        try:
+            self.writer.verify(lambda p: _check_readable(p, "read back"))
+        except (stream.StripError, ConversionError) as exc:
+            raise ConversionError(f"could not write {self.final} (disk full?): {exc}") from None
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: it does not read back "
+                                  f"({_reason(exc)})") from None
+
+    def abort(self):
+        try:
+            self.writer.abort()
+        except OSError:
+            pass
+
 # All or nothing: temporaries, backups, commit, undo
 # --------------------------------------------------------------------------------------------
 
@@ -1135,7 +1309,7 @@ def _check_options(material, interpolation, progress, tile_texels, resample):
     if interpolation not in items:
         raise ConversionError(f"interpolation must be one of {', '.join(items)}; got "
                               f"{_short(interpolation)}")
-    if progress is not None and not callable(progress):
+    if progress is not None and not callable(progress) and not isinstance(progress, core.Progress):
         raise ConversionError(f"progress must be None or a callable(done, total, message), got "
                               f"{type(progress).__name__}")
     if isinstance(tile_texels, bool) or not isinstance(tile_texels, (int, np.integer)) or \
@@ -1178,10 +1352,19 @@ def _all_map_names():
                   key=len, reverse=True)
 
 
-def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
-                 file_format="OPEN_EXR", resample=False, prefix="", exr_codec="ZIP",
-                 material=None, interpolation="Linear", progress=None, tile_texels=1 << 18):
-    """Convert perceptual maps to physical maps, all or nothing; see hazy_gloss.api.convert_maps."""
+def convert_maps(inputs, out_dir, **options):
+    """Convert perceptual maps to physical maps, all or nothing; see hazy_gloss.api.convert_maps.
+    Blocking: runs :func:`convert_maps_steps` to its end."""
+    return core.drain(convert_maps_steps(inputs, out_dir, **options))
+
+
+def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribution="GGX",
+                       file_format="OPEN_EXR", resample=False, prefix="", exr_codec="ZIP",
+                       material=None, interpolation="Linear", progress=None,
+                       tile_texels=K.STRIP_TEXELS, threads=None):
+    """The conversion as a generator: it yields after every strip (the modal operator steps it
+    between events) and returns the ConversionResult.  ``progress``: a callable(done, total,
+    message) or a core.Progress (whose cancel() stops the run, undone, at the next strip)."""
     t0 = time.perf_counter()
     started = time.time()
     file_format = str(file_format).upper()
@@ -1190,6 +1373,8 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     kind, distribution = str(kind).upper(), str(distribution).upper()
     prefix = _check_prefix(prefix)
     _check_options(material, interpolation, progress, tile_texels, resample)
+    codec = _check_codec(file_format, exr_codec)
+    prog = progress if isinstance(progress, core.Progress) else core.Progress(progress)
     sources = {n: _Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
     # a haze extent shared by both axes is read once
     shared_extent = (specs["haze_extent_x"].given_as == "haze_extent"
@@ -1197,15 +1382,7 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     if shared_extent:
         sources.pop("haze_extent_y", None)
 
-    tiled = {n: s for n, s in sources.items() if s.tiles is not None}
-    tiles = []
-    if tiled:
-        sets = {n: sorted(s.tiles) for n, s in tiled.items()}
-        first = next(iter(sets.values()))
-        if any(v != first for v in sets.values()):
-            raise ConversionError("UDIM inputs have different tiles: " + "; ".join(
-                f"{tiled[n].label} {', '.join(map(str, v))}" for n, v in sets.items()))
-        tiles = first
+    tiles = udim_tiles(sources)
     for src in sources.values():  # every input file, before anything is written
         src.check()
     out_dir = _out_path(out_dir)
@@ -1215,36 +1392,28 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
                                    tiles=list(tiles), warnings=list(notes))
     ext = _EXT[file_format]
     jobs = tiles or [None]
-    n_out = len(core.output_specs(kind, True))
-    total = len(jobs) * (len(sources) + 1 + n_out)
-    done = [0]
-
-    def step(message):
-        done[0] += 1
-        if progress is not None:
-            progress(min(done[0], total), total, message)
-
     txn = _Transaction(out_dir, started)
     _check_targets([_final_path(out_dir, prefix, s.name, tile, ext)
                     for tile in jobs for s in core.output_specs(kind, True)], input_files, txn)
-    writer = _Writer(file_format, exr_codec)
+    alpha_given = specs["roughness"].transform == "sqrt"
+    run = _Run(specs, sources, shared_extent, resample, report, prog, alpha_given, tile_texels)
     try:
-        try:
-            txn.make_folder()
-            stale = txn.clean_stale(_all_map_names())
-            if stale:
-                report.warnings.append(f"removed {len(stale)} temporary file(s) left in "
-                                       f"{out_dir} by an interrupted earlier conversion")
-            args = (jobs, specs, sources, shared_extent, resample, kind, distribution, smoothness,
-                    tile_texels, file_format, writer, txn, out_dir, prefix, ext, report, step)
-            try:
-                paths, out_specs = _run_jobs(*args, None)
-            except _AnisotropyChanged:
-                # a later UDIM tile is anisotropic: redo every tile with the anisotropic map set
-                report.texels, report.clamped = 0, {}
-                paths, out_specs = _run_jobs(*args, True)
-        finally:
-            writer.close()
+        txn.make_folder()
+        stale = txn.clean_stale(_all_map_names())
+        if stale:
+            report.warnings.append(f"removed {len(stale)} temporary file(s) left in "
+                                   f"{out_dir} by an interrupted earlier conversion")
+        anisotropic = yield from run.anisotropy(jobs)
+        out_specs = core.output_specs(kind, anisotropic)
+        report.anisotropic = anisotropic
+        paths = {s.name: _final_path(out_dir, prefix, s.name, UDIM_TOKEN if tiles else None, ext)
+                 for s in out_specs}
+        for tile in jobs:
+            if tile:
+                prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
+            finals = {s.name: _final_path(out_dir, prefix, s.name, tile, ext) for s in out_specs}
+            yield from run.tile(tile, finals, txn, out_specs, kind, distribution, smoothness,
+                                anisotropic, file_format, codec, threads)
         retire = []
         if tiles:  # tiles of an earlier, larger set would join this one in a tiled image
             for s in out_specs:
@@ -1253,22 +1422,10 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
             if retire:
                 report.warnings.append("removed UDIM tiles of an earlier conversion that are not "
                                        "in this set: " + ", ".join(os.path.basename(p) for p in retire))
+        prog.check()  # the last point where a cancel undoes the run
         txn.commit(retire)
     except BaseException as exc:
-        if txn.committed:  # a signal held during the last clean-up: the set is complete
-            exc.committed = True
-            raise
-        problems = txn.rollback()
-        extra = ("; " + "; ".join(problems)) if problems else ""
-        if isinstance(exc, OSError):
-            where = getattr(exc, "filename2", None) or exc.filename
-            where = f"{where}: " if where else ""
-            raise ConversionError(f"could not write the maps ({where}{_reason(exc)}); "
-                                  + (extra[2:] if extra else "the output folder is unchanged")) from None
-        if isinstance(exc, ConversionError) and extra:
-            raise ConversionError(f"{exc}{extra}") from None
-        if extra and hasattr(exc, "add_note"):
-            exc.add_note(extra[2:])
+        _undo(txn, exc)
         raise
     report.warnings = list(dict.fromkeys(report.warnings))
     report.seconds = time.perf_counter() - t0
@@ -1278,83 +1435,236 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     return result
 
 
+def _undo(txn, exc):
+    """After a failure or an interruption: undo the run's files; OSErrors and failed undos become
+    the one-line ConversionError (raised from here), anything else is re-raised by the caller."""
+    if txn.committed:  # a signal held during the last clean-up: the set is complete
+        exc.committed = True
+        return
+    problems = txn.rollback()
+    extra = ("; " + "; ".join(problems)) if problems else ""
+    if isinstance(exc, OSError):
+        where = getattr(exc, "filename2", None) or exc.filename
+        where = f"{where}: " if where else ""
+        raise ConversionError(f"could not write the maps ({where}{_reason(exc)}); "
+                              + (extra[2:] if extra else "the output folder is unchanged")) from None
+    if isinstance(exc, ConversionError) and extra:
+        raise ConversionError(f"{exc}{extra}") from None
+    if extra and hasattr(exc, "add_note"):
+        exc.add_note(extra[2:])
+
+
 def _final_path(out_dir, prefix, name, tile, ext):
     return os.path.join(out_dir, f"{prefix}{name}{'.' + str(tile) if tile else ''}{ext}")
 
 
-class _AnisotropyChanged(Exception):
-    pass
+class _Run:
+    """The inputs of one conversion, opened tile by tile as strip readers."""
 
+    def __init__(self, specs, sources, shared_extent, resample, report, prog, alpha_given,
+                 tile_texels):
+        self.specs, self.sources, self.shared = specs, sources, shared_extent
+        self.resample, self.report, self.prog = resample, report, prog
+        self.alpha_given, self.tile_texels = alpha_given, tile_texels
+        self.constants = {n: s.source for n, s in specs.items() if s.is_constant}
+        self.oiio = openimageio()
+        if self.oiio is None and any(s.tiles or s.path for s in sources.values()):
+            report.warnings.append("Blender's OpenImageIO module was not found: files are read "
+                                   "whole through Blender's loader (memory grows with the image)")
 
-def _run_jobs(jobs, specs, sources, shared_extent, resample, kind, distribution, smoothness,
-              tile_texels, file_format, writer, txn, out_dir, prefix, ext, report, step,
-              anisotropic):
-    paths = {}
-    out_specs = None
-    for tile in jobs:
-        arrays = {n: s.source for n, s in specs.items() if s.is_constant}
-        sizes = []
-        for name, src in sources.items():
-            values = src.read(tile, report.warnings)
-            h, w = values.shape[:2]
-            sizes.append((src.label + (f" tile {tile}" if tile else ""), (w, h), name))
-            arrays[name] = values
-            step(f"read {name}")
-        if shared_extent:
+    def open(self, tile, names=None):
+        """({name: _Decoded}, (w, h)) of this tile's inputs, sizes checked (or resampled)."""
+        readers, sizes = {}, []
+        try:
+            for name, src in self.sources.items():
+                if names is not None and name not in names:
+                    continue
+                r = src.strips(tile, self.report.warnings, self.oiio)
+                readers[name] = r
+                sizes.append((src.label + (f" tile {tile}" if tile else ""), (r.width, r.height), name))
+            target = max((s for _, s, _ in sizes), key=lambda s: s[0] * s[1])
+            if self.resample:
+                for label, size, name in sizes:
+                    if size != target:
+                        if names is None:
+                            self.report.warnings.append(
+                                f"{label}: resampled from {size[0]}x{size[1]} to "
+                                f"{target[0]}x{target[1]} (bilinear)")
+                        readers[name] = _Resampled(readers[name], target)
+            else:
+                core.check_sizes([(label, size) for label, size, _ in sizes])
+        except BaseException:
+            for r in readers.values():
+                r.close()
+            raise
+        return readers, target
+
+    def _arrays(self, readers, y0, y1):
+        arrays = dict(self.constants)
+        for name, r in readers.items():
+            arrays[name] = r.rows(y0, y1)
+        if self.shared:
             arrays["haze_extent_y"] = arrays["haze_extent_x"]
-        target = max((s for _, s, _ in sizes), key=lambda s: s[0] * s[1])
-        if resample:
-            for label, size, name in sizes:
-                if size != target:
-                    report.warnings.append(f"{label}: resampled from {size[0]}x{size[1]} "
-                                           f"to {target[0]}x{target[1]} (bilinear)")
-                    arrays[name] = core.resample_bilinear(arrays[name], target)
-            if shared_extent:
-                arrays["haze_extent_y"] = arrays["haze_extent_x"]
-        else:
-            core.check_sizes([(label, size) for label, size, _ in sizes])
-        mapped = core.map_textures(arrays, kind=kind, distribution=distribution,
-                                   smoothness=smoothness, tile_texels=tile_texels,
-                                   alpha_given=specs["roughness"].transform == "sqrt",
-                                   anisotropic=anisotropic)
-        del arrays
-        step("mapped")
-        if out_specs is None:
-            out_specs = mapped.specs
-            report.size = target
-            report.anisotropic = mapped.anisotropic
-        elif mapped.anisotropic != report.anisotropic:
-            raise _AnisotropyChanged()
-        report.texels += mapped.texels
-        for k, v in mapped.clamped.items():
-            report.clamped[k] = report.clamped.get(k, 0) + v
-        for spec in mapped.specs:
-            path = _final_path(out_dir, prefix, spec.name, tile, ext)
-            values = mapped.maps.pop(spec.name)
-            if file_format == "PNG":
-                values = core.encode_png(spec, values)
-            writer.write(values, txn.temp(path), path)
-            del values
-            paths[spec.name] = _final_path(out_dir, prefix, spec.name, UDIM_TOKEN if tile else None, ext)
-            step(f"wrote {spec.name}")
-        del mapped
-    return paths, out_specs
+        return arrays
 
+    def anisotropy(self, jobs):
+        """Whether the set needs the anisotropic maps, known before anything is written: from
+        the constants, or by reading the anisotropy and haze extent maps first (all tiles:
+        they must agree)."""
+        c = self.constants
+        names = [n for n in ("anisotropy", "haze_extent_x", "haze_extent_y") if n in self.sources]
+        if "anisotropy" in c and float(c["anisotropy"]) > 0:
+            return True
+        if "haze_extent_x" in c and "haze_extent_y" in c:
+            if float(c["haze_extent_x"]) != float(c["haze_extent_y"]):
+                return True
+            if "anisotropy" in c:
+                return False
+        if self.shared and names == ["haze_extent_x"] and "anisotropy" in c:
+            return False
+        for tile in jobs:
+            readers, (w, h) = self.open(tile, names=names)
+            try:
+                rows = stream.strip_rows(w, self.tile_texels)
+                for y0 in range(0, h, rows):
+                    y1 = min(h, y0 + rows)
+                    arrays = self._arrays(readers, y0, y1)
+                    for n in core.PARAMETERS:  # inputs not read here: their defaults
+                        arrays.setdefault(n, np.float32(core.DEFAULTS[n]))
+                    clean = core.sanitise_inputs(arrays, {}, alpha_given=self.alpha_given)
+                    self.prog.advance(0, "checking anisotropy" + (f" of tile {tile}" if tile else ""))
+                    if core.is_anisotropic(clean):
+                        return True
+                    yield
+            finally:
+                for r in readers.values():
+                    r.close()
+        return False
+
+    def tile(self, tile, finals, txn, out_specs, kind, distribution, smoothness, anisotropic,
+             file_format, codec, threads):
+        """One tile (or the single image): its maps written to temporaries and verified."""
+        readers, (w, h) = self.open(tile)
+        if self.report.size == (0, 0):
+            self.report.size = (w, h)
+        files = {}
+        try:
+            for s in out_specs:
+                files[s.name] = _MapFile(file_format, codec, txn.temp(finals[s.name]),
+                                         finals[s.name], w, h)
+            yield from self.strips(readers, files, out_specs, (w, h), kind, distribution,
+                                   smoothness, anisotropic, file_format, threads)
+            for s in out_specs:
+                files[s.name].finish()
+                self.prog.advance(0, f"wrote {s.name}")
+        finally:
+            for f in files.values():
+                f.abort()
+            for r in readers.values():
+                r.close()
+        self.report.texels += w * h
+
+    def strips(self, readers, files, out_specs, size, kind, distribution, smoothness,
+               anisotropic, file_format, threads):
+        """Map and write every strip of one tile (the strips run on a thread pool)."""
+        w, h = size
+        rows = stream.strip_rows(w, self.tile_texels)
+        self.prog.begin(h)
+        counts = []
+
+        def read(y0, y1):
+            return self._arrays(readers, y0, y1)
+
+        def compute(y0, y1, arrays):
+            clamped = {}
+            clean = core.sanitise_inputs(arrays, clamped, alpha_given=self.alpha_given)
+            maps, limits = core.describe_maps(clean, kind=kind, distribution=distribution,
+                                              smoothness=smoothness, anisotropic=anisotropic,
+                                              shape=(y1 - y0, w))
+            core._add_counts(clamped, limits)
+            encoded = {}
+            for s in out_specs:
+                values = maps[s.name]
+                if file_format == "PNG":
+                    values = core.encode_png(s, values)
+                encoded[s.name] = files[s.name].encode(y0, values)
+            return clamped, encoded
+
+        def write(y0, y1, result):
+            clamped, encoded = result
+            counts.append(clamped)
+            for s in out_specs:
+                files[s.name].append(encoded[s.name])
+
+        done = 0
+        for y1, _ in stream.run_strips(h, rows, read, compute, write, workers=threads):
+            self.prog.advance(y1 - done, "mapping and writing")
+            done = y1
+            yield
+        for c in counts:  # in strip order: the report does not depend on the thread schedule
+            core._add_counts(self.report.clamped, c)
+
+
+class _Resampled:
+    """Rows of a smaller (or larger) input resampled bilinearly to ``size`` (texel centres
+    aligned, edges clamped: core.resample_bilinear), reading the source rows a strip needs,
+    in order, keeping only those still needed."""
+
+    def __init__(self, reader, size):
+        self.reader, self.label = reader, reader.label
+        self.width, self.height = int(size[0]), int(size[1])
+        self.ys = core.resample_axis(self.height, reader.height)
+        self.xs = core.resample_axis(self.width, reader.width)
+        self._y0, self._rows = 0, None
+
+    def _source(self, a, b):
+        if self._rows is None or a < self._y0:
+            self._y0, self._rows = a, self.reader.rows(a, b)
+        have = self._y0 + self._rows.shape[0]
+        if b > have:
+            new = self.reader.rows(have, b)
+            self._rows = np.concatenate([self._rows[max(0, a - self._y0):], new])
+            self._y0 = max(a, self._y0)
+        return self._rows[a - self._y0:b - self._y0]
+
+    def rows(self, y0, y1):
+        i0, i1, fy = (v[y0:y1] for v in self.ys)
+        a, b = int(i0.min()), int(i1.max()) + 1
+        block = self._source(a, b)
+        return core.resample_block(block, i0 - a, i1 - a, fy, self.xs)
+
+    def close(self):
+        self.reader.close()
 
 # --------------------------------------------------------------------------------------------
 # Wiring into a material
 # --------------------------------------------------------------------------------------------
 
 
-def _image_for(path):
-    """An image datablock for a written map (reused and reloaded when it exists), Non-Color."""
-    tiled = UDIM_TOKEN in path
+def _load_image(path, label, check_existing=True):
+    """A datablock of a file, or of a UDIM set (a ``<UDIM>`` path: its first tile loaded,
+    then tiled), after the file check of every file."""
     first = path
-    if tiled:
+    if UDIM_TOKEN in path:
         tiles = _tile_paths(path)
         if not tiles:
-            raise ConversionError(f"no tile of {path} on disk")
+            raise ConversionError(f"{label}: no UDIM tile matches {path}")
+        for n, p in sorted(tiles.items()):
+            _check_readable(p, f"{label} tile {n}")
         first = tiles[min(tiles)]
+    else:
+        _check_readable(path, label)
+    try:
+        img = bpy.data.images.load(first, check_existing=check_existing)
+    except RuntimeError as exc:
+        raise ConversionError(f"{label}: cannot read {first}: {_one_line(exc)}") from None
+    if UDIM_TOKEN in path:
+        img.source = "TILED"
+    return img
+
+
+def _image_for(path):
+    """An image datablock for a written map (reused and reloaded when it exists), Non-Color."""
     want = os.path.normpath(path)
     img = None
     for im in bpy.data.images:
@@ -1363,9 +1673,7 @@ def _image_for(path):
             img = im
             break
     if img is None:
-        img = bpy.data.images.load(first, check_existing=False)
-        if tiled:
-            img.source = "TILED"
+        img = _load_image(path, os.path.basename(path), check_existing=False)
     else:
         img.reload()
     img.colorspace_settings.name = "Non-Color"

@@ -3,15 +3,17 @@
 import os
 import re
 import tempfile
+import time
 
 import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        StringProperty)
 
 from .. import constants as K
+from .. import convert as core
 from ..convert import ConversionError
 from . import compat
-from .convert import convert_maps, wire_material
+from .convert import convert_maps_steps, wire_material
 
 # --------------------------------------------------------------------------------------------
 # Operator
@@ -44,7 +46,111 @@ def _fallback_dir(mat_name):
     return os.path.join(base, safe)
 
 
-class HAZY_GLOSS_OT_convert_maps(bpy.types.Operator):
+class ConversionJob:
+    """A conversion generator run a slice at a time (the modal operator's timer events), with
+    its core.Progress.  :meth:`cancel` is what Esc does: the conversion stops at its next strip
+    and undoes itself (the output folder as it was)."""
+
+    def __init__(self, steps, progress):
+        self.steps, self.progress = steps, progress
+        self.result = self.error = None
+        self.finished = False
+
+    def step(self, seconds=0.1):
+        """Run for about ``seconds``; True once the conversion has ended (``result`` or
+        ``error`` set)."""
+        end = time.monotonic() + seconds
+        try:
+            while not self.finished:
+                next(self.steps)
+                if time.monotonic() >= end:
+                    break
+        except StopIteration as stop:
+            self.result, self.finished = stop.value, True
+        except Exception as exc:  # ConversionError and ConversionCancelled included
+            self.error, self.finished = exc, True
+        return self.finished
+
+    def cancel(self):
+        self.progress.cancel()
+
+    def run(self):
+        """To the end, blocking (background mode: no events)."""
+        while not self.step(3600.0):
+            pass
+        return self
+
+
+class _ModalConversion:
+    """Runs a ConversionJob modally: Blender's progress bar, a status line (step or map, UDIM
+    tile, set, percent, time left), Esc cancels (undone, nothing written).  In background mode
+    (no window, no events) the job runs to its end at once."""
+
+    _job = None
+    _timer = None
+
+    def start(self, context, job, finish):
+        self._finish = finish
+        self._job = job
+        window = getattr(context, "window", None)
+        if bpy.app.background or window is None:
+            return self._end(context, job.run())
+        wm = context.window_manager
+        wm.progress_begin(0, 1000)
+        self._timer = wm.event_timer_add(0.05, window=window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" and event.value == "PRESS":
+            job.cancel()
+        elif event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        job.step(0.15)
+        context.window_manager.progress_update(int(1000 * job.progress.fraction))
+        _status(context, job.progress.status())
+        if not job.finished:
+            return {"RUNNING_MODAL"}
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        _status(context, None)
+        return self._end(context, job)
+
+    def done(self, warnings, info):
+        """The end of a conversion that went through: its warnings, then the result line."""
+        for w in warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, info)
+        return {"FINISHED"}
+
+    def _end(self, context, job):
+        if isinstance(job.error, core.ConversionCancelled):
+            self.report({"WARNING"}, f"Hazy maps: {job.error}")
+            return {"CANCELLED"}
+        if job.error is not None:
+            if not isinstance(job.error, ConversionError):
+                raise job.error
+            self.report({"ERROR"}, str(job.error))
+            return {"CANCELLED"}
+        try:
+            return self._finish(context, job.result)
+        except ConversionError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+
+
+def _status(context, text):
+    workspace = getattr(context, "workspace", None)
+    if workspace is not None:
+        try:
+            workspace.status_text_set(text)
+        except (AttributeError, RuntimeError, TypeError):
+            pass
+
+
+class HAZY_GLOSS_OT_convert_maps(_ModalConversion, bpy.types.Operator):
     """Convert perceptual hazy-gloss maps (haziness, haze extent, core reflectivity...) into
     physical maps and wire them into the active material's lean node tree"""
 
@@ -194,38 +300,29 @@ class HAZY_GLOSS_OT_convert_maps(bpy.types.Operator):
             self.report({"WARNING"}, f"the .blend is not saved: maps go to {directory} "
                                      "(save the file or choose an output folder to keep them "
                                      "next to it)")
-        begun = False
-        try:
-            wm.progress_begin(0, 100)
-            begun = True
-        except (RuntimeError, AttributeError):
-            pass
-
-        def progress(done, total, _message):
-            if begun:
-                wm.progress_update(int(100 * done / max(total, 1)))
-
         try:
             inputs = self._inputs()
-            result = convert_maps(
+            prog = core.Progress()
+            steps = convert_maps_steps(
                 inputs, directory, kind=self.kind, distribution=self.distribution,
                 smoothness=self.smoothness if self.use_smoothness else None,
                 file_format=self.file_format, resample=self.resample, prefix=self.prefix,
-                progress=progress)
-            if self.wire and mat is not None:
-                wire_material(mat, result, interpolation=self.interpolation,
-                              base_color=tuple(self.base_color), transmission=self.transmission)
+                progress=prog)
         except ConversionError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        finally:
-            if begun:
-                wm.progress_end()
-        for w in result.report.warnings:
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"Hazy maps: {result.report.summary(len(result))} -> "
-                              f"{os.path.dirname(next(iter(result.values())))}")
-        return {"FINISHED"}
+        wire = self.wire and mat is not None
+        settings = dict(interpolation=self.interpolation, base_color=tuple(self.base_color),
+                        transmission=self.transmission)
+
+        def finish(context, result):
+            if wire:
+                wire_material(mat, result, **settings)
+            return self.done(result.report.warnings,
+                             f"Hazy maps: {result.report.summary(len(result))} -> "
+                             f"{os.path.dirname(next(iter(result.values())))}")
+
+        return self.start(context, ConversionJob(steps, prog), finish)
 
 
 
@@ -240,29 +337,7 @@ _PBR_FILES = (("base_color", "Base Color"), ("metallic", "Metallic"), ("roughnes
               ("haziness", "Haziness"))
 
 
-def convert_set_folder(folder, out_dir, *, haze, material=None, name=None, overrides=None,
-                       interpolation="Linear"):
-    """Convert the PBR set in ``folder`` (maps found by their names, core.detect_pbr_set;
-    ``overrides`` {map: path} win) into a Principled material with a baked haze layer."""
-    from ..convert import detect_pbr_set
-    from .convert_pbr import convert_pbr
-    try:
-        found = detect_pbr_set(os.listdir(folder)) if folder else {}
-    except ConversionError:
-        if not overrides:
-            raise
-        found = {}
-    except OSError as exc:
-        raise ConversionError(f"set folder {folder}: {exc.strerror or exc}") from None
-    inputs = {k: os.path.join(folder, f) for k, f in found.items()}
-    inputs.update(overrides or {})
-    for k, v in haze.items():
-        if k not in inputs:
-            inputs[k] = v
-    return convert_pbr(inputs, out_dir, material=material, name=name, interpolation=interpolation)
-
-
-class HAZY_GLOSS_OT_convert_pbr_set(bpy.types.Operator):
+class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
     """Turn a PBR texture set (base colour, metallic, roughness, normal, ... as texture
     libraries ship them) into a Principled material with a haze layer baked into maps; with
     Batch, every subfolder of the folder is a set and becomes a material"""
@@ -328,54 +403,51 @@ class HAZY_GLOSS_OT_convert_pbr_set(bpy.types.Operator):
             self.report({"WARNING"}, f"the .blend is not saved: maps go to {directory}")
         out_dir = bpy.path.abspath(directory)
         obj = getattr(context, "object", None)
+        from .convert_pbr import convert_library_steps, convert_set_steps
+        prog = core.Progress()
         if self.batch:
             if not folder or not os.path.isdir(folder):
                 self.report({"ERROR"}, "Batch needs a folder whose subfolders are the sets")
                 return {"CANCELLED"}
-            done, failed = [], []
-            for sub in sorted(os.listdir(folder)):
-                path = os.path.join(folder, sub)
-                if not os.path.isdir(path):
-                    continue
-                try:
-                    res = convert_set_folder(path, os.path.join(out_dir, sub), haze=self._haze(),
-                                             name=sub, interpolation=self.interpolation)
-                    res.material.use_fake_user = True  # kept in the file without an object
-                    done.append(res.material.name)
-                except ConversionError as exc:
-                    failed.append(f"{sub}: {exc}")
-            for f in failed:
-                self.report({"WARNING"}, f)
-            self.report({"INFO"}, f"Converted {len(done)} set(s): {', '.join(done) or 'none'}"
-                        + (f"; {len(failed)} refused (see above)" if failed else ""))
-            return {"FINISHED"} if done else {"CANCELLED"}
+            steps = convert_library_steps(folder, out_dir, haze=self._haze(),
+                                          interpolation=self.interpolation, progress=prog)
+
+            def finish_batch(context, report):
+                for name, why in report.failed:
+                    self.report({"WARNING"}, f"{name}: {why}")
+                self.report({"INFO"}, f"Hazy maps: {report.summary()}"
+                            + (f": {', '.join(r.material.name for _, r in report.done)}"
+                               if report.done else ""))
+                return {"FINISHED"} if report.done else {"CANCELLED"}
+
+            return self.start(context, ConversionJob(steps, prog), finish_batch)
         overrides = {stem: bpy.path.abspath(getattr(self, stem + "_path"))
                      for stem, _ in _PBR_FILES if getattr(self, stem + "_path")}
         target = obj.active_material if (self.into_active and obj is not None) else None
         if self.into_active and target is None:
             self.report({"ERROR"}, "Into the Active Material: the active object has no material")
             return {"CANCELLED"}
-        try:
-            if not folder and not overrides:
-                raise ConversionError("give the set's folder or its maps")
-            res = convert_set_folder(folder, out_dir, haze=self._haze(), material=target,
-                                     name=os.path.basename(os.path.normpath(folder)) or None,
-                                     overrides=overrides, interpolation=self.interpolation)
-        except ConversionError as exc:
-            self.report({"ERROR"}, str(exc))
+        if not folder and not overrides:
+            self.report({"ERROR"}, "give the set's folder or its maps")
             return {"CANCELLED"}
-        mat = res.material
-        if target is None and obj is not None and hasattr(obj.data, "materials") \
-                and obj.library is None:
-            if obj.material_slots:
-                obj.active_material = mat
-            else:
-                obj.data.materials.append(mat)
-        for w in res.report.warnings:
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"“{mat.name}”: a Principled BSDF with the set and a baked haze "
-                              f"layer ({len(res)} maps in {out_dir})")
-        return {"FINISHED"}
+        steps = convert_set_steps(folder, out_dir, haze=self._haze(), material=target,
+                                  name=os.path.basename(os.path.normpath(folder)) or None,
+                                  overrides=overrides, interpolation=self.interpolation,
+                                  progress=prog)
+
+        def finish(context, res):
+            mat = res.material
+            if target is None and obj is not None and hasattr(obj.data, "materials") \
+                    and obj.library is None:
+                if obj.material_slots:
+                    obj.active_material = mat
+                else:
+                    obj.data.materials.append(mat)
+            return self.done(res.report.warnings, f"“{mat.name}”: a Principled BSDF with the set "
+                                                  f"and a baked haze layer ({len(res)} maps in "
+                                                  f"{out_dir})")
+
+        return self.start(context, ConversionJob(steps, prog), finish)
 
 
 classes = (HAZY_GLOSS_OT_convert_maps, HAZY_GLOSS_OT_convert_pbr_set)

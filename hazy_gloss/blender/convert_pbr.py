@@ -1,17 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Convert a PBR texture set (base colour, metallic, roughness, normal, coat, alpha, as any
-texture library ships them) plus haze maps into a Principled material with a converted haze
-layer.
+texture library ships them) plus haze maps into a Principled material with a baked haze layer.
 
 The set goes into a Principled BSDF (a new material, or the user's own: its empty inputs take
-the maps; an input the user linked to something else is refused, never replaced), which then
-becomes a layer node (blender.layer) whose group reads the haze mapping's per-texel values —
-the raised IOR / Base Color, the wide roughness, β per part, the coat's (core.layer_graph.BAKED)
-— from maps: the live layer's own graph (core.layer_graph, evaluated in numpy with Blender's
-float32 node semantics) over every texel, written all or nothing (blender.convert's
-transaction).  A Metallic map splits the material per texel into its dielectric and metal
-parts, each with its own β map.  (Make Hazy gives the live layer instead: no maps, the shader
-computes the same per shading point.)
+the maps; an input the user linked to something else is refused, never replaced).  The haze
+layer is the one Make Hazy builds (blender.layer): its outputs (the raised IOR / Base Color, the
+wide roughness, β per part, the coat's) are computed by the layer's own graph (core.graph:
+the node math of the in-shader layer, evaluated in numpy with Blender's float32 semantics) over
+every texel and written as maps, all or nothing (blender.convert's transaction); the layer then
+reads those maps instead of node math.  A Metallic map splits the material per texel into its
+dielectric and metal parts, each with its own β map.
 """
 from __future__ import annotations
 
@@ -21,15 +19,16 @@ import time
 import bpy
 import numpy as np
 
-from .. import constants as K
 from .. import convert as core
+from .. import imagestream as stream
 from ..convert import ConversionError, did_you_mean
 from ..core import layer_graph
 from ..core.graph import evaluate
 from ..core.parameters import HAZE_DEFAULTS, RANGES
 from . import compat, layer, layer_group
-from .convert import (_EXT, _Source, _Transaction, _Writer, _check_prefix, _check_readable,
-                      _check_targets, _final_path, _image_for, _out_path, _reason)
+from .convert import (_EXT, UDIM_TOKEN, _MapFile, _Source, _Transaction, _check_codec,
+                      _check_prefix, _check_targets, _final_path, _image_for,
+                      _load_image, _out_path, _reason, openimageio, udim_tiles)
 from .make_hazy import find_core_bsdf
 
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).
@@ -144,20 +143,23 @@ def _datablock(src, label):
         img.pixels.foreach_set(px.ravel())
         img.pack()
         return img
-    path = os.path.abspath(os.fsdecode(os.fspath(src)))
-    _check_readable(path, label)
-    try:
-        return bpy.data.images.load(path, check_existing=True)
-    except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {exc}") from None
+    return _load_image(os.path.abspath(os.fsdecode(os.fspath(src))), label)
 
 
-def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_format="OPEN_EXR",
-                exr_codec="ZIP", interpolation="Linear", distribution="MULTI_GGX",
-                smoothness=None, keep_body_colour=False, progress=None):
+def convert_pbr(inputs, out_dir, **options):
     """See hazy_gloss.api.convert_maps (the PBR-set form).  Returns a ConversionResult whose
-    ``.material`` is the material."""
+    ``.material`` is the material.  Blocking: runs :func:`convert_pbr_steps` to its end."""
+    return core.drain(convert_pbr_steps(inputs, out_dir, **options))
+
+
+def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
+                      file_format="OPEN_EXR", exr_codec="ZIP", interpolation="Linear",
+                      distribution="MULTI_GGX", smoothness=None, keep_body_colour=False,
+                      progress=None):
+    """The PBR-set conversion as a generator (yields after every strip; returns the result):
+    UDIM maps (a ``<UDIM>`` path) convert tile by tile into UDIM outputs."""
     t0, started = time.perf_counter(), time.time()
+    prog = progress if isinstance(progress, core.Progress) else core.Progress(progress)
     inputs = dict(inputs)
     if "opacity" in inputs:  # (the perceptual maps' "alpha" is the core roughness α)
         inputs["alpha"] = inputs.pop("opacity")
@@ -185,10 +187,6 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         else:
             raise ConversionError(f"{k}: expected an image path, a bpy Image, an array or a "
                                   f"constant, got {type(v).__name__}")
-    for k, v in maps.items():
-        if isinstance(v, (str, os.PathLike)) and "<UDIM>" in os.fsdecode(v):
-            raise ConversionError(f"{k}: UDIM sets are not supported for PBR sets yet; convert "
-                                  f"each tile as its own set")
     # the material and its Principled BSDF
     if material is not None:
         if material.library is not None:
@@ -206,27 +204,32 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
                                   f"to take the PBR set")
     else:
         mat, bsdf = None, None
-    # read every map before anything is created or written
+    # every map checked before anything is created or written
     sources = {}
     for k, v in maps.items():
         if k == "normal":
             continue  # linked, not evaluated
         role = "colour" if k == "base_color" else "data"
         sources[k] = _Source(k, role, v)
-    for src in sources.values():
-        src.check()
-    arrays = {k: s.read(None, warnings) for k, s in sources.items()}
-    if not arrays:
+    if not sources:
         raise ConversionError("a PBR set needs at least one map (all inputs are constants: use "
                               "Make Hazy on a material instead)")
-    core.check_sizes([(sources[k].label, a.shape[1::-1]) for k, a in arrays.items()])
-    h, w = next(iter(arrays.values())).shape[:2]
-    for k, a in arrays.items():
-        bad = ~np.isfinite(a)
-        if bad.any():
-            warnings.append(f"{sources[k].label}: {int(bad.any(axis=-1).sum() if a.ndim == 3 else bad.sum())} "
-                            f"texel(s) not finite, read as 0")
-            arrays[k] = np.where(bad, 0.0, a).astype(np.float32)
+    tiles = udim_tiles(sources)
+    for src in sources.values():
+        src.check()
+    jobs = tiles or [None]
+    oiio = openimageio()
+    # each tile's size, before anything is written (all maps of a tile must agree)
+    sizes = {}
+    for tile in jobs:
+        named = []
+        for k, s in sources.items():
+            r = s.strips(tile, warnings, oiio)
+            named.append((s.label + (f" tile {tile}" if tile else ""), (r.width, r.height)))
+            r.close()
+        core.check_sizes(named)
+        sizes[tile] = named[0][1]
+    w, h = sizes[jobs[0]]
     out_dir = _out_path(out_dir)
     created = mat is None
     if created:
@@ -234,9 +237,9 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == layer.PRINCIPLED)
         bsdf.distribution = distribution
     tree = mat.node_tree
-    images, nodes, written = {}, {}, []
+    images, nodes = {}, {}
     txn = _Transaction(out_dir, started)
-    writer = None
+    files = {}
     try:
         for k, v in constants.items():
             if k in PBR_MAPS:
@@ -257,44 +260,49 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
         ext = [constants.get("haze_extent_x", constants.get("haze_extent", 5.0)),
                constants.get("haze_extent_y", constants.get("haze_extent", 5.0))]
         for axis, key in ((0, "haze_extent_x"), (1, "haze_extent_y")):
-            if key in arrays or "haze_extent" in arrays:
+            if key in sources or "haze_extent" in sources:
                 ext[axis] = layer.TEXTURE
         haze["haze_extent"] = tuple(ext)
         for key in ("haziness", "coat_haziness", "coat_haze_extent"):
-            haze[key] = layer.TEXTURE if key in arrays else constants.get(key, HAZE_DEFAULTS[key])
-        if "haziness" not in arrays and "haziness" not in constants and "coat_haziness" not in \
-                arrays and "coat_haziness" not in constants:
+            haze[key] = layer.TEXTURE if key in sources else constants.get(key, HAZE_DEFAULTS[key])
+        if "haziness" not in sources and "haziness" not in constants and "coat_haziness" not in \
+                sources and "coat_haziness" not in constants:
             warnings.append("no haziness given: the layer holds no haze (haziness 0)")
-        # evaluate the live layer's graph over the texels
+        # the live layer's graph, evaluated strip by strip over the texels
         settings = layer_group.settings_of(bsdf)
         lay = layer_graph.build(layer_group.config_for("PRINCIPLED", settings,
                                                        smooth=smoothness is not None))
         g = lay.graph
-        feeds = {f"in:{PBR_MAPS[k][0]}": arrays[k] for k in arrays if k in PBR_MAPS}
+        feeds = {f"in:{PBR_MAPS[k][0]}": k for k in sources if k in PBR_MAPS}
+        consts = {}
         for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y",
                     "smoothness"):
-            src = key if key in arrays else "haze_extent" if key.startswith("haze_extent_") else None
-            if src in arrays:
-                feeds[f"haze:{key}"] = arrays[src]
+            src = key if key in sources else "haze_extent" if key.startswith("haze_extent_") else None
+            if src in sources:
+                feeds[f"haze:{key}"] = src
             elif key == "smoothness":
-                feeds["haze:smoothness"] = 2.0 if smoothness is None else float(smoothness)
+                consts["haze:smoothness"] = 2.0 if smoothness is None else float(smoothness)
             else:
                 v = haze["haze_extent"]["xy".index(key[-1])] if key.startswith("haze_extent_") \
                     else haze[key]
-                feeds[f"haze:{key}"] = float(v)
+                consts[f"haze:{key}"] = float(v)
         needed = {e.name for e in g.used(lay.baked) if e.op == "input"}
-        for n in sorted(needed - set(feeds)):
+        own = {}  # the user's own image textures linked into the BSDF are maps too (read whole)
+        for n in sorted(needed - set(feeds) - set(consts)):
             sock = bsdf.inputs.get(n[3:]) if n.startswith("in:") else None
             if sock is None:
                 raise ConversionError(f"the layer needs {n}, which conversion cannot give")
             if not sock.is_linked:
                 v = sock.default_value
-                feeds[n] = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
+                consts[n] = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
                 continue
-            node = sock.links[0].from_node  # the user's own image textures are maps too
+            node = sock.links[0].from_node
             from_id = sock.links[0].from_socket.identifier
             if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and \
                     from_id in ("Color", "Alpha") and not node.inputs["Vector"].is_linked:
+                if node.image.source == "TILED":
+                    raise ConversionError(f"“{node.name}” ({node.image.name}, linked into {n[3:]}) "
+                                          f"is a UDIM image: give {n[3:]} as a map of the set")
                 colour = g.inputs[n].vector
                 a = _Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
                             else "data", node.image)
@@ -302,50 +310,63 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
                 v = a.read(None, warnings)
                 if from_id == "Alpha":
                     v = _alpha_of(node.image)
-                if v.shape[:2] != (h, w):
+                if v.shape[:2] != (h, w) or len(jobs) > 1 and any(s != (w, h) for s in sizes.values()):
                     raise ConversionError(f"“{node.name}” ({node.image.name}, linked into "
                                           f"{n[3:]}) is {v.shape[1]}x{v.shape[0]}, the set "
                                           f"{w}x{h}: give {n[3:]} as a map of the set's size")
-                feeds[n] = v
+                own[n] = stream.ArrayStrips(v, n)
                 continue
             raise ConversionError(f"{n[3:]} of “{bsdf.name}” is linked to a node conversion cannot "
                                   f"evaluate: give it as a map, or unlink it")
-        for k in list(feeds):  # vectors as (H, W, 3) or 3 numbers, scalars as (H, W) or a number
+        for k, v in consts.items():  # vectors as 3 numbers, scalars as a number
             e = g.inputs.get(k)
-            a = np.asarray(feeds[k], np.float32)
-            if e is not None and e.vector and a.ndim == 2:
-                a = np.repeat(a[..., None], 3, axis=-1)
-            elif e is not None and e.vector and a.ndim == 0:
+            a = np.asarray(v, np.float32)
+            if e is not None and e.vector and a.ndim == 0:
                 a = np.repeat(a, 3)
-            elif e is not None and not e.vector and a.ndim == 3:
-                a = a[..., 0]
             elif e is not None and not e.vector and a.ndim == 1:
                 a = a[0]
-            feeds[k] = a
-        values = evaluate(lay.baked, feeds, g.tables)
+            consts[k] = a
+        live = lay.baked  # every Converted Maps input of the baked group reads a map
         ext_ = _EXT["OPEN_EXR"]
-        paths = {k: _final_path(out_dir, prefix, _slug(k), None, ext_) for k in lay.baked}
-        _check_targets(list(paths.values()), {os.path.realpath(p) for s in sources.values()
-                                               for p in s.files()}, txn)
-        writer = _Writer("OPEN_EXR", exr_codec)
+        first = {}  # one map per distinct value
+        for k, e in live.items():
+            first.setdefault(id(e), k)
+        finals = {k: {t: _final_path(out_dir, prefix, _slug(k), t, ext_) for t in jobs}
+                  for k in first.values()}
+        paths = {k: _final_path(out_dir, prefix, _slug(k), UDIM_TOKEN if tiles else None, ext_)
+                 for k in first.values()}
+        _check_targets([p for per in finals.values() for p in per.values()],
+                       {os.path.realpath(p) for s in sources.values() for p in s.files()}, txn)
+        codec = _check_codec("OPEN_EXR", exr_codec)
         txn.make_folder()
-        for i, (k, path) in enumerate(paths.items()):
-            v = np.asarray(values[k], np.float32)
-            full = (h, w) + ((3,) if layer_graph.BAKED[k][1] else ())
-            v = np.broadcast_to(v, full)
-            writer.write(np.ascontiguousarray(v), txn.temp(path), path)
-            written.append(path)
-            if progress is not None:
-                progress(i + 1, len(paths), f"wrote {os.path.basename(path)}")
-        writer.close()
-        writer = None
+        bad = {}
+        for tile in jobs:
+            tw, th = sizes[tile]
+            if tile:
+                prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
+            readers = {k: s.strips(tile, warnings, oiio) for k, s in sources.items()}
+            files = {k: _MapFile("OPEN_EXR", codec, txn.temp(finals[k][tile]), finals[k][tile],
+                                 tw, th) for k in first.values()}
+            try:
+                yield from _bake_strips(readers, own, feeds, consts, g, live, first, files,
+                                        (tw, th), bad, prog)
+                for k, f in files.items():
+                    f.finish()
+                    prog.advance(0, f"wrote {os.path.basename(f.final)}")
+            finally:
+                for f in files.values():
+                    f.abort()
+                for r in readers.values():
+                    r.close()
+        for k, n in bad.items():
+            warnings.append(f"{sources[k].label}: {n} texel(s) not finite, read as 0")
+        prog.check()  # the last point where a cancel undoes the run
         txn.commit()
         images_out = {k: _image_for(p) for k, p in paths.items()}
-        attach_converted_layer(mat, bsdf, images_out, vector, interpolation,
-                               sorted(n[3:] for n in needed if n.startswith("in:")))
+        baked = {k: images_out[first[id(e)]] for k, e in live.items()}
+        attach_baked_layer(mat, bsdf, baked, vector=vector, interpolation=interpolation,
+                           sources=sorted(n[3:] for n in needed if n.startswith("in:")))
     except BaseException as exc:
-        if writer is not None:
-            writer.close()
         problems = [] if txn.committed else txn.rollback()
         if created and mat is not None:
             bpy.data.materials.remove(mat)
@@ -364,7 +385,8 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
             raise ConversionError(f"{exc}; " + "; ".join(problems)) from None
         raise
     report = core.ConversionReport(kind="PBR", distribution=settings["distribution"],
-                                   file_format="OPEN_EXR", size=(w, h), texels=w * h,
+                                   file_format="OPEN_EXR", size=(w, h), tiles=list(tiles),
+                                   texels=sum(a * b for a, b in sizes.values()),
                                    warnings=list(dict.fromkeys(warnings)))
     report.seconds = time.perf_counter() - t0
     result = core.ConversionResult({_slug(k): p for k, p in paths.items()}, report, [])
@@ -372,7 +394,62 @@ def convert_pbr(inputs, out_dir, *, material=None, name=None, prefix="", file_fo
     return result
 
 
-def attach_converted_layer(mat, bsdf, images, vector, interpolation, sources=()):
+def _bake_strips(readers, own, feeds, consts, g, live, first, files, size, bad, prog):
+    """Evaluate the layer's graph on every strip of one tile and write its maps (strips on a
+    thread pool; elementwise node math, so a strip gives the rows of the whole)."""
+    w, h = size
+    rows = stream.strip_rows(w)
+    prog.begin(h)
+
+    def read(y0, y1):
+        strips = {k: r.rows(y0, y1) for k, r in readers.items()}
+        for k, r in own.items():
+            strips[k] = r.rows(y0, y1)
+        return strips
+
+    def compute(y0, y1, strips):
+        nonfinite = {}
+        for k, a in list(strips.items()):
+            m = ~np.isfinite(a)
+            if m.any():
+                nonfinite[k] = int(m.any(axis=-1).sum() if a.ndim == 3 else m.sum())
+                strips[k] = np.where(m, 0.0, a).astype(np.float32)
+        inputs = dict(consts)
+        for key, src in feeds.items():
+            inputs[key] = strips[src]
+        for key in own:
+            a = strips[key]
+            inputs[key] = a if a.ndim == 3 and a.shape[-1] == 3 else a[..., 0]
+        for k in list(inputs):  # vectors as (n, W, 3), scalars as (n, W)
+            e = g.inputs.get(k)
+            a = inputs[k]
+            if e is not None and e.vector and a.ndim == 2:
+                inputs[k] = np.repeat(a[..., None], 3, axis=-1)
+            elif e is not None and not e.vector and a.ndim == 3:
+                inputs[k] = a[..., 0]
+        values = evaluate({k: live[k] for k in first.values()}, inputs, g.tables)
+        encoded = {}
+        for k in first.values():
+            v = np.asarray(values[k], np.float32)
+            v = np.broadcast_to(v, (y1 - y0, w) + v.shape[2:] if v.ndim >= 2 else (y1 - y0, w))
+            encoded[k] = files[k].encode(y0, v)
+        return nonfinite, encoded
+
+    def write(y0, y1, result):
+        nonfinite, encoded = result
+        for k, n in nonfinite.items():
+            bad[k] = bad.get(k, 0) + n
+        for k, e in encoded.items():
+            files[k].append(e)
+
+    done = 0
+    for y1, _ in stream.run_strips(h, rows, read, compute, write):
+        prog.advance(y1 - done, "baking the haze layer")
+        done = y1
+        yield
+
+
+def attach_baked_layer(mat, bsdf, images, *, vector=None, interpolation="Linear", sources=()):
     """``bsdf`` becomes a layer node whose group reads the converted maps ``images`` (BAKED key
     -> Image), linked through Image Textures into its Converted Maps (the one place the
     conversion wires the layer).  ``sources``: the BSDF inputs the maps were computed from
@@ -391,3 +468,92 @@ def attach_converted_layer(mat, bsdf, images, vector, interpolation, sources=())
             tree.links.new(vector, tex.inputs["Vector"])
         tree.links.new(tex.outputs["Color"], node.inputs[layer_graph.BAKED[key][0]])
     return node
+
+
+# --------------------------------------------------------------------------------------------
+# Sets in folders, and libraries of sets
+# --------------------------------------------------------------------------------------------
+
+
+def convert_set_steps(folder, out_dir, *, haze, material=None, name=None, overrides=None,
+                      interpolation="Linear", progress=None):
+    """The PBR set in ``folder`` (maps found by their names, core.detect_pbr_set, UDIM tiles
+    included; ``overrides`` {map: path} win) into a Principled material with a baked haze
+    layer; a generator like :func:`convert_pbr_steps`."""
+    try:
+        found = core.detect_pbr_set(os.listdir(folder)) if folder else {}
+    except ConversionError:
+        if not overrides:
+            raise
+        found = {}
+    except OSError as exc:
+        raise ConversionError(f"set folder {folder}: {exc.strerror or exc}") from None
+    inputs = {k: os.path.join(folder, f) for k, f in found.items()}
+    inputs.update(overrides or {})
+    for k, v in haze.items():
+        if k not in inputs:
+            inputs[k] = v
+    return (yield from convert_pbr_steps(inputs, out_dir, material=material, name=name,
+                                         interpolation=interpolation, progress=progress))
+
+
+def convert_set_folder(folder, out_dir, **options):
+    """Blocking :func:`convert_set_steps`."""
+    return core.drain(convert_set_steps(folder, out_dir, **options))
+
+
+class LibraryReport:
+    """What a library batch did: ``done`` [(set, ConversionResult)], ``failed`` [(set,
+    one-line reason)], ``cancelled`` (the set being converted then was undone; the sets done
+    before it stay)."""
+
+    def __init__(self, sets):
+        self.sets = list(sets)
+        self.done, self.failed, self.cancelled = [], [], False
+        self.seconds = 0.0
+
+    def summary(self):
+        text = (f"converted {len(self.done)} of {len(self.sets)} set(s) in "
+                f"{core.format_seconds(self.seconds)}")
+        if self.failed:
+            text += f"; {len(self.failed)} failed: " + ", ".join(n for n, _ in self.failed)
+        if self.cancelled:
+            text += "; cancelled (the set being converted was undone)"
+        return text
+
+
+def library_sets(folder):
+    """The sets of a library: its subfolders, sorted (hidden ones skipped)."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise ConversionError(f"library folder {folder}: {exc.strerror or exc}") from None
+    return [n for n in names if not n.startswith(".") and os.path.isdir(os.path.join(folder, n))]
+
+
+def convert_library_steps(folder, out_dir, *, haze, interpolation="Linear", progress=None):
+    """Every subfolder of ``folder`` is a set and becomes a material (maps into
+    ``out_dir/<set>``); each set all or nothing, a set that fails is reported and the others
+    go on.  A generator; returns a :class:`LibraryReport`."""
+    t0 = time.perf_counter()
+    prog = progress if isinstance(progress, core.Progress) else core.Progress(progress)
+    sets = library_sets(folder)
+    if not sets:
+        raise ConversionError(f"library folder {folder} has no subfolders (one set per subfolder)")
+    report = LibraryReport(sets)
+    for i, sub in enumerate(sets):
+        prog.next_item(i, len(sets), sub)
+        try:
+            res = yield from convert_set_steps(os.path.join(folder, sub), os.path.join(out_dir, sub),
+                                               haze=haze, name=sub, interpolation=interpolation,
+                                               progress=prog)
+        except core.ConversionCancelled:
+            report.cancelled = True
+            break
+        except ConversionError as exc:
+            report.failed.append((sub, str(exc)))
+            continue
+        res.material.use_fake_user = True  # kept in the file without an object
+        report.done.append((sub, res))
+    report.seconds = time.perf_counter() - t0
+    return report

@@ -263,43 +263,47 @@ def test_operator_reports_truncated_exr(hg, clean_file, tmp_path):
 
 
 def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, bconv, tmp_path, monkeypatch):
-    """Blender's PNG writer reports success on a file cut off by a full disk: simulated by
-    cutting the third file after Blender wrote it.  Read-back catches it; nothing changes."""
+    """A file cut off after it was written (Blender's PNG writer reported success on a file cut
+    off by a full disk): simulated by cutting the third file once it is complete.  The
+    read-back of its bytes catches it; nothing changes."""
     paths, out, before = old_set(api, tmp_path, fmt="PNG")
-    real = bconv._Writer._save
+    real = bconv._MapFile.close_file
     calls = []
 
-    def full_disk(self, img, path):
-        real(self, img, path)
-        calls.append(path)
+    def full_disk(self):
+        real(self)
+        calls.append(self.tmp)
         if len(calls) >= 3:
-            data = Path(path).read_bytes()
-            Path(path).write_bytes(data[:len(data) // 2])
+            data = Path(self.tmp).read_bytes()
+            Path(self.tmp).write_bytes(data[:len(data) // 2])
 
-    monkeypatch.setattr(bconv._Writer, "_save", full_disk)
+    monkeypatch.setattr(bconv._MapFile, "close_file", full_disk)
     with pytest.raises(bconv.ConversionError, match=r"could not write .*roughness_wide.png "
-                                                    r"\(disk full\?\): .*truncated PNG") as info:
+                                                    r"\(disk full\?\): .* has \d+ bytes, \d+ were "
+                                                    "written") as info:
         api.convert_maps(paths, str(out), file_format="PNG")
     one_line(info.value)
     assert snapshot(out) == before
 
 
-def test_write_that_loads_back_different_is_caught(api, bconv, tmp_path, monkeypatch):
-    """A complete file with other pixels (a failing device): the pixel comparison catches it."""
-    paths, out, before = old_set(api, tmp_path)
-    real = bconv._Writer._save
+@pytest.mark.parametrize("fmt, where", [("OPEN_EXR", 0.5), ("OPEN_EXR", 0.01), ("PNG", 0.5)])
+def test_write_that_reads_back_different_is_caught(api, bconv, tmp_path, monkeypatch, fmt, where):
+    """A complete file with one other byte (a failing device; in the pixels, or in the EXR
+    header and offset table): the hash of the bytes read back catches it, without decoding."""
+    paths, out, before = old_set(api, tmp_path, fmt=fmt)
+    real = bconv._MapFile.close_file
 
-    def flip(self, img, path):
-        px = np.empty(len(img.pixels), np.float32)
-        img.pixels.foreach_get(px)
-        px[0] += 0.25
-        img.pixels.foreach_set(px)
-        real(self, img, path)
+    def flip(self):
+        real(self)
+        data = bytearray(Path(self.tmp).read_bytes())
+        data[int(len(data) * where)] ^= 0x10
+        Path(self.tmp).write_bytes(bytes(data))
 
-    monkeypatch.setattr(bconv._Writer, "_save", flip)
-    with pytest.raises(bconv.ConversionError, match=r"could not write .*beta.exr: 1 of 256 "
-                                                    "texels read back differently"):
-        api.convert_maps(paths, str(out))
+    monkeypatch.setattr(bconv._MapFile, "close_file", flip)
+    with pytest.raises(bconv.ConversionError, match=r"could not write .*beta.(exr|png) \(disk "
+                                                    r"full\?\): bytes \d+..\d+ of .* read back "
+                                                    "differently"):
+        api.convert_maps(paths, str(out), file_format=fmt)
     assert snapshot(out) == before
 
 
@@ -401,8 +405,8 @@ def test_output_folder_that_cannot_be_created(api, core, tmp_path, monkeypatch):
         api.convert_maps(paths, "/proc/hazy_gloss_test_out")
     # a failed run removes the folders it created (here: the write of the first map fails)
     bconv = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.convert")
-    monkeypatch.setattr(bconv._Writer, "_save", lambda self, img, path: (_ for _ in ()).throw(
-        RuntimeError("simulated")))
+    monkeypatch.setattr(bconv._MapFile, "close_file", lambda self: (_ for _ in ()).throw(
+        OSError(5, "simulated")))
     with pytest.raises(core.ConversionError, match="could not write .*beta.exr: simulated"):
         api.convert_maps(paths, str(tmp_path / "new" / "deeper"))
     assert not (tmp_path / "new").exists()
@@ -492,7 +496,7 @@ _DRIVER = r"""
 import os, signal, sys, time
 from hazy_gloss.blender import convert as bc
 mode, signum, k = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-real_write, real_replace, count = bc._Writer.write, os.replace, []
+real_write, real_replace, count = bc._MapFile.finish, os.replace, []
 
 def write(self, *a, **kw):
     real_write(self, *a, **kw)
@@ -508,9 +512,9 @@ def replace(src, dst):
         if len(count) == k:
             os.kill(os.getpid(), signum)
 
-bc._Writer.write = write
+bc._MapFile.finish = write
 if mode == "commit":
-    bc._Writer.write = real_write
+    bc._MapFile.finish = real_write
     os.replace = replace
 from hazy_gloss.__main__ import main
 sys.exit(main(sys.argv[4:]))
