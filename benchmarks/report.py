@@ -32,6 +32,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_mapping", "perf_mapping.py"),
     ("perf_layer", "perf_layer.py"),
     ("perf_layer_eevee", "perf_layer_eevee.py"),
+    ("perf_layer_edit", "perf_layer_edit.py"),
     ("bench_production", "bench_production.py"),
 )
 #: HG_REPORT_KEEP=perf_layer_eevee (comma-separated names) keeps a section's previous text and
@@ -187,7 +188,7 @@ def main():
                        frag["perf_mapping"],
                        marked_section("perf_layer", frag["perf_layer"])]
                       + [kept_section(name) if name in KEEP else marked_section(name, frag[name])
-                         for name in ("perf_layer_eevee", "bench_production")])
+                         for name in ("perf_layer_eevee", "perf_layer_edit", "bench_production")])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
         "Where the paper's formulas are numerically delicate, how large the error of each "

@@ -311,28 +311,47 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
 
 
 def _take_inputs(tree, src, dst):
-    """``dst``'s inputs get ``src``'s values and links (by name); ``src`` keeps its values and
-    loses its links."""
+    """``dst``'s inputs get ``src``'s values and links (by name); ``src`` keeps both (muted and
+    off the output it renders nothing; its links show what the layer started from, and
+    leaving them halves the link edits, each of which updates the whole tree)."""
+    into = _links_into(tree, src)
     for sock in layer_group.bsdf_inputs(src):
         target = dst.inputs.get(sock.name)
         if target is None:
             continue
         if hasattr(sock, "default_value") and hasattr(target, "default_value"):
             target.default_value = socket_value(target, _plain(sock.default_value))
-        for link in list(sock.links):
+        for link in into.get(sock.identifier, ()):
             tree.links.new(link.from_socket, target)
-            tree.links.remove(link)
+
+
+def _links_into(tree, node):
+    """{input identifier: [links]} of ``node`` (one pass over the tree's links: a socket's
+    ``links`` scans them all)."""
+    out = {}
+    for link in tree.links:
+        if link.to_node == node:
+            out.setdefault(link.to_socket.identifier, []).append(link)
+    return out
 
 
 def _give_back(tree, src, dst):
-    """The core ``dst`` gets the layer node ``src``'s current values and links, by name."""
+    """The core ``dst`` gets the layer node ``src``'s current values and links, by name (a
+    link the core kept from before the haze goes where the layer node's input is unlinked)."""
+    into_src, into_dst = _links_into(tree, src), _links_into(tree, dst)
     for sock in layer_group.bsdf_inputs(dst):
         have = src.inputs.get(sock.name)
         if have is None:
             continue
         if hasattr(sock, "default_value") and hasattr(have, "default_value"):
             sock.default_value = socket_value(sock, _plain(have.default_value))
-        for link in list(have.links):
+        now = into_src.get(have.identifier, [])
+        kept = into_dst.get(sock.identifier, [])
+        if [l.from_socket for l in now] == [l.from_socket for l in kept]:
+            continue
+        for link in kept:
+            tree.links.remove(link)
+        for link in now:
             tree.links.new(link.from_socket, sock)
 
 
@@ -615,10 +634,16 @@ def graph_of(node):
     return lay
 
 
+_NEEDED = {}
+
+
 def _evaluate(node, outputs):
     lay = graph_of(node)
     vals, linked = _inputs_of(node)
-    needed = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
+    key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
+    needed = _NEEDED.get(key)
+    if needed is None:
+        needed = _NEEDED[key] = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
     inputs = {}
     for name in needed:
         v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)

@@ -382,7 +382,8 @@ def check_layer_node(raw):
     if isinstance(baked_from, dict):
         out["baked_from"] = {k: v for k, v in baked_from.items() if isinstance(k, str)
                              and isinstance(v, dict) and len(v) == 1
-                             and (isinstance(v.get("link"), str) or "value" in v)}
+                             and (isinstance(v.get("link"), str) or _finite_number(v.get("value"))
+                                  or any(_finite_list(v.get("value"), n) for n in (3, 4)))}
     return out
 
 

@@ -337,10 +337,14 @@ def test_make_hazy_is_one_node_with_the_bsdfs_inputs(env, name):
     table = decl[f"{bpy.app.version[0]}.{bpy.app.version[1]}"][kind]["sockets"]
     for k in want:
         assert panels[k] == table[k]["panel"], (k, panels[k], table[k]["panel"])
-    # the kept BSDF: collapsed, muted, no links, the values it had
+    # the kept BSDF: collapsed, muted, off the output, its values and links as they were (the
+    # layer node's inputs are fed by the same sockets)
     kept = env.layer.original_node(mat)
-    assert kept == core and kept.mute and kept.hide and not any(s.is_linked for s in kept.inputs)
-    assert not kept.outputs[0].is_linked
+    assert kept == core and kept.mute and kept.hide and not kept.outputs[0].is_linked
+    for s in kept.inputs:
+        if s.is_linked:
+            assert [l.from_socket for l in node.inputs[s.name].links] == \
+                [l.from_socket for l in s.links], s.name
 
 
 @pytest.mark.parametrize("name", list(MATERIALS))

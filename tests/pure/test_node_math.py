@@ -280,3 +280,37 @@ def test_node_counts_are_lean():
 
 def teardown_module(module):
     print("\nnode math vs numpy mapping, worst errors:", {k: f"{v:.2e}" for k, v in WORST.items()})
+
+
+def test_one_point_evaluation_equals_the_array_form():
+    """evaluate() takes np.float32 scalars and its _FAST forms for one shading point (the
+    panel, the notes) and arrays otherwise (texture conversion): both give the same float32
+    bits, NaN where the other has NaN, on every layer configuration and on stiff inputs."""
+    from hazy_gloss.core import layer_graph
+    rng = np.random.default_rng(7)
+    stiff = [0.0, 1.0, -1.0, 1e-30, 1e30, np.inf, -np.inf, np.nan, 0.5, 2.0, 1.5, 1e-8]
+    for cfg in (layer_graph.Config("PRINCIPLED", "MULTI_GGX"),
+                layer_graph.Config("PRINCIPLED", "GGX", smooth=True, body=True),
+                layer_graph.Config("METALLIC", "MULTI_GGX", fresnel="PHYSICAL_CONDUCTOR"),
+                layer_graph.Config("METALLIC", "GGX", fresnel="F82"),
+                layer_graph.Config("GLOSSY", "GGX", smooth=True)):
+        lay = layer_graph.build(cfg)
+        outs = {str(k): v for k, v in {**lay.shown, **lay.outputs()}.items()
+                if hasattr(v, "op")}
+        n = 64
+        arrays = {}
+        for name, e in lay.graph.inputs.items():
+            pick = rng.integers(0, len(stiff), (n, 3) if e.vector else n)
+            v = np.where(rng.random(pick.shape) < 0.6, rng.uniform(-0.2, 1.5, pick.shape),
+                         np.asarray(stiff)[pick])
+            arrays[name] = v.astype(np.float32)
+        whole = evaluate(outs, arrays, lay.graph.tables)
+        for i in range(n):
+            one = evaluate(outs, {k: v[i] for k, v in arrays.items()}, lay.graph.tables)
+            for k in outs:
+                a = np.asarray(one[k], np.float32)
+                b = np.broadcast_to(np.asarray(whole[k], np.float32), (n,) + a.shape)[i]
+                assert a.shape == b.shape, (cfg, k)
+                same = np.isnan(a) == np.isnan(b)
+                assert same.all() and np.array_equal(np.nan_to_num(a).view(np.uint32),
+                                                     np.nan_to_num(b).view(np.uint32)), (cfg, k, i, a, b)
