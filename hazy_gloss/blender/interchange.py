@@ -44,7 +44,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import engines, layered, materialx, usd
-from . import compat, material, stamp
+from . import compat, material, stamp, surface_build
 from .context import plain_message, target_material
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -297,31 +297,45 @@ def _map_material(im):
     return mat
 
 
-def import_materialx(path):
-    """Hazy materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
+def import_materialx(path, progress=None):
+    """Materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
     (.usd/.usda/.usdc, needs usd-core).  Returns an ImportResult (a list of the new
-    materials, with ``.report``).  Each material carries ``mat["hazy_gloss_import"]``:
-    exact, source and the notes of what was not exact."""
+    materials, with ``.report``).  Library surfaces (OpenPBR, standard_surface, gltf_pbr,
+    UsdPreviewSurface) become Principled BSDF materials (OpenPBR 1.2's haze a haze layer),
+    the add-on's layered exports their layer again, Eq. 1 graphs hazy materials.  Each material
+    carries ``mat["hazy_gloss_import"]``: exact, source and the notes of what was not exact.
+    ``progress``: callable(fraction, message) — reading is the first half, making the
+    materials the second."""
     path = bpy.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise ValueError(f"no file {path!r}")
+
+    def part(lo):
+        return None if progress is None else (lambda f, msg: progress(lo + 0.5 * f, msg))
+
     if os.path.splitext(path)[1].lower() in (".usd", ".usda", ".usdc", ".usdz"):
         found = usd.read(path)
     else:
-        found = materialx.read(path)
+        found = materialx.read(path, progress=part(0.0))
     mats = []
-    for im in found:
+    step = max(1, len(found) // 100)
+    for i, im in enumerate(found):
         im.material = None
         try:
             if im.maps is not None:
                 mat = _map_material(im)
             elif im.parameters is not None:
                 mat = material.create_material(im.name, **im.parameters)
+            elif im.surface is not None:
+                mat = surface_build.build(im)
             else:
                 continue
         except (ValueError, OSError) as exc:
             im.notes.append(f"not created: {plain_message(exc)}")
             continue
+        finally:
+            if progress is not None and (i % step == 0 or i == len(found) - 1):
+                progress(0.5 + 0.5 * (i + 1) / len(found), "making materials")
         mat[IMPORT_STAMP] = {"file": path, "exact": int(bool(im.exact)), "source": im.source,
                              "notes": "\n".join(im.notes)}
         im.material = mat
@@ -938,9 +952,9 @@ class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
 
 
 class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
-    """Read hazy materials from MaterialX (.mtlx) or USD: two-lobe mixes and OpenPBR 1.2 surfaces
-    with specular haze become hazy materials (inverse haze mapping), with a report of what is
-    not exact"""
+    """Read materials from MaterialX (.mtlx) or USD: OpenPBR, Standard Surface, glTF PBR and
+    UsdPreviewSurface surfaces become Principled BSDF materials (OpenPBR 1.2's haze a haze
+    layer), two-lobe mixes hazy materials, with a report of what is not exact"""
 
     bl_idname = "hazy_gloss.import_materialx"
     bl_label = "Import Hazy Gloss MaterialX"
@@ -952,17 +966,25 @@ class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
         if os.path.splitext(self.filepath)[1].lower() in (".usd", ".usda", ".usdc") and not usd.available():
             _say(self, "ERROR", usd.USD_MISSING)
             return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
         try:
-            res = import_materialx(self.filepath)
+            res = import_materialx(self.filepath, progress=lambda f, msg: wm.progress_update(int(100 * f)))
         except (ValueError, OSError, RuntimeError) as exc:
             _say(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
+        finally:
+            wm.progress_end()
         exact = sum(1 for im in res.report if im.material is not None and im.exact)
-        _say(self, "INFO", f"Imported {len(res)} hazy material{'s' if len(res) != 1 else ''} "
+        _say(self, "INFO", f"Imported {len(res)} material{'s' if len(res) != 1 else ''} "
              f"({exact} exact) of {len(res.report)} found")
+        said = 0
         for im in res.report:
-            if im.notes or im.material is None:
-                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not a hazy material"))
+            if (im.notes or im.material is None) and said < 20:
+                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not imported"))
+                said += 1
+        if said < sum(1 for im in res.report if im.notes or im.material is None):
+            _say(self, "WARNING", "more notes in each material's hazy_gloss_import property")
         return {"FINISHED"} if res else {"CANCELLED"}
 
 

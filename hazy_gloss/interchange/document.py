@@ -166,6 +166,81 @@ NODEDEFS = {
         "in2": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_mix_edf": ("mix", "EDF", {"fg": ("EDF", None), "bg": ("EDF", None), "mix": ("float", 0.0)}),
     "ND_add_edf": ("add", "EDF", {"in1": ("EDF", None), "in2": ("EDF", None)}),
+    # surfaces material libraries ship (interchange/surfaces.py reads them as Principled BSDFs)
+    "ND_standard_surface_surfaceshader": ("standard_surface", "surfaceshader", {
+        "base": ("float", 1.0), "base_color": ("color3", (0.8, 0.8, 0.8)),
+        "diffuse_roughness": ("float", 0.0), "metalness": ("float", 0.0),
+        "specular": ("float", 1.0), "specular_color": ("color3", (1.0, 1.0, 1.0)),
+        "specular_roughness": ("float", 0.2), "specular_IOR": ("float", 1.5),
+        "specular_anisotropy": ("float", 0.0), "specular_rotation": ("float", 0.0),
+        "transmission": ("float", 0.0), "transmission_color": ("color3", (1.0, 1.0, 1.0)),
+        "transmission_depth": ("float", 0.0),
+        "transmission_scatter": ("color3", (0.0, 0.0, 0.0)),
+        "transmission_scatter_anisotropy": ("float", 0.0),
+        "transmission_dispersion": ("float", 0.0),
+        "transmission_extra_roughness": ("float", 0.0), "subsurface": ("float", 0.0),
+        "subsurface_color": ("color3", (1.0, 1.0, 1.0)),
+        "subsurface_radius": ("color3", (1.0, 1.0, 1.0)), "subsurface_scale": ("float", 1.0),
+        "subsurface_anisotropy": ("float", 0.0), "sheen": ("float", 0.0),
+        "sheen_color": ("color3", (1.0, 1.0, 1.0)), "sheen_roughness": ("float", 0.3),
+        "coat": ("float", 0.0), "coat_color": ("color3", (1.0, 1.0, 1.0)),
+        "coat_roughness": ("float", 0.1), "coat_anisotropy": ("float", 0.0),
+        "coat_rotation": ("float", 0.0), "coat_IOR": ("float", 1.5),
+        "coat_normal": ("vector3", "Nworld"), "coat_affect_color": ("float", 0.0),
+        "coat_affect_roughness": ("float", 0.0), "thin_film_thickness": ("float", 0.0),
+        "thin_film_IOR": ("float", 1.5), "emission": ("float", 0.0),
+        "emission_color": ("color3", (1.0, 1.0, 1.0)), "opacity": ("color3", (1.0, 1.0, 1.0)),
+        "thin_walled": ("boolean", False), "normal": ("vector3", "Nworld"),
+        "tangent": ("vector3", "Tworld")}),
+    "ND_standard_surface_surfaceshader_100": ("standard_surface", "surfaceshader", {
+        "base": ("float", 0.8), "base_color": ("color3", (1.0, 1.0, 1.0)),
+        "diffuse_roughness": ("float", 0.0), "metalness": ("float", 0.0),
+        "specular": ("float", 1.0), "specular_color": ("color3", (1.0, 1.0, 1.0)),
+        "specular_roughness": ("float", 0.2), "specular_IOR": ("float", 1.5),
+        "specular_anisotropy": ("float", 0.0), "specular_rotation": ("float", 0.0),
+        "transmission": ("float", 0.0), "transmission_color": ("color3", (1.0, 1.0, 1.0)),
+        "transmission_depth": ("float", 0.0),
+        "transmission_scatter": ("color3", (0.0, 0.0, 0.0)),
+        "transmission_scatter_anisotropy": ("float", 0.0),
+        "transmission_dispersion": ("float", 0.0),
+        "transmission_extra_roughness": ("float", 0.0), "subsurface": ("float", 0.0),
+        "subsurface_color": ("color3", (1.0, 1.0, 1.0)),
+        "subsurface_radius": ("color3", (1.0, 1.0, 1.0)), "subsurface_scale": ("float", 1.0),
+        "subsurface_anisotropy": ("float", 0.0), "sheen": ("float", 0.0),
+        "sheen_color": ("color3", (1.0, 1.0, 1.0)), "sheen_roughness": ("float", 0.3),
+        "coat": ("float", 0.0), "coat_color": ("color3", (1.0, 1.0, 1.0)),
+        "coat_roughness": ("float", 0.1), "coat_anisotropy": ("float", 0.0),
+        "coat_rotation": ("float", 0.0), "coat_IOR": ("float", 1.5),
+        "coat_normal": ("vector3", "Nworld"), "coat_affect_color": ("float", 0.0),
+        "coat_affect_roughness": ("float", 0.0), "thin_film_thickness": ("float", 0.0),
+        "thin_film_IOR": ("float", 1.5), "emission": ("float", 0.0),
+        "emission_color": ("color3", (1.0, 1.0, 1.0)), "opacity": ("color3", (1.0, 1.0, 1.0)),
+        "thin_walled": ("boolean", False), "normal": ("vector3", "Nworld"),
+        "tangent": ("vector3", "Tworld")}),
+    "ND_gltf_pbr_surfaceshader": ("gltf_pbr", "surfaceshader", {
+        "base_color": ("color3", (1.0, 1.0, 1.0)), "metallic": ("float", 1.0),
+        "roughness": ("float", 1.0), "normal": ("vector3", "Nworld"),
+        "tangent": ("vector3", "Tworld"), "occlusion": ("float", 1.0),
+        "transmission": ("float", 0.0), "specular": ("float", 1.0),
+        "specular_color": ("color3", (1.0, 1.0, 1.0)), "ior": ("float", 1.5),
+        "alpha": ("float", 1.0), "alpha_mode": ("integer", 0), "alpha_cutoff": ("float", 0.5),
+        "iridescence": ("float", 0.0), "iridescence_ior": ("float", 1.3),
+        "iridescence_thickness": ("float", 100.0), "sheen_color": ("color3", (0.0, 0.0, 0.0)),
+        "sheen_roughness": ("float", 0.0), "clearcoat": ("float", 0.0),
+        "clearcoat_roughness": ("float", 0.0), "clearcoat_normal": ("vector3", "Nworld"),
+        "emissive": ("color3", (0.0, 0.0, 0.0)), "emissive_strength": ("float", 1.0),
+        "thickness": ("float", 0.0), "attenuation_distance": ("float", None),
+        "attenuation_color": ("color3", (1.0, 1.0, 1.0)), "anisotropy_strength": ("float", 0.0),
+        "anisotropy_rotation": ("float", 0.0), "dispersion": ("float", 0.0)}),
+    "ND_UsdPreviewSurface_surfaceshader": ("UsdPreviewSurface", "surfaceshader", {
+        "diffuseColor": ("color3", (0.18, 0.18, 0.18)),
+        "emissiveColor": ("color3", (0.0, 0.0, 0.0)), "useSpecularWorkflow": ("integer", 0),
+        "specularColor": ("color3", (0.0, 0.0, 0.0)), "metallic": ("float", 0.0),
+        "roughness": ("float", 0.5), "clearcoat": ("float", 0.0),
+        "clearcoatRoughness": ("float", 0.01), "opacity": ("float", 1.0),
+        "opacityMode": ("integer", 0), "opacityThreshold": ("float", 0.0), "ior": ("float", 1.5),
+        "normal": ("vector3", (0.0, 0.0, 1.0)), "displacement": ("float", 0.0),
+        "occlusion": ("float", 1.0)}),
     "ND_open_pbr_surface_surfaceshader": ("open_pbr_surface", "surfaceshader", {
         "base_weight": ("float", 1.0), "base_color": ("color3", (0.8, 0.8, 0.8)),
         "base_diffuse_roughness": ("float", 0.0), "base_metalness": ("float", 0.0),
@@ -249,21 +324,85 @@ def format_value(value, type_):
     return str(value)
 
 
-def parse_value(text, type_):
-    if text is None:
+#: Float32's largest value: MaterialX 1.39 stores floats in float32 and refuses a number beyond
+#: it (``std::istream >> float`` overflows).
+_F32_MAX = 3.4028234663852886e38
+#: What ``std::istream >> float`` accumulates (libstdc++ num_get): sign, digits, one decimal
+#: point, an exponent; the longest such prefix after leading white space is converted.
+_FLOAT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d*)?)")
+_INT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?\d+)")
+#: MaterialX's ARRAY_VALID_SEPARATORS: vector components split on commas and spaces.
+_SPLIT = re.compile(r"[, ]+")
+
+
+def _float_token(tok):
+    """A number as MaterialX 1.39.5 reads it (``std::istream >> float``): the longest numeric
+    prefix, so "0.1, 0.05" is 0.1 and "0.25abc" 0.25; None when there is none, when it
+    overflows float32 or is nan / inf (which the stream does not read).  Kept in float64 (our
+    own files hold 17 digits)."""
+    m = _FLOAT_PREFIX.match(tok)
+    if m is None:
         return None
+    num = m.group(1)
+    if num[-1] in "eE+-":  # "1e", "1e+": the stream's conversion fails
+        return None
+    x = float(num)
+    return x if abs(x) <= _F32_MAX else None
+
+
+def read_value(text, type_):
+    """(value, problem): a value string read the way MaterialX 1.39.5 reads it
+    (``Value::createValueFromStrings``).  A value MaterialX reads partly (a float written as a
+    list, trailing characters) comes back as MaterialX reads it, with ``problem`` saying so; one
+    it refuses (``getValue()`` is None, ``validate()`` False) gives value None and the problem."""
+    if text is None:
+        return None, None
     if type_ in _VECTOR:
-        v = tuple(float(p) for p in text.replace(",", " ").split())
-        if len(v) != _VECTOR[type_]:
-            raise ValueError(f"{type_} needs {_VECTOR[type_]} numbers, got {len(v)}")
-        return v
+        n = _VECTOR[type_]
+        toks = [t for t in _SPLIT.split(text) if t]
+        if len(toks) != n:
+            return None, (f"value {_clip(text)} is not {n} numbers (type {type_}): ignored, as "
+                          f"MaterialX ignores it")
+        vals = tuple(_float_token(t) for t in toks)
+        if any(v is None for v in vals):
+            return None, f"value {_clip(text)} is not {n} numbers (type {type_}): ignored, as MaterialX ignores it"
+        exact = all(_FLOAT_PREFIX.fullmatch(t) for t in toks)
+        return vals, None if exact else f"value {_clip(text)} read as {_show(vals)}, as MaterialX reads it"
     if type_ == "float":
-        return float(text)
+        v = _float_token(text)
+        if v is None:
+            return None, f"value {_clip(text)} is not a number (type float): ignored, as MaterialX ignores it"
+        exact = _FLOAT_PREFIX.fullmatch(text.strip(" \t\n\v\f\r") or "x") is not None
+        return v, None if exact else f"value {_clip(text)} read as {_show(v)}, as MaterialX reads it"
     if type_ == "integer":
-        return int(text)
+        m = _INT_PREFIX.match(text)
+        if m is None or abs(int(m.group(1))) > 2 ** 31 - 1:
+            return None, f"value {_clip(text)} is not an integer: ignored, as MaterialX ignores it"
+        v = int(m.group(1))
+        exact = m.end() == len(text.rstrip(" \t\n\v\f\r"))
+        return v, None if exact else f"value {_clip(text)} read as {v}, as MaterialX reads it"
     if type_ == "boolean":
-        return text.strip().lower() == "true"
-    return text
+        if text in ("true", "false"):
+            return text == "true", None
+        return None, f"value {_clip(text)} is not true or false: ignored, as MaterialX ignores it"
+    return text, None
+
+
+def _clip(text):
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
+def _show(v):
+    return ", ".join(f"{x:.9g}" for x in v) if isinstance(v, tuple) else f"{v:.9g}"
+
+
+def parse_value(text, type_):
+    """A value string as MaterialX 1.39.5 reads it (:func:`read_value`); ValueError where
+    MaterialX refuses it."""
+    v, problem = read_value(text, type_)
+    if v is None and problem is not None:
+        raise ValueError(problem)
+    return v
 
 
 _NAME_RX = re.compile(r"[^A-Za-z0-9_]")
@@ -288,7 +427,7 @@ def valid_name(text, taken=None):
 # --------------------------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(slots=True)
 class Input:
     name: str
     type: str
@@ -298,13 +437,17 @@ class Input:
     output: str = None
     interfacename: str = None
     colorspace: str = None
+    #: MaterialX 1.37/1.38 swizzle of the connected output ("z", "rgb"...)
+    channels: str = None
+    #: what was wrong with the written value (read_value), None when it read cleanly
+    problem: str = None
 
     @property
     def connected(self):
         return bool(self.nodename or self.nodegraph or self.interfacename)
 
 
-@dataclass
+@dataclass(slots=True)
 class Node:
     name: str
     category: str
@@ -459,75 +602,156 @@ def write_xml(doc, path):
 
 def _read_input(e):
     t = e.get("type", "")
-    try:
-        value = parse_value(e.get("value"), t)
-    except (ValueError, OverflowError):
-        want = (f"{_VECTOR[t]} numbers separated by commas" if t in _VECTOR else
-                "an integer" if t == "integer" else "a number")
-        raise ValueError(f"input {e.get('name', '')!r}: value {e.get('value', '')[:40]!r} is not "
-                         f"{want} (type {t})") from None
-    return Input(e.get("name", ""), t, value, e.get("nodename"),
-                 e.get("nodegraph"), e.get("output"), e.get("interfacename"), e.get("colorspace"))
+    value, problem = read_value(e.get("value"), t)
+    if not t and e.get("value") is not None:
+        problem = "has no type: ignored, as MaterialX ignores it"
+    return Input(e.get("name", ""), t, value, e.get("nodename"), e.get("nodegraph"),
+                 e.get("output"), e.get("interfacename"), e.get("colorspace"),
+                 e.get("channels"), problem)
 
 
-def _read_node(e):
+#: child elements read as a node's inputs (1.37 wrote uniform ones as <parameter>, and
+#: shaderrefs' as <bindinput> / <bindparam>)
+_INPUT_TAGS = ("input", "parameter", "bindinput", "bindparam")
+
+
+def _read_node(e, tag=None):
     attrs = {k: v for k, v in e.attrib.items() if k not in ("name", "type")}
-    n = Node(e.get("name", ""), e.tag, e.get("type", ""), attrs=attrs)
+    n = Node(e.get("name", ""), tag or e.tag, e.get("type", ""), attrs=attrs)
     for c in e:
-        if c.tag == "input":
-            try:
-                i = _read_input(c)
-            except ValueError as exc:
-                raise ValueError(f"<{e.tag} name={e.get('name', '')!r}> {exc}") from None
+        if c.tag in _INPUT_TAGS:
+            i = _read_input(c)
             n.inputs[i.name] = i
     return n
 
 
 _SKIP = ("nodedef", "implementation", "typedef", "look", "collection", "geominfo", "propertyset",
-         "variantset", "backdrop", "token", "unit", "unittypedef", "attributedef", "targetdef")
+         "variantset", "backdrop", "token", "unit", "unittypedef", "attributedef", "targetdef",
+         "materialassign", "lookgroup", "variant", "member", "propertysetassign")
+_CHUNK = 1 << 20  # bytes fed to the parser at a time (and the progress step)
 
 
-def read_xml(path_or_text, *, text=False):
-    """Parse a MaterialX document (file path, or the XML itself with ``text=True``).  Includes
-    (xi:include) are not followed; nodedefs and implementations are skipped."""
+def read_xml(path_or_text, *, text=False, progress=None):
+    """Parse a MaterialX document (file path, or the XML itself with ``text=True``), streaming:
+    each top-level element is turned into Nodes / NodeGraphs and dropped, so memory follows the
+    document's content, not its XML tree.  Includes (xi:include) are not followed; nodedefs and
+    implementations are skipped.  ``progress``: callable(fraction, message), called as the bytes
+    are read (fraction in [0, 1], non-decreasing).
+
+    MaterialX 1.37 materials (``<material>`` with a ``<shaderref>`` and ``<bindinput>``s) are read
+    as the surfacematerial + shader node 1.38 made of them (MaterialX upgrades them the same
+    way); ``channels`` swizzles and ``fileprefix`` / ``colorspace`` scopes are kept for the
+    importer."""
+    import io
+    import os
     where = "the document" if text else str(path_or_text)
+    if text:
+        data = path_or_text.encode("utf-8") if isinstance(path_or_text, str) else path_or_text
+        stream, size = io.BytesIO(data), len(data)
+    else:
+        try:
+            stream = open(path_or_text, "rb")
+        except OSError as exc:
+            raise ValueError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+        size = os.fstat(stream.fileno()).st_size
+    doc = Document(source="" if text else str(path_or_text))
+    reader = _Reader(doc, where)
+    parser = ET.XMLPullParser(events=("start", "end"))
+    done = 0
     try:
-        root = ET.fromstring(path_or_text) if text else ET.parse(path_or_text).getroot()
+        with stream:
+            while True:
+                chunk = stream.read(_CHUNK)
+                if not chunk:
+                    break
+                parser.feed(chunk)
+                reader.consume(parser.read_events())
+                done += len(chunk)
+                if progress is not None and size:
+                    progress(min(done / size, 1.0), "reading")
+            parser.close()
+            reader.consume(parser.read_events())
     except ET.ParseError as exc:  # a SyntaxError, not a ValueError: one line, the reader's own
         raise ValueError(f"{where}: not a well-formed XML file ({exc})") from None
     except RecursionError:
         raise ValueError(f"{where}: nested too deeply to be a MaterialX document") from None
-    if root.tag != "materialx":
-        raise ValueError(f"{where}: not a MaterialX document (root element <{root.tag}>)")
-    try:
-        return _read_root(root, "" if text else str(path_or_text))
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
+    if reader.root is None:
+        raise ValueError(f"{where}: not a well-formed XML file (no root element)")
+    return doc
 
 
-def _read_root(root, source):
-    doc = Document(attrs=dict(root.attrib), source=source)
-    for e in root:
+class _Reader:
+    """Turns the pull parser's events into the Document, one top-level element at a time."""
+
+    def __init__(self, doc, where):
+        self.doc = doc
+        self.where = where
+        self.root = None
+        self.depth = 0
+
+    def consume(self, events):
+        for event, e in events:
+            if event == "start":
+                self.depth += 1
+                if self.depth == 1:
+                    if e.tag != "materialx":
+                        raise ValueError(f"not a MaterialX document (root element <{e.tag}>)")
+                    self.root = e
+                    self.doc.attrs = dict(e.attrib)
+                continue
+            self.depth -= 1
+            if self.depth == 1:  # a top-level element is complete: read it, then drop it
+                self.top(e)
+                self.root.remove(e)
+
+    def top(self, e):
+        doc = self.doc
         if not isinstance(e.tag, str) or e.tag in _SKIP:
-            continue
+            return
         if e.tag == "nodegraph":
             if e.get("nodedef"):  # an implementation graph
-                continue
+                return
             g = NodeGraph(e.get("name", ""), attrs={k: v for k, v in e.attrib.items() if k != "name"})
             for c in e:
                 if not isinstance(c.tag, str):
                     continue
-                if c.tag == "input":
+                if c.tag in _INPUT_TAGS:
                     i = _read_input(c)
                     g.inputs[i.name] = i
                 elif c.tag == "output":
                     i = _read_input(c)
                     g.outputs[i.name] = i
-                else:
+                elif c.tag not in _SKIP:
                     n = _read_node(c)
                     g.nodes[n.name] = n
             doc.graphs[g.name] = g
+        elif e.tag == "material":  # MaterialX 1.37: shaderrefs bound to the material
+            self.material_137(e)
         else:
             n = _read_node(e)
             doc.nodes[n.name] = n
-    return doc
+
+    def material_137(self, e):
+        doc = self.doc
+        name = e.get("name", "")
+        mat = Node(name, "surfacematerial", "material",
+                   attrs={k: v for k, v in e.attrib.items() if k not in ("name", "type")})
+        for ref in e:
+            if ref.tag != "shaderref":
+                continue
+            cat = ref.get("node", "")
+            sname = ref.get("name", "") or f"SR_{name}"
+            while sname in doc.nodes:
+                sname += "_"
+            shader = _read_node(ref, tag=cat)
+            shader.name = sname
+            shader.type = ref.get("type", "surfaceshader") or "surfaceshader"
+            doc.nodes[sname] = shader
+            key = "displacementshader" if shader.type == "displacementshader" else "surfaceshader"
+            mat.inputs.setdefault(key, Input(key, shader.type, nodename=sname))
+        while name in doc.nodes:
+            name += "_"
+        mat.name = name
+        doc.nodes[name] = mat

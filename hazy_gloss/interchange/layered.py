@@ -1211,9 +1211,41 @@ def graph_of(tree, name, notes, *, directory=None):
     return g, w
 
 
-def layer_record(tree):
-    """The layer's state as JSON for the document (hazygloss_layer)."""
+#: Version of the hazygloss_layer record: 2 adds what the importer needs to rebuild the layer
+#: (the core's node, its settings and the user's own values of the inputs the layer owns).
+LAYER_RECORD_VERSION = 2
+
+
+def layer_record(tree, writer=None):
+    """The layer's state as JSON for the document (hazygloss_layer): the haze parameters, the
+    core (its Blender name, type and settings, the MaterialX node written for it) and, per
+    input the layer owns, the user's own value or the MaterialX node of the user's link — what
+    materialx_import needs to rebuild the same layer (the core's other inputs are in its
+    node)."""
     lay = dict(tree.layer or {})
+    lay["record"] = LAYER_RECORD_VERSION
+    core = tree.core()
+    if core is not None:
+        lay["core_props"] = {k: core.props[k] for k in ("distribution", "fresnel_type",
+                                                        "subsurface_method") if k in core.props}
+        if writer is not None and core.name in writer.surfaces:
+            lay["core_node"] = writer.surfaces[core.name].name
+        base = {}
+        for name, b in (core.base or {}).items():
+            if "value" in b:
+                c = np.asarray(b["value"], float).reshape(-1)
+                base[name] = {"value": float(c[0]) if c.size == 1 else [float(x) for x in c[:3]]}
+            elif "link" in b and writer is not None:
+                sock = core.input(name)
+                probe = Socket(sock.identifier if sock else name, name, sock.type if sock else "VALUE",
+                               None, tuple(b["link"]), True, False, core.name)
+                v = writer.value(probe, _MX_TYPE.get(probe.type, "float"))
+                if v is not None and not v.is_const:
+                    base[name] = {"node": v.node.name, "output": v.output}
+                elif v is not None:
+                    c = np.asarray(v.const, float).reshape(-1)
+                    base[name] = {"value": float(c[0]) if c.size == 1 else [float(x) for x in c[:3]]}
+        lay["base"] = base
     return json.dumps(lay, sort_keys=True, default=lambda o: list(o) if isinstance(o, tuple) else str(o))
 
 
