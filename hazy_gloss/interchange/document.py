@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import re
-import xml.etree.ElementTree as ET
+import xml.etree.ElementTree as ET  # writing
 from dataclasses import dataclass, field
 
 from .. import constants as K
@@ -324,15 +324,18 @@ def format_value(value, type_):
     return str(value)
 
 
-#: Float32's largest value: MaterialX 1.39 stores floats in float32 and refuses a number beyond
-#: it (``std::istream >> float`` overflows).
-_F32_MAX = 3.4028234663852886e38
+#: MaterialX 1.39 stores floats in float32 and refuses a number that rounds beyond its largest
+#: value (``std::istream >> float`` overflows): 2¹²⁸ - 2¹⁰³ is where rounding reaches infinity.
+_F32_LIMIT = 2.0 ** 128 - 2.0 ** 103
 #: What ``std::istream >> float`` accumulates (libstdc++ num_get): sign, digits, one decimal
 #: point, an exponent; the longest such prefix after leading white space is converted.
 _FLOAT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d*)?)")
 _INT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?\d+)")
 #: MaterialX's ARRAY_VALID_SEPARATORS: vector components split on commas and spaces.
 _SPLIT = re.compile(r"[, ]+")
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_PLAIN = re.compile(_NUM)
+_PLAIN_VECTOR = re.compile(rf"[, ]*{_NUM}(?:[, ]+{_NUM})*[, ]*")
 
 
 def _float_token(tok):
@@ -347,7 +350,7 @@ def _float_token(tok):
     if num[-1] in "eE+-":  # "1e", "1e+": the stream's conversion fails
         return None
     x = float(num)
-    return x if abs(x) <= _F32_MAX else None
+    return x if abs(x) < _F32_LIMIT else None
 
 
 def read_value(text, type_):
@@ -357,9 +360,18 @@ def read_value(text, type_):
     it refuses (``getValue()`` is None, ``validate()`` False) gives value None and the problem."""
     if text is None:
         return None, None
+    if type_ == "float" and _PLAIN.fullmatch(text):  # the common case: one plain number
+        x = float(text)
+        if abs(x) < _F32_LIMIT:
+            return x, None
     if type_ in _VECTOR:
         n = _VECTOR[type_]
-        toks = [t for t in _SPLIT.split(text) if t]
+        toks = [t for t in text.replace(",", " ").split(" ") if t] if _PLAIN_VECTOR.fullmatch(text) \
+            else [t for t in _SPLIT.split(text) if t]
+        if len(toks) == n and _PLAIN_VECTOR.fullmatch(text):
+            vals = tuple(map(float, toks))
+            if all(abs(v) < _F32_LIMIT for v in vals):
+                return vals, None
         if len(toks) != n:
             return None, (f"value {_clip(text)} is not {n} numbers (type {type_}): ignored, as "
                           f"MaterialX ignores it")
@@ -600,50 +612,43 @@ def write_xml(doc, path):
     return path
 
 
-def _read_input(e):
-    t = e.get("type", "")
-    value, problem = read_value(e.get("value"), t)
-    if not t and e.get("value") is not None:
+def _input_of(a):
+    """An Input from an <input> element's attributes."""
+    t = a.get("type", "")
+    text = a.get("value")
+    value, problem = read_value(text, t) if text is not None else (None, None)
+    if not t and text is not None:
         problem = "has no type: ignored, as MaterialX ignores it"
-    return Input(e.get("name", ""), t, value, e.get("nodename"), e.get("nodegraph"),
-                 e.get("output"), e.get("interfacename"), e.get("colorspace"),
-                 e.get("channels"), problem)
+    return Input(a.get("name", ""), t, value, a.get("nodename"), a.get("nodegraph"),
+                 a.get("output"), a.get("interfacename"), a.get("colorspace"),
+                 a.get("channels"), problem)
 
 
 #: child elements read as a node's inputs (1.37 wrote uniform ones as <parameter>, and
 #: shaderrefs' as <bindinput> / <bindparam>)
-_INPUT_TAGS = ("input", "parameter", "bindinput", "bindparam")
-
-
-def _read_node(e, tag=None):
-    attrs = {k: v for k, v in e.attrib.items() if k not in ("name", "type")}
-    n = Node(e.get("name", ""), tag or e.tag, e.get("type", ""), attrs=attrs)
-    for c in e:
-        if c.tag in _INPUT_TAGS:
-            i = _read_input(c)
-            n.inputs[i.name] = i
-    return n
-
-
-_SKIP = ("nodedef", "implementation", "typedef", "look", "collection", "geominfo", "propertyset",
-         "variantset", "backdrop", "token", "unit", "unittypedef", "attributedef", "targetdef",
-         "materialassign", "lookgroup", "variant", "member", "propertysetassign")
+_INPUT_TAGS = frozenset(("input", "parameter", "bindinput", "bindparam"))
+_SKIP = frozenset(("nodedef", "implementation", "typedef", "look", "collection", "geominfo",
+                   "propertyset", "variantset", "backdrop", "token", "unit", "unittypedef",
+                   "attributedef", "targetdef", "materialassign", "lookgroup", "variant", "member",
+                   "propertysetassign"))
 _CHUNK = 1 << 20  # bytes fed to the parser at a time (and the progress step)
+_NOT_ATTRS = ("name", "type")
 
 
 def read_xml(path_or_text, *, text=False, progress=None):
-    """Parse a MaterialX document (file path, or the XML itself with ``text=True``), streaming:
-    each top-level element is turned into Nodes / NodeGraphs and dropped, so memory follows the
-    document's content, not its XML tree.  Includes (xi:include) are not followed; nodedefs and
-    implementations are skipped.  ``progress``: callable(fraction, message), called as the bytes
-    are read (fraction in [0, 1], non-decreasing).
+    """Parse a MaterialX document (file path, or the XML itself with ``text=True``), streaming
+    with expat: elements become Nodes / NodeGraphs / Inputs as they are read, no XML tree is
+    kept, so memory follows the document's content.  Includes (xi:include) are not followed;
+    nodedefs and implementations are skipped.  ``progress``: callable(fraction, message),
+    called as the bytes are read (fraction in [0, 1], non-decreasing).
 
     MaterialX 1.37 materials (``<material>`` with a ``<shaderref>`` and ``<bindinput>``s) are read
     as the surfacematerial + shader node 1.38 made of them (MaterialX upgrades them the same
     way); ``channels`` swizzles and ``fileprefix`` / ``colorspace`` scopes are kept for the
-    importer."""
+    importer.  expat expands no external entity and refuses entity amplification."""
     import io
     import os
+    from xml.parsers import expat
     where = "the document" if text else str(path_or_text)
     if text:
         data = path_or_text.encode("utf-8") if isinstance(path_or_text, str) else path_or_text
@@ -655,8 +660,11 @@ def read_xml(path_or_text, *, text=False, progress=None):
             raise ValueError(f"{where}: cannot be read ({exc.strerror or exc})") from None
         size = os.fstat(stream.fileno()).st_size
     doc = Document(source="" if text else str(path_or_text))
-    reader = _Reader(doc, where)
-    parser = ET.XMLPullParser(events=("start", "end"))
+    reader = _Reader(doc)
+    parser = expat.ParserCreate()
+    parser.buffer_text = True
+    parser.StartElementHandler = reader.start
+    parser.EndElementHandler = reader.end
     done = 0
     try:
         with stream:
@@ -664,90 +672,109 @@ def read_xml(path_or_text, *, text=False, progress=None):
                 chunk = stream.read(_CHUNK)
                 if not chunk:
                     break
-                parser.feed(chunk)
-                reader.consume(parser.read_events())
+                parser.Parse(chunk, False)
                 done += len(chunk)
                 if progress is not None and size:
                     progress(min(done / size, 1.0), "reading")
-            parser.close()
-            reader.consume(parser.read_events())
-    except ET.ParseError as exc:  # a SyntaxError, not a ValueError: one line, the reader's own
-        raise ValueError(f"{where}: not a well-formed XML file ({exc})") from None
+            parser.Parse(b"", True)
+    except expat.ExpatError as exc:
+        raise ValueError(f"{where}: not a well-formed XML file ({expat.errors.messages.get(exc.code, exc)}: "
+                         f"line {exc.lineno}, column {exc.offset})") from None
     except RecursionError:
         raise ValueError(f"{where}: nested too deeply to be a MaterialX document") from None
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
-    if reader.root is None:
+    if not reader.rooted:
         raise ValueError(f"{where}: not a well-formed XML file (no root element)")
     return doc
 
 
 class _Reader:
-    """Turns the pull parser's events into the Document, one top-level element at a time."""
+    """expat handlers building the Document: depth 1 the <materialx> root, depth 2 top-level
+    nodes / node graphs / 1.37 materials, depth 3 their inputs, outputs and nodes, depth 4 the
+    inputs of nodes inside node graphs (and of 1.37 shaderrefs)."""
 
-    def __init__(self, doc, where):
+    def __init__(self, doc):
         self.doc = doc
-        self.where = where
-        self.root = None
+        self.rooted = False
         self.depth = 0
+        self.top = None  #: the Node / NodeGraph / (material Node, [shaderrefs]) being read
+        self.kind = None  #: "node", "graph", "material", "skip"
+        self.inner = None  #: a node inside a graph, or a shaderref, being read
 
-    def consume(self, events):
-        for event, e in events:
-            if event == "start":
-                self.depth += 1
-                if self.depth == 1:
-                    if e.tag != "materialx":
-                        raise ValueError(f"not a MaterialX document (root element <{e.tag}>)")
-                    self.root = e
-                    self.doc.attrs = dict(e.attrib)
-                continue
-            self.depth -= 1
-            if self.depth == 1:  # a top-level element is complete: read it, then drop it
-                self.top(e)
-                self.root.remove(e)
+    def start(self, tag, a):
+        self.depth += 1
+        d = self.depth
+        if d == 1:
+            if tag != "materialx":
+                raise ValueError(f"not a MaterialX document (root element <{tag}>)")
+            self.rooted = True
+            self.doc.attrs = dict(a)
+        elif d == 2:
+            if tag in _SKIP or (tag == "nodegraph" and a.get("nodedef")):
+                self.kind = "skip"
+            elif tag == "nodegraph":
+                self.kind = "graph"
+                self.top = NodeGraph(a.get("name", ""), attrs={k: v for k, v in a.items() if k != "name"})
+            elif tag == "material":  # MaterialX 1.37: shaderrefs bound to the material
+                self.kind = "material"
+                self.top = (Node(a.get("name", ""), "surfacematerial", "material",
+                                 attrs={k: v for k, v in a.items() if k not in _NOT_ATTRS}), [])
+            else:
+                self.kind = "node"
+                self.top = Node(a.get("name", ""), tag, a.get("type", ""),
+                                attrs={k: v for k, v in a.items() if k not in _NOT_ATTRS})
+        elif d == 3:
+            k = self.kind
+            if k == "node":
+                if tag in _INPUT_TAGS:
+                    i = _input_of(a)
+                    self.top.inputs[i.name] = i
+            elif k == "graph":
+                if tag in _INPUT_TAGS:
+                    i = _input_of(a)
+                    self.top.inputs[i.name] = i
+                elif tag == "output":
+                    i = _input_of(a)
+                    self.top.outputs[i.name] = i
+                elif tag not in _SKIP:
+                    self.inner = Node(a.get("name", ""), tag, a.get("type", ""),
+                                      attrs={k2: v for k2, v in a.items() if k2 not in _NOT_ATTRS})
+            elif k == "material" and tag == "shaderref":
+                cat = a.get("node", "")
+                self.inner = Node(a.get("name", ""), cat, a.get("type") or "surfaceshader",
+                                  attrs={k2: v for k2, v in a.items() if k2 not in ("name", "type", "node")})
+        elif d == 4 and self.inner is not None and tag in _INPUT_TAGS:
+            i = _input_of(a)
+            self.inner.inputs[i.name] = i
 
-    def top(self, e):
+    def end(self, tag):
+        d = self.depth
+        self.depth -= 1
+        if d == 3 and self.inner is not None:
+            if self.kind == "graph":
+                self.top.nodes[self.inner.name] = self.inner
+            elif self.kind == "material":
+                self.top[1].append(self.inner)
+            self.inner = None
+        elif d == 2:
+            k, top = self.kind, self.top
+            self.kind = self.top = None
+            if k == "graph":
+                self.doc.graphs[top.name] = top
+            elif k == "node":
+                self.doc.nodes[top.name] = top
+            elif k == "material":
+                self.material_137(*top)
+
+    def material_137(self, mat, refs):
         doc = self.doc
-        if not isinstance(e.tag, str) or e.tag in _SKIP:
-            return
-        if e.tag == "nodegraph":
-            if e.get("nodedef"):  # an implementation graph
-                return
-            g = NodeGraph(e.get("name", ""), attrs={k: v for k, v in e.attrib.items() if k != "name"})
-            for c in e:
-                if not isinstance(c.tag, str):
-                    continue
-                if c.tag in _INPUT_TAGS:
-                    i = _read_input(c)
-                    g.inputs[i.name] = i
-                elif c.tag == "output":
-                    i = _read_input(c)
-                    g.outputs[i.name] = i
-                elif c.tag not in _SKIP:
-                    n = _read_node(c)
-                    g.nodes[n.name] = n
-            doc.graphs[g.name] = g
-        elif e.tag == "material":  # MaterialX 1.37: shaderrefs bound to the material
-            self.material_137(e)
-        else:
-            n = _read_node(e)
-            doc.nodes[n.name] = n
-
-    def material_137(self, e):
-        doc = self.doc
-        name = e.get("name", "")
-        mat = Node(name, "surfacematerial", "material",
-                   attrs={k: v for k, v in e.attrib.items() if k not in ("name", "type")})
-        for ref in e:
-            if ref.tag != "shaderref":
-                continue
-            cat = ref.get("node", "")
-            sname = ref.get("name", "") or f"SR_{name}"
+        name = mat.name
+        for shader in refs:
+            sname = shader.name or f"SR_{name}"
             while sname in doc.nodes:
                 sname += "_"
-            shader = _read_node(ref, tag=cat)
             shader.name = sname
-            shader.type = ref.get("type", "surfaceshader") or "surfaceshader"
             doc.nodes[sname] = shader
             key = "displacementshader" if shader.type == "displacementshader" else "surfaceshader"
             mat.inputs.setdefault(key, Input(key, shader.type, nodename=sname))

@@ -683,10 +683,14 @@ def recognise(doc, *, use_stored=True, progress=None):
 
 
 def _finite(v):
-    if isinstance(v, surfaces.Link) or isinstance(v, (str, bool)) or v is None:
-        return True
-    nums = v if isinstance(v, (tuple, list)) else (v,)
-    return all(math.isfinite(float(x)) for x in nums if isinstance(x, (int, float)))
+    if isinstance(v, float):
+        return math.isfinite(v)
+    if isinstance(v, tuple):
+        try:
+            return math.isfinite(math.fsum(v))
+        except (TypeError, OverflowError):
+            return all(isinstance(x, (int, float)) and math.isfinite(x) for x in v)
+    return True
 
 
 def _checked(im):

@@ -186,6 +186,8 @@ def C(x):
     """A constant Val."""
     if isinstance(x, (tuple, list)):
         t = tuple(float(v) for v in x[:3])
+        if len(t) == 2:  # a vector2 (uv): z = 0
+            t = t + (0.0,)
         return Val(3, t if len(t) == 3 else _t3(t[0] if t else 0.0))
     return Val(1, float(x))
 
@@ -413,6 +415,8 @@ for _nd, (_cat, _typ, _spec) in NODEDEFS.items():
 _BY_CATEGORY = {}
 for _nd, (_cat, _typ, _spec) in NODEDEFS.items():
     _BY_CATEGORY.setdefault(_cat, _spec)
+_OPENPBR_12 = dict(NODEDEFS["ND_open_pbr_surface_surfaceshader"][2], **OPENPBR_12_INPUTS,
+                   emission_weight=("float", 0.0))
 _N3 = {"color3": 3, "vector3": 3, "color4": 3, "vector4": 3, "vector2": 3}
 _ORDER = {"x": 0, "y": 1, "z": 2, "w": 3, "r": 0, "g": 1, "b": 2, "a": 3}
 
@@ -423,12 +427,31 @@ def surface_defaults(node):
     if cat == "standard_surface" and node.attrs.get("version") == "1.0.0":
         return NODEDEFS["ND_standard_surface_surfaceshader_100"][2]
     if cat == "open_pbr_surface":
-        spec = dict(NODEDEFS["ND_open_pbr_surface_surfaceshader"][2])
         if str(node.attrs.get("version", "")).startswith("1.2"):
-            spec.update(OPENPBR_12_INPUTS)
-            spec["emission_weight"] = ("float", 0.0)
-        return spec
+            return _OPENPBR_12
+        return NODEDEFS["ND_open_pbr_surface_surfaceshader"][2]
     return _BY_CATEGORY.get(cat, {})
+
+
+def _as_val(dflt):
+    if isinstance(dflt, str) or dflt is None:  # a geometric default (Nworld, Tworld, UV0)
+        return None
+    if isinstance(dflt, bool):
+        return C(1.0 if dflt else 0.0)
+    return C(dflt)
+
+
+_DEFAULT_VALS = {}
+
+
+def _default_val(spec, name):
+    """The nodedef default of an input as a constant Val (shared: constants are not changed)."""
+    key = (id(spec), name)
+    v = _DEFAULT_VALS.get(key, _DEFAULT_VALS)
+    if v is _DEFAULT_VALS:
+        typ, dflt = spec.get(name, ("float", 0.0))
+        v = _DEFAULT_VALS[key] = _as_val(dflt)
+    return v
 
 
 class Upstream:
@@ -448,8 +471,10 @@ class Upstream:
     # -- the surface's inputs ------------------------------------------------------------------
     def input(self, node, graph, name, spec):
         """The Val of input ``name`` of ``node`` (``spec``: {input: (type, default)})."""
-        typ, dflt = spec.get(name, ("float", 0.0))
         inp = node.inputs.get(name)
+        if inp is None:
+            return _default_val(spec, name)
+        typ, dflt = spec.get(name, ("float", 0.0))
         if inp is not None and inp.problem:
             self.notes.lose(f"{node.name}.{name}: {inp.problem}")
         if inp is not None and inp.type and typ and inp.type != typ and not inp.connected \
@@ -463,13 +488,7 @@ class Upstream:
         return v
 
     def _default(self, typ, dflt):
-        if isinstance(dflt, str) or dflt is None:  # a geometric default (Nworld, Tworld, UV0)
-            return None
-        if isinstance(dflt, bool):
-            return C(1.0 if dflt else 0.0)
-        if isinstance(dflt, tuple):
-            return C(dflt)
-        return C(dflt)
+        return _as_val(dflt)
 
     def resolve(self, inp, graph, typ, where):
         """Val of an input (None: not authored, nor connected to anything that reads)."""
@@ -859,22 +878,48 @@ def coat_relative_ior(eta, eta_c, coat_w):
     return (1.0 - w) * eta + w * (ratio if ratio > 1.0 else 1.0 / ratio)
 
 
+def _conductor_fresnel(c, eta, k):
+    """Unpolarised conductor reflectance at cos θ = c (scalar; interchange.brdf's formula)."""
+    c2 = c * c
+    s2 = 1.0 - c2
+    e2, k2 = eta * eta, k * k
+    t0 = e2 - k2 - s2
+    a2b2 = math.sqrt(t0 * t0 + 4.0 * e2 * k2)
+    a = math.sqrt(max(0.5 * (a2b2 + t0), 0.0))
+    rs = (a2b2 + c2 - 2.0 * a * c) / (a2b2 + c2 + 2.0 * a * c)
+    t1 = a2b2 * c2 + s2 * s2
+    t2 = 2.0 * a * c * s2
+    return 0.5 * (rs + rs * (t1 - t2) / (t1 + t2))
+
+
+_F82_MU = 1.0 / 7.0
+_ERR_MU = tuple(i / 16.0 for i in range(1, 17))
+
+
 def f82_tint_of_conductor(f0, edge):
     """Principled's F82 tint (Specular Tint of a metal) for Gulbrandsen's conductor with
     reflectivity ``f0`` and edge colour ``edge`` (standard_surface's metal): the tint that makes
-    F82-tint match the conductor's Fresnel at μ̄ = 1/7 (engines.f82_tint_fit), per channel, and
-    the largest |ΔF| over μ between the two models."""
-    import numpy as np
-    from ..core.mapping import gulbrandsen_ior
-    from .brdf import f82_tint, fresnel_conductor
-    from .engines import f82_tint_fit
-    r = np.clip(np.asarray(f0, float), 0.0, 0.999)
-    g = np.clip(np.asarray(edge, float), 0.0, 1.0)
-    eta, kap = gulbrandsen_ior(r, g)
-    tint, _ = f82_tint_fit(lambda c: fresnel_conductor(c, eta, kap), r)
-    mu = np.linspace(0.0, 1.0, 65)
-    err = float(np.max(np.abs(fresnel_conductor(mu, eta, kap) - f82_tint(mu, r, tint))))
-    return tuple(float(x) for x in tint), err
+    F82-tint match the conductor's Fresnel at μ̄ = 1/7 (as engines.f82_tint_fit), per channel,
+    and the largest |ΔF| over μ (16 samples) between the two models."""
+    tint, err = [], 0.0
+    for r, g in zip(f0, edge):
+        r = min(max(float(r), 0.0), 0.999)
+        g = min(max(float(g), 0.0), 1.0)
+        sr = math.sqrt(r)  # Gulbrandsen 2014 (core.mapping.gulbrandsen_ior)
+        n_d = (1.0 + sr) / (1.0 - sr)
+        eta = g * (1.0 - r) / (1.0 + r) + (1.0 - g) * n_d
+        gr = g / (1.0 + r)
+        kap = 2.0 * sr * math.sqrt(gr * (gr + 2.0 * (1.0 - g) / (1.0 - sr) ** 2))
+
+        def schlick(mu):
+            return r + (1.0 - r) * (1.0 - mu) ** 5
+        t = min(max(_conductor_fresnel(_F82_MU, eta, kap) / schlick(_F82_MU), 0.0), 1.0)
+        b = schlick(_F82_MU) * (1.0 - t) / (_F82_MU * (1.0 - _F82_MU) ** 6)
+        for mu in _ERR_MU:
+            f82 = schlick(mu) - b * mu * (1.0 - mu) ** 6
+            err = max(err, abs(_conductor_fresnel(mu, eta, kap) - f82))
+        tint.append(t)
+    return tuple(tint), err
 
 
 # --------------------------------------------------------------------------------------------
@@ -902,6 +947,7 @@ class _Surface:
         self.b = Builder()
         self.up = Upstream(doc, self.b, notes, name)
         self.spec_in = surface_defaults(node)
+        self._memo = {}
         self.out = {}
         known = set(self.spec_in)
         for k in node.inputs:
@@ -909,7 +955,10 @@ class _Surface:
                 notes.say(f"{node.name}.{k} is not an input of {node.category}: ignored")
 
     def v(self, name):
-        return self.up.input(self.node, self.graph, name, self.spec_in)
+        got = self._memo.get(name)
+        if got is None:
+            got = self._memo[name] = self.up.input(self.node, self.graph, name, self.spec_in)
+        return got
 
     def set(self, socket, val, n=None):
         if val is None:
