@@ -95,6 +95,8 @@ MATERIALX_SRGB_COLORSPACE = "srgb_texture"
 MATERIALX_ATTR = "hazygloss"
 #: Version of the perceptual-parameter record stored with an exported material.
 INTERCHANGE_VERSION = 1
+#: import-materialx shows a progress bar for files of this size and more (--quiet: never).
+MATERIALX_PROGRESS_BYTES = 1 << 20
 #: Relative tolerance within which a graph's physical values count as "the same" as the
 #: forward mapping of the stored perceptual parameters (17 significant digits are written).
 INTERCHANGE_RTOL = 1e-6

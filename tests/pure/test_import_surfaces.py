@@ -494,3 +494,32 @@ def test_progress_is_reported_and_never_goes_back(tmp_path):
     assert len(seen) >= 10 and fr == sorted(fr) and 0.0 <= fr[0] <= 0.5 and fr[-1] == 1.0
     assert {m for _, m in seen} == {"reading", "recognising materials"}
     assert len(got) > 3000
+
+
+def test_cli_shows_progress_on_large_files_unless_quiet(tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+    root = Path(__file__).resolve().parents[2]
+    path = tmp_path / "lib.mtlx"
+    n = mtlx_library.write_library(path, 1_300_000, seed=3)
+    env = dict(os.environ, PYTHONPATH=str(root))
+    run = lambda *extra: subprocess.run(  # noqa: E731
+        [sys.executable, "-m", "hazy_gloss", "import-materialx", str(path), *extra],
+        capture_output=True, text=True, timeout=300, env=env, cwd=str(root))
+    loud = run()
+    assert loud.returncode == 0, loud.stderr
+    steps = [line for line in loud.stderr.splitlines() if line.startswith("import-materialx:")]
+    assert steps and steps[-1].startswith("import-materialx: 100%")
+    assert len(loud.stdout.splitlines()) >= n  # one line per material (and its notes)
+    quiet = run("--quiet", "--json")
+    assert quiet.returncode == 0 and quiet.stderr == ""
+    got = json.loads(quiet.stdout)
+    assert len(got) == n and all(m["surface"]["bsdf"] == "ShaderNodeBsdfPrincipled" for m in got)
+    small = subprocess.run([sys.executable, "-m", "hazy_gloss", "import-materialx",
+                            str(FIXTURES / "openpbr_12_haze.mtlx"), "--json"],
+                           capture_output=True, text=True, timeout=300, env=env, cwd=str(root))
+    assert small.stderr == ""  # a small file: no bar
+    haze = {m["name"]: m["surface"]["haze"] for m in json.loads(small.stdout)}
+    assert haze["Hazy_Plastic"]["haziness"] > 0 and haze["No_Haze"] is None
