@@ -607,10 +607,14 @@ def _recognise_layer(doc, mat, label):
     if not isinstance(rec, dict):
         rec = {}
     k, top, graph = doc.resolve(mat.inputs.get("surfaceshader"))
-    if k != "node" or graph is None:
+    if k != "node":
         return ImportedMaterial(label, None, False, "hazy_gloss layer", ["no layer network"])
+    # a .mtlx keeps the network in a node graph; USD (interchange/usd.py) flattens it into
+    # shaders named by their prim paths <material>/NG/<node>
+    scope = graph.nodes if graph is not None else doc.nodes
+    prefix = "" if graph is not None else (top.name.rsplit("/", 1)[0] + "/" if "/" in top.name else "")
     core_name = rec.get("core_node") or (valid_name(rec["core"]) if isinstance(rec.get("core"), str) else None)
-    core = graph.nodes.get(core_name) if core_name else None
+    core = scope.get(prefix + core_name) if core_name else None
     ctype = rec.get("core_type")
     if core is None or ctype not in ("PRINCIPLED", "METALLIC", "GLOSSY"):
         return ImportedMaterial(label, None, False, "hazy_gloss layer", [
@@ -619,7 +623,8 @@ def _recognise_layer(doc, mat, label):
     if rec.get("record", 1) < 2:
         notes.lose("an older layer record without the user's own values of the inputs the layer "
                    "owns: the layer's raised values are taken")
-    owned = {name: b for name, b in (rec.get("base") or {}).items() if isinstance(b, dict)}
+    owned = {name: (dict(b, node=prefix + b["node"]) if isinstance(b.get("node"), str) else b)
+             for name, b in (rec.get("base") or {}).items() if isinstance(b, dict)}
     if ctype == "PRINCIPLED":
         spec = surfaces.openpbr(doc, core, graph, label, notes, owned=owned)
     else:
@@ -641,10 +646,10 @@ def _recognise_layer(doc, mat, label):
     if rec.get("baked"):
         notes.lose("a baked layer (texture conversion): rebuilt as a live layer of its constant "
                    "haze parameters")
-    others = [n.name for n in graph.nodes.values()
-              if n.category in surfaces.SURFACES or n.category in LOBES or n.category in (
-                  "oren_nayar_diffuse_bsdf", "uniform_edf")]
-    mine = {core.name} | {valid_name(r) for r in rec.get("nodes", []) if isinstance(r, str)}
+    others = [n.name[len(prefix):] for n in scope.values() if n.name.startswith(prefix) and (
+        n.category in surfaces.SURFACES or n.category in LOBES or n.category in (
+            "oren_nayar_diffuse_bsdf", "uniform_edf"))]
+    mine = {core.name[len(prefix):]} | {valid_name(r) for r in rec.get("nodes", []) if isinstance(r, str)}
     extra = [n for n in others if n not in mine and not n.startswith(valid_name(f"{K.NODE_PREFIX} "))]
     if extra:
         notes.lose(f"the network around the core ({', '.join(extra[:4])}) is not rebuilt: the core "
