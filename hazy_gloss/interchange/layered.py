@@ -1113,7 +1113,13 @@ class Writer:
         put("specular_roughness", r_e)
         put("specular_ior", ior)
         put("specular_roughness_anisotropy", a_o)
-        put("transmission_weight", sat(val("Transmission Weight"), "transmission"))
+        trans = sat(val("Transmission Weight"), "transmission")
+        if not (trans.is_const and float(trans.const) == 0.0):
+            self.note(f"“{n}”: transmission is approximate in MaterialX: OpenPBR tints the refracted "
+                      f"light once by transmission_color (the Base Color), Cycles by √Base Color at "
+                      f"each interface, and its dielectric Fresnel is the exact one where Cycles' "
+                      f"Principled keeps F0 (docs/interchange.md §5)")
+        put("transmission_weight", trans)
         put("transmission_color", val("Base Color", "color3"))
         put("subsurface_weight", sat(val("Subsurface Weight"), "subsurface"))
         put("subsurface_color", val("Base Color", "color3"))
@@ -1133,6 +1139,10 @@ class Writer:
         put("emission_color", val("Emission Color", "color3"))
         if node.input("Thin Film Thickness") is not None:
             thick = val("Thin Film Thickness")
+            if not (thick.is_const and float(thick.const) <= 0.1):
+                self.note(f"“{n}”: the thin film is OpenPBR's model in MaterialX (its film on the "
+                          f"specular_ior the layer raised); Cycles' film reflectance differs "
+                          f"(docs/thin-film.md)")
             if thick.is_const:
                 put("thin_film_weight", _c("float", 1.0 if float(thick.const) > 0.1 else 0.0))
             else:
