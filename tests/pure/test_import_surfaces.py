@@ -523,3 +523,36 @@ def test_cli_shows_progress_on_large_files_unless_quiet(tmp_path):
     assert small.stderr == ""  # a small file: no bar
     haze = {m["name"]: m["surface"]["haze"] for m in json.loads(small.stdout)}
     assert haze["Hazy_Plastic"]["haziness"] > 0 and haze["No_Haze"] is None
+
+
+def test_usd_preview_surface_networks_in_usd_files(tmp_path):
+    """A USD material with only a UsdPreviewSurface network (what most USD pipelines write; no
+    MaterialX network) is read like its MaterialX form."""
+    from pxr import Sdf, Usd, UsdShade
+    from hazy_gloss.interchange import usd
+    T = Sdf.ValueTypeNames
+    path = tmp_path / "preview.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mat = UsdShade.Material.Define(stage, "/root/mtl/Painted_Metal")
+    pv = UsdShade.Shader.Define(stage, "/root/mtl/Painted_Metal/PreviewSurface")
+    pv.CreateIdAttr("UsdPreviewSurface")
+    pv.CreateInput("metallic", T.Float).Set(1.0)
+    pv.CreateInput("roughness", T.Float).Set(0.35)
+    st = UsdShade.Shader.Define(stage, "/root/mtl/Painted_Metal/st")
+    st.CreateIdAttr("UsdPrimvarReader_float2")
+    st.CreateInput("varname", T.String).Set("st")
+    tex = UsdShade.Shader.Define(stage, "/root/mtl/Painted_Metal/diffuse")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", T.Asset).Set("tex/paint.png")
+    tex.CreateInput("sourceColorSpace", T.Token).Set("sRGB")
+    tex.CreateInput("st", T.Float2).ConnectToSource(st.ConnectableAPI(), "result")
+    pv.CreateInput("diffuseColor", T.Color3f).ConnectToSource(tex.ConnectableAPI(), "rgb")
+    mat.CreateSurfaceOutput().ConnectToSource(pv.ConnectableAPI(), "surface")
+    stage.GetRootLayer().Save()
+    (im,) = usd.read(path)
+    s = im.surface
+    assert im.name == "Painted_Metal" and s.source == "UsdPreviewSurface"
+    assert s.inputs["Metallic"] == 1.0 and s.inputs["Roughness"] == pytest.approx(0.35)
+    img = _walk(s, s.inputs["Base Color"])
+    assert img.image["path"] == str(tmp_path / "tex" / "paint.png") and img.image["colorspace"] == "sRGB"
+    assert _walk(s, img.inputs["Vector"]).bl_idname == "ShaderNodeUVMap"
