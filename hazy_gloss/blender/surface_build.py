@@ -53,17 +53,42 @@ def _image(info, notes):
     name = os.path.basename(path)
     if not udim and os.path.isfile(path):
         img = bpy.data.images.load(path, check_existing=False)
+    elif udim:
+        img = _udim_image(path, name, notes)
     else:
         img = bpy.data.images.new(name, 1, 1)
-        img.source = "TILED" if udim else "FILE"
+        img.source = "FILE"
         img.filepath = path
-        if not udim:
-            notes.append(f"texture {path} not found: the Image Texture points at it")
+        notes.append(f"texture {path} not found: the Image Texture points at it")
     img["hazy_gloss_import_path"] = path
     try:
         img.colorspace_settings.name = cs
     except TypeError:
         notes.append(f"colour space {cs!r} is not in this Blender's configuration: {img.colorspace_settings.name}")
+    return img
+
+
+def _udim_image(path, name, notes):
+    """A tiled image of the files a ``<UDIM>`` path names (each existing tile added, as
+    Blender's USD importer does)."""
+    import re
+    folder, pattern = os.path.split(path)
+    rx = re.compile("^" + re.escape(pattern).replace(re.escape("<UDIM>"), r"(1\d{3})") + "$")
+    tiles = sorted(int(m.group(1)) for f in (os.listdir(folder) if os.path.isdir(folder) else ())
+                   for m in [rx.match(f)] if m)
+    if not tiles:
+        notes.append(f"no tile of {path} found: the Image Texture points at it")
+    first = tiles[0] if tiles else 1001
+    img = bpy.data.images.load(path.replace("<UDIM>", str(first)), check_existing=False) if tiles \
+        else bpy.data.images.new(name, 1, 1)
+    img.source = "TILED"
+    img.filepath = path
+    if tiles and img.tiles:
+        img.tiles[0].number = first
+    for t in tiles[1:]:
+        img.tiles.new(tile_number=t)
+    if tiles:
+        img.reload()
     return img
 
 

@@ -264,3 +264,24 @@ def test_older_layer_documents_are_said_not_misread(api, tmp_path):
     (tmp_path / "old.mtlx").write_text(text)
     res = api.import_materialx(tmp_path / "old.mtlx")
     assert len(res) == 0 and "does not name its core" in res.report[0].notes[0]
+
+
+def test_udim_textures_become_tiled_images(api, tmp_path):
+    for tile, colour in ((1001, (0.9, 0.1, 0.1, 1.0)), (1002, (0.1, 0.1, 0.9, 1.0))):
+        img = bpy.data.images.new(f"t{tile}", 2, 2)
+        img.pixels.foreach_set(np.tile(np.array(colour, np.float32), 4))
+        img.filepath_raw = str(tmp_path / f"paint.{tile}.png")
+        img.file_format = "PNG"
+        img.save()
+        bpy.data.images.remove(img)
+    (tmp_path / "u.mtlx").write_text(
+        '<?xml version="1.0"?><materialx version="1.39"><image name="paint" type="color3">'
+        '<input name="file" type="filename" value="paint.&lt;UDIM&gt;.png" colorspace="srgb_texture" />'
+        '</image><standard_surface name="s" type="surfaceshader"><input name="base_color" '
+        'type="color3" nodename="paint" /></standard_surface><surfacematerial name="Tiled" '
+        'type="material"><input name="surfaceshader" type="surfaceshader" nodename="s" />'
+        '</surfacematerial></materialx>')
+    (m,) = api.import_materialx(tmp_path / "u.mtlx")
+    img = _source(_principled(m).inputs["Base Color"]).image
+    assert img.source == "TILED" and "<UDIM>" in img.filepath
+    assert sorted(t.number for t in img.tiles) == [1001, 1002]
