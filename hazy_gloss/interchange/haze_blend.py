@@ -108,64 +108,67 @@ def solve(part, dist, f0, beta, rough, aniso, rough_wide, *, rot=0.0, tint=(1.0,
     bh = min(max(float(inv.haziness), 0.0), K.MAX_HAZINESS)
     if part != "METAL":  # one IOR: the chroma of F0 is kept
         rc = float(np.max(rc)) * f0 / max(float(np.max(f0)), 1e-30)
-    # Newton on x = (β_h, log r_c) with residuals (β - w, log(r / F0)), Jacobian by finite
-    # differences of the forward mapping, steps halved until the residual shrinks
-    chroma = f0 / max(float(np.max(f0)), 1e-30)
+    rc = np.asarray(rc, float)
+    # r_c = c w: the chroma w of the user's F(0) (a dielectric: F0's, one IOR raises every
+    # channel alike; a metal: per channel, updated by fixed point below) and its scale c.
+    # Newton on x = (β_h, log c) with residuals (β - w_haze, log(r/F0) of the brightest channel),
+    # Jacobian by finite differences of the forward mapping, steps halved until the residual
+    # shrinks.  β is the brightest channel's (Eq. 4), so the other channels follow from their
+    # own r_c alone.
+    k = int(np.argmax(f0))
     pos = f0 > 0
+    w = np.where(pos, np.maximum(rc, 1e-12), 0.0) / max(float(rc[k] if np.ndim(rc) else rc), 1e-30) \
+        if part == "METAL" else f0 / max(float(f0[k]), 1e-30)
+    evals = 0
 
-    def unpack(x):
+    def run(x):
+        nonlocal evals
         bh_ = min(max(float(x[0]), 0.0), K.MAX_HAZINESS)
-        if part == "METAL":
-            rc_ = np.where(pos, np.exp(np.minimum(x[1:], 0.0)), 0.0)
-        else:
-            rc_ = math.exp(min(float(x[1]), 0.0)) * chroma
-        return bh_, rc_
-
-    def residual(x):
-        bh_, rc_ = unpack(x)
+        rc_ = np.clip(math.exp(min(float(x[1]), 0.0)) * w, 0.0, 1.0)
         b_, r_, _ = forward(part, dist, rc_, rough, aniso, rot, bh_, lam, tint)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lr = np.where(pos & (r_ > 0), np.log(np.where(r_ > 0, r_, 1.0) / np.where(pos, f0, 1.0)), 0.0)
-        res = [b_ - beta] + (list(lr) if part == "METAL" else [float(lr[int(np.argmax(f0))])])
-        return np.array(res), b_, r_
+        evals += 1
+        lr = math.log(max(float(r_[k]), 1e-300) / float(f0[k]))
+        return np.array([b_ - beta, lr]), b_, r_, bh_, rc_
 
-    if part == "METAL":
-        x = np.concatenate([[bh], np.log(np.where(pos, np.maximum(rc, 1e-12), 1.0))])
-    else:
-        x = np.array([bh, math.log(max(float(np.max(rc)), 1e-12))])
-    res, b_got, r_got = residual(x)
-    evals = 1
-    for _ in range(max_iter):
-        if float(np.max(np.abs(res))) <= tol:
-            break
-        jac = np.empty((len(x), len(x)))
-        for j in range(len(x)):
-            h = 1e-7 * max(abs(x[j]), 1.0)
-            xh = x.copy()
-            xh[j] += h if not (j == 0 and x[0] + h > K.MAX_HAZINESS) else -h
-            step_j = xh[j] - x[j]
-            jac[:, j] = (residual(xh)[0] - res) / step_j
-            evals += 1
-        try:
-            dx = np.linalg.solve(jac, -res)
-        except np.linalg.LinAlgError:
-            dx = np.linalg.lstsq(jac, -res, rcond=None)[0]
-        t = 1.0
-        for _ in range(30):
-            xn = x + t * dx
-            xn[0] = min(max(xn[0], 0.0), K.MAX_HAZINESS)
-            rn, bn, rr = residual(xn)
-            evals += 1
-            if float(np.max(np.abs(rn))) < float(np.max(np.abs(res))):
+    x = np.array([bh, math.log(max(float(np.max(rc)), 1e-12))])
+    res, b_got, r_got, bh, rc = run(x)
+    for _outer in range(12):
+        for _ in range(max_iter):
+            if float(np.max(np.abs(res))) <= tol:
                 break
-            t *= 0.5
-        else:
-            break  # no step reduces the residual: the closest the layer can render
-        if np.allclose(xn, x, rtol=0.0, atol=1e-16):
-            x, res, b_got, r_got = xn, rn, bn, rr
+            jac = np.empty((2, 2))
+            for j in range(2):
+                h = 1e-7 * max(abs(x[j]), 1.0)
+                xh = x.copy()
+                xh[j] += h if not (j == 0 and x[0] + h > K.MAX_HAZINESS) else -h
+                jac[:, j] = (run(xh)[0] - res) / (xh[j] - x[j])
+            try:
+                dx = np.linalg.solve(jac, -res)
+            except np.linalg.LinAlgError:
+                dx = np.linalg.lstsq(jac, -res, rcond=None)[0]
+            t = 1.0
+            for _ in range(30):
+                xn = x + t * dx
+                xn[0] = min(max(xn[0], 0.0), K.MAX_HAZINESS)
+                got = run(xn)
+                if float(np.max(np.abs(got[0]))) < float(np.max(np.abs(res))):
+                    break
+                t *= 0.5
+            else:
+                break  # no step reduces the residual: the closest the layer can render
+            moved = not np.allclose(xn, x, rtol=0.0, atol=1e-16)
+            x, (res, b_got, r_got, bh, rc) = xn, got
+            if not moved:
+                break
+        if part != "METAL":
             break
-        x, res, b_got, r_got = xn, rn, bn, rr
-    bh, rc = unpack(x)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(pos & (r_got > 0), f0 / r_got, 1.0)
+        if float(np.max(np.abs(ratio - 1.0))) <= tol:
+            break
+        w = np.clip(w * ratio, 0.0, None)
+        w[k] = 1.0
+        res, b_got, r_got, bh, rc = run(x)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = float(np.max(np.abs(np.where(f0 > 0, r_got / f0 - 1.0, 0.0))))
     capped = bh >= K.MAX_HAZINESS and b_got < beta - 1e-6

@@ -584,8 +584,8 @@ def resolve_haze(spec):
     spec.haze = dict(haziness=sol.haziness, haze_extent=lx if lx == ly else (lx, ly))
     t["error"] = sol.error
     if sol.error > 1e-6:
-        spec.notes.append(f"specular_haze {t['beta']:g} is beyond what the haze mapping can give this "
-                          f"core (the energy bounds of Eq. 6): β off by {sol.beta_error:.3g}, F(0) by "
+        spec.notes.append(f"specular_haze {t['beta']:g} needs a haziness at the mapping's bound (Eq. 6; "
+                          f"haziness is kept below 1): β off by {sol.beta_error:.3g}, F(0) by "
                           f"{sol.reflectivity_error:.3g} (relative)")
         spec.lossy += 1
     return spec.haze
