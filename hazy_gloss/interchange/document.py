@@ -192,31 +192,6 @@ NODEDEFS = {
         "emission_color": ("color3", (1.0, 1.0, 1.0)), "opacity": ("color3", (1.0, 1.0, 1.0)),
         "thin_walled": ("boolean", False), "normal": ("vector3", "Nworld"),
         "tangent": ("vector3", "Tworld")}),
-    "ND_standard_surface_surfaceshader_100": ("standard_surface", "surfaceshader", {
-        "base": ("float", 0.8), "base_color": ("color3", (1.0, 1.0, 1.0)),
-        "diffuse_roughness": ("float", 0.0), "metalness": ("float", 0.0),
-        "specular": ("float", 1.0), "specular_color": ("color3", (1.0, 1.0, 1.0)),
-        "specular_roughness": ("float", 0.2), "specular_IOR": ("float", 1.5),
-        "specular_anisotropy": ("float", 0.0), "specular_rotation": ("float", 0.0),
-        "transmission": ("float", 0.0), "transmission_color": ("color3", (1.0, 1.0, 1.0)),
-        "transmission_depth": ("float", 0.0),
-        "transmission_scatter": ("color3", (0.0, 0.0, 0.0)),
-        "transmission_scatter_anisotropy": ("float", 0.0),
-        "transmission_dispersion": ("float", 0.0),
-        "transmission_extra_roughness": ("float", 0.0), "subsurface": ("float", 0.0),
-        "subsurface_color": ("color3", (1.0, 1.0, 1.0)),
-        "subsurface_radius": ("color3", (1.0, 1.0, 1.0)), "subsurface_scale": ("float", 1.0),
-        "subsurface_anisotropy": ("float", 0.0), "sheen": ("float", 0.0),
-        "sheen_color": ("color3", (1.0, 1.0, 1.0)), "sheen_roughness": ("float", 0.3),
-        "coat": ("float", 0.0), "coat_color": ("color3", (1.0, 1.0, 1.0)),
-        "coat_roughness": ("float", 0.1), "coat_anisotropy": ("float", 0.0),
-        "coat_rotation": ("float", 0.0), "coat_IOR": ("float", 1.5),
-        "coat_normal": ("vector3", "Nworld"), "coat_affect_color": ("float", 0.0),
-        "coat_affect_roughness": ("float", 0.0), "thin_film_thickness": ("float", 0.0),
-        "thin_film_IOR": ("float", 1.5), "emission": ("float", 0.0),
-        "emission_color": ("color3", (1.0, 1.0, 1.0)), "opacity": ("color3", (1.0, 1.0, 1.0)),
-        "thin_walled": ("boolean", False), "normal": ("vector3", "Nworld"),
-        "tangent": ("vector3", "Tworld")}),
     "ND_gltf_pbr_surfaceshader": ("gltf_pbr", "surfaceshader", {
         "base_color": ("color3", (1.0, 1.0, 1.0)), "metallic": ("float", 1.0),
         "roughness": ("float", 1.0), "normal": ("vector3", "Nworld"),
@@ -267,6 +242,12 @@ NODEDEFS = {
         "geometry_coat_normal": ("vector3", "Nworld"), "geometry_tangent": ("vector3", "Tworld"),
         "geometry_coat_tangent": ("vector3", "Tworld")}),
 }
+
+# standard_surface 1.0.0 (version="1.0.0"): 1.0.1 with the older base defaults; MaterialX's
+# 1.0.1 nodedef inherits from it the same way
+NODEDEFS["ND_standard_surface_surfaceshader_100"] = ("standard_surface", "surfaceshader", dict(
+    NODEDEFS["ND_standard_surface_surfaceshader"][2], base=("float", 0.8),
+    base_color=("color3", (1.0, 1.0, 1.0))))
 
 #: OpenPBR surface inputs the add-on writes or reads, with the spec's defaults (OpenPBR 1.1/1.2).
 OPENPBR_INPUTS = {

@@ -29,6 +29,7 @@ residual is returned (measured in tests/pure/test_haze_blend.py and docs/interch
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -70,19 +71,19 @@ def forward(part, dist, rc, rough, aniso, rot, haziness, lam, tint=(1.0, 1.0, 1.
     return float(d.beta), r, float(wide.roughness)
 
 
+@dataclass
 class Solution:
     """``haziness``, ``haze_extent``, ``core_reflectivity`` (the user's F(0) per channel) and the
     residual of the blend they render: ``beta_error`` (absolute), ``reflectivity_error``
-    (relative), ``evaluations`` of the forward mapping."""
+    (relative), ``evaluations`` of the forward mapping, ``capped`` (β_h at its bound)."""
 
-    def __init__(self, haziness, lam, rc, beta_error, r_error, evaluations, capped):
-        self.haziness = haziness
-        self.haze_extent = lam
-        self.core_reflectivity = rc
-        self.beta_error = beta_error
-        self.reflectivity_error = r_error
-        self.evaluations = evaluations
-        self.capped = capped
+    haziness: float
+    haze_extent: tuple
+    core_reflectivity: tuple
+    beta_error: float
+    reflectivity_error: float
+    evaluations: int
+    capped: bool
 
     @property
     def error(self):

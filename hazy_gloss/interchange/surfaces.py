@@ -878,21 +878,9 @@ def coat_relative_ior(eta, eta_c, coat_w):
     return (1.0 - w) * eta + w * (ratio if ratio > 1.0 else 1.0 / ratio)
 
 
-def _conductor_fresnel(c, eta, k):
-    """Unpolarised conductor reflectance at cos θ = c (scalar; interchange.brdf's formula)."""
-    c2 = c * c
-    s2 = 1.0 - c2
-    e2, k2 = eta * eta, k * k
-    t0 = e2 - k2 - s2
-    a2b2 = math.sqrt(t0 * t0 + 4.0 * e2 * k2)
-    a = math.sqrt(max(0.5 * (a2b2 + t0), 0.0))
-    rs = (a2b2 + c2 - 2.0 * a * c) / (a2b2 + c2 + 2.0 * a * c)
-    t1 = a2b2 * c2 + s2 * s2
-    t2 = 2.0 * a * c * s2
-    return 0.5 * (rs + rs * (t1 - t2) / (t1 + t2))
-
-
 _F82_MU = 1.0 / 7.0
+
+
 _ERR_MU = tuple(i / 16.0 for i in range(1, 17))
 
 
@@ -900,24 +888,19 @@ def f82_tint_of_conductor(f0, edge):
     """Principled's F82 tint (Specular Tint of a metal) for Gulbrandsen's conductor with
     reflectivity ``f0`` and edge colour ``edge`` (standard_surface's metal): the tint that makes
     F82-tint match the conductor's Fresnel at μ̄ = 1/7 (as engines.f82_tint_fit), per channel,
-    and the largest |ΔF| over μ (16 samples) between the two models."""
+    and the largest |ΔF| over μ (16 samples) between the two models.  Python floats: it runs
+    for every metal of a library."""
+    from ..core.mapping import gulbrandsen_ior
+    from .brdf import fresnel_conductor_at
     tint, err = [], 0.0
     for r, g in zip(f0, edge):
         r = min(max(float(r), 0.0), 0.999)
-        g = min(max(float(g), 0.0), 1.0)
-        sr = math.sqrt(r)  # Gulbrandsen 2014 (core.mapping.gulbrandsen_ior)
-        n_d = (1.0 + sr) / (1.0 - sr)
-        eta = g * (1.0 - r) / (1.0 + r) + (1.0 - g) * n_d
-        gr = g / (1.0 + r)
-        kap = 2.0 * sr * math.sqrt(gr * (gr + 2.0 * (1.0 - g) / (1.0 - sr) ** 2))
-
-        def schlick(mu):
-            return r + (1.0 - r) * (1.0 - mu) ** 5
-        t = min(max(_conductor_fresnel(_F82_MU, eta, kap) / schlick(_F82_MU), 0.0), 1.0)
-        b = schlick(_F82_MU) * (1.0 - t) / (_F82_MU * (1.0 - _F82_MU) ** 6)
+        eta, kap = (float(x) for x in gulbrandsen_ior(r, min(max(float(g), 0.0), 1.0)))
+        schlick = lambda mu: r + (1.0 - r) * (1.0 - mu) ** 5  # noqa: E731
+        t = min(max(fresnel_conductor_at(_F82_MU, eta, kap) / schlick(_F82_MU), 0.0), 1.0)
+        b = schlick(_F82_MU) * (1.0 - t) / (_F82_MU * (1.0 - _F82_MU) ** 6)  # brdf.f82_tint's
         for mu in _ERR_MU:
-            f82 = schlick(mu) - b * mu * (1.0 - mu) ** 6
-            err = max(err, abs(_conductor_fresnel(mu, eta, kap) - f82))
+            err = max(err, abs(fresnel_conductor_at(mu, eta, kap) - (schlick(mu) - b * mu * (1.0 - mu) ** 6)))
         tint.append(t)
     return tuple(tint), err
 
@@ -927,6 +910,8 @@ def f82_tint_of_conductor(f0, edge):
 # --------------------------------------------------------------------------------------------
 
 
+_VECTOR_SOCKETS = frozenset(("Base Color", "Specular Tint", "Subsurface Radius", "Sheen Tint",
+                             "Coat Tint", "Emission Color", "Color", "Edge Tint", "IOR3"))
 #: Inputs of earlier drafts that files still carry (MaterialX's own OpenPBR examples), read as
 #: the released names.
 ALIASES = {"open_pbr_surface": {"specular_anisotropy": "specular_roughness_anisotropy",
@@ -964,6 +949,12 @@ class _Surface:
         if val is None:
             return
         self.out[socket] = self.b.socket(val, n)
+
+    def copy(self, rows):
+        """Inputs that are the Principled's sockets as they are: (socket, input) pairs; colour
+        and vector sockets take three components."""
+        for socket, name in rows:
+            self.set(socket, self.v(name), 3 if socket in _VECTOR_SOCKETS else 1)
 
     def const(self, name):
         """A constant input's value (float or tuple), or None when it is linked."""
@@ -1104,22 +1095,16 @@ def openpbr(doc, node, graph, name, notes, owned=None):
         if not (v("coat_darkening").is_const and v("coat_darkening").const == 0.0):
             notes.lose("coat_darkening: OpenPBR darkens the base under the coat, Cycles does not")
     s.set("IOR", eta, 1)
-    s.set("Transmission Weight", v("transmission_weight"), 1)
-    s.set("Transmission Dispersion Scale", v("transmission_dispersion_scale"), 1)
-    s.set("Transmission Dispersion Abbe Number", v("transmission_dispersion_abbe_number"), 1)
+    s.copy((("Transmission Weight", "transmission_weight"),
+            ("Transmission Dispersion Scale", "transmission_dispersion_scale"),
+            ("Transmission Dispersion Abbe Number", "transmission_dispersion_abbe_number"),
+            ("Subsurface Weight", "subsurface_weight"), ("Subsurface Radius", "subsurface_radius_scale"),
+            ("Subsurface Scale", "subsurface_radius"), ("Subsurface Anisotropy", "subsurface_scatter_anisotropy"),
+            ("Sheen Weight", "fuzz_weight"), ("Sheen Tint", "fuzz_color"), ("Sheen Roughness", "fuzz_roughness"),
+            ("Coat Weight", "coat_weight"), ("Coat Tint", "coat_color"), ("Coat Roughness", "coat_roughness"),
+            ("Coat IOR", "coat_ior")))
     s.unsupported(("transmission_depth", "transmission_scatter", "transmission_scatter_anisotropy"),
                   "the Principled BSDF has no interior medium")
-    s.set("Subsurface Weight", v("subsurface_weight"), 1)
-    s.set("Subsurface Radius", v("subsurface_radius_scale"), 3)
-    s.set("Subsurface Scale", v("subsurface_radius"), 1)
-    s.set("Subsurface Anisotropy", v("subsurface_scatter_anisotropy"), 1)
-    s.set("Sheen Weight", v("fuzz_weight"), 1)
-    s.set("Sheen Tint", v("fuzz_color"), 3)
-    s.set("Sheen Roughness", v("fuzz_roughness"), 1)
-    s.set("Coat Weight", cw, 1)
-    s.set("Coat Tint", v("coat_color"), 3)
-    s.set("Coat Roughness", cr, 1)
-    s.set("Coat IOR", cior, 1)
     s.unsupported(("coat_roughness_anisotropy",), "the Principled coat is isotropic")
     tfw, tft = v("thin_film_weight"), v("thin_film_thickness")
     thick = b.mul(tft, C(1000.0))  # μm -> nm
@@ -1217,32 +1202,23 @@ def standard_surface(doc, node, graph, name, notes):
     else:
         s.set("Anisotropic", b.clamp(b.mul(a, C(1.0 / 0.9))))
     s.set("Roughness", r, 1)
-    s.set("IOR", v("specular_IOR"), 1)
-    s.set("Transmission Weight", v("transmission"), 1)
+    s.copy((("IOR", "specular_IOR"), ("Transmission Weight", "transmission"),
+            ("Subsurface Weight", "subsurface"), ("Subsurface Radius", "subsurface_radius"),
+            ("Subsurface Scale", "subsurface_scale"), ("Subsurface Anisotropy", "subsurface_anisotropy"),
+            ("Sheen Weight", "sheen"), ("Sheen Tint", "sheen_color"), ("Coat Weight", "coat"),
+            ("Coat Tint", "coat_color"), ("Coat Roughness", "coat_roughness"), ("Coat IOR", "coat_IOR"),
+            ("Thin Film Thickness", "thin_film_thickness"), ("Thin Film IOR", "thin_film_IOR"),
+            ("Emission Color", "emission_color"), ("Emission Strength", "emission")))
     s.unsupported(("transmission_depth", "transmission_scatter", "transmission_scatter_anisotropy",
                    "transmission_dispersion", "transmission_extra_roughness"),
                   "the Principled BSDF's transmission has no medium of its own")
-    s.set("Subsurface Weight", v("subsurface"), 1)
-    s.set("Subsurface Radius", v("subsurface_radius"), 3)
-    s.set("Subsurface Scale", v("subsurface_scale"), 1)
-    s.set("Subsurface Anisotropy", v("subsurface_anisotropy"), 1)
-    s.set("Sheen Weight", v("sheen"), 1)
-    s.set("Sheen Tint", v("sheen_color"), 3)
     # MaterialX's standard_surface_to_open_pbr: fuzz_roughness = sheen_roughness^0.4 (by eye)
     s.set("Sheen Roughness", b.pow(v("sheen_roughness"), C(0.4)), 1)
     if not s.is_default("sheen"):
         notes.lose("sheen: standard_surface's sheen (Estevez-Kulla) is Cycles' microfiber sheen with "
                    "roughness^0.4 (MaterialX's translation to OpenPBR)")
-    s.set("Coat Weight", v("coat"), 1)
-    s.set("Coat Tint", v("coat_color"), 3)
-    s.set("Coat Roughness", v("coat_roughness"), 1)
-    s.set("Coat IOR", v("coat_IOR"), 1)
     s.unsupported(("coat_anisotropy", "coat_rotation", "coat_affect_color"),
                   "the Principled coat is isotropic and does not saturate the base")
-    s.set("Thin Film Thickness", v("thin_film_thickness"), 1)
-    s.set("Thin Film IOR", v("thin_film_IOR"), 1)
-    s.set("Emission Color", v("emission_color"), 3)
-    s.set("Emission Strength", v("emission"), 1)
     op = v("opacity")
     if op.is_const and len(set(_t3(op.const))) > 1:
         notes.lose("a coloured opacity is imported as its average (Alpha)")

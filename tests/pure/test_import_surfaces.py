@@ -26,6 +26,7 @@ from hazy_gloss.interchange import materialx as M
 from hazy_gloss.interchange import materialx_import as MI
 from hazy_gloss.interchange.document import read_value
 from hazy_gloss.interchange.surfaces import Link
+from test_interchange import _load as _mx_doc
 
 FIXTURES = Path(__file__).resolve().parent / "mtlx_fixtures"
 
@@ -39,14 +40,6 @@ def lib():
 
 def _read(name):
     return {im.name: im for im in M.read(FIXTURES / name)}
-
-
-def _mx_doc(path, lib=None):
-    doc = mx.createDocument()
-    mx.readFromXmlFile(doc, str(path))
-    if lib is not None:
-        doc.importLibrary(lib)
-    return doc
 
 
 def cycles_alpha(R, A):
@@ -576,3 +569,14 @@ def test_the_blend_is_reached_across_materials():
         b, got, _ = haze_blend.forward(str(part), "MULTI_GGX", sol.core_reflectivity, r, 0.0, 0.0,
                                        sol.haziness, sol.haze_extent)
         assert b == pytest.approx(beta, abs=1e-9) and got == pytest.approx(f0, rel=1e-9), (part, f0, beta, spread, r)
+
+
+def test_the_scalar_conductor_fresnel_is_the_vector_one():
+    from hazy_gloss.interchange.brdf import fresnel_conductor, fresnel_conductor_at
+    rng = np.random.default_rng(4)
+    mu = rng.uniform(0.0, 1.0, 50)
+    eta, kap = rng.uniform(0.05, 4.0, 3), rng.uniform(0.0, 6.0, 3)
+    vec = fresnel_conductor(mu, eta, kap)
+    for i, m in enumerate(mu):
+        for ch in range(3):
+            assert fresnel_conductor_at(m, eta[ch], kap[ch]) == pytest.approx(vec[i, ch], rel=1e-13, abs=1e-15)
