@@ -598,8 +598,11 @@ def _input_of(a):
     t = a.get("type", "")
     text = a.get("value")
     value, problem = read_value(text, t) if text is not None else (None, None)
-    if not t and text is not None:
-        problem = "has no type: ignored, as MaterialX ignores it"
+    if text is not None:
+        if not t:
+            problem = "has no type: ignored, as MaterialX ignores it"
+        if len(a) == 3:  # name, type, value: the common case, nothing else to look up
+            return Input(a.get("name", ""), t, value, None, None, None, None, None, None, problem)
     return Input(a.get("name", ""), t, value, a.get("nodename"), a.get("nodegraph"),
                  a.get("output"), a.get("interfacename"), a.get("colorspace"),
                  a.get("channels"), problem)

@@ -687,14 +687,15 @@ def recognise(doc, *, use_stored=True, progress=None):
     return out
 
 
+_F32_MAX = 3.4028234663852886e38
+
+
 def _finite(v):
+    """A value Blender's float32 sockets hold (finite, within float32's range)."""
     if isinstance(v, float):
-        return math.isfinite(v)
+        return -_F32_MAX <= v <= _F32_MAX
     if isinstance(v, tuple):
-        try:
-            return math.isfinite(math.fsum(v))
-        except (TypeError, OverflowError):
-            return all(isinstance(x, (int, float)) and math.isfinite(x) for x in v)
+        return all(isinstance(x, (int, float)) and -_F32_MAX <= x <= _F32_MAX for x in v)
     return True
 
 

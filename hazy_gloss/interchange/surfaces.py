@@ -465,8 +465,12 @@ class Upstream:
         self.name = name
         self.memo = {}
         self.textured = []
-        base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
-        self.directory = base
+
+    @property
+    def directory(self):
+        """Where relative texture paths start: the document's folder."""
+        doc = self.doc
+        return os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
 
     # -- the surface's inputs ------------------------------------------------------------------
     def input(self, node, graph, name, spec):
@@ -881,14 +885,14 @@ def coat_relative_ior(eta, eta_c, coat_w):
 _F82_MU = 1.0 / 7.0
 
 
-_ERR_MU = tuple(i / 16.0 for i in range(1, 17))
+_ERR_MU = tuple(i / 8.0 for i in range(1, 9))
 
 
 def f82_tint_of_conductor(f0, edge):
     """Principled's F82 tint (Specular Tint of a metal) for Gulbrandsen's conductor with
     reflectivity ``f0`` and edge colour ``edge`` (standard_surface's metal): the tint that makes
     F82-tint match the conductor's Fresnel at μ̄ = 1/7 (as engines.f82_tint_fit), per channel,
-    and the largest |ΔF| over μ (16 samples) between the two models.  Python floats: it runs
+    and the largest |ΔF| over μ (8 samples) between the two models.  Python floats: it runs
     for every metal of a library."""
     from ..core.mapping import gulbrandsen_ior
     from .brdf import fresnel_conductor_at
@@ -934,19 +938,27 @@ class _Surface:
         self.spec_in = surface_defaults(node)
         self._memo = {}
         self.out = {}
-        known = set(self.spec_in)
+        spec_in = self.spec_in
         for k in node.inputs:
-            if k not in known and not (node.category == "open_pbr_surface" and k == "specular_rotation"):
+            if k not in spec_in and not (node.category == "open_pbr_surface" and k == "specular_rotation"):
                 notes.say(f"{node.name}.{k} is not an input of {node.category}: ignored")
 
     def v(self, name):
         got = self._memo.get(name)
         if got is None:
-            got = self._memo[name] = self.up.input(self.node, self.graph, name, self.spec_in)
+            if name not in self.node.inputs:  # the common case: the nodedef's default
+                got = _default_val(self.spec_in, name)
+            else:
+                got = self.up.input(self.node, self.graph, name, self.spec_in)
+            self._memo[name] = got
         return got
 
     def set(self, socket, val, n=None):
         if val is None:
+            return
+        if val.link is None and (n is None or n == val.n):  # a constant as it is
+            c = val.const
+            self.out[socket] = c if val.n == 1 or isinstance(c, tuple) else (c, c, c)
             return
         self.out[socket] = self.b.socket(val, n)
 
@@ -962,6 +974,8 @@ class _Surface:
         return None if x is None or not x.is_const else x.const
 
     def is_default(self, name, dflt=None):
+        if name not in self.node.inputs:
+            return True
         v = self.v(name)
         if v is None:
             return True
