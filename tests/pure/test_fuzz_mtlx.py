@@ -158,3 +158,59 @@ def test_a_damaged_value_is_said_and_the_rest_read(tmp_path):
     m, n = M.read(path)
     assert m.surface.inputs["Base Color"] == (0.8, 0.8, 0.8) and "is not 3 numbers" in " ".join(m.notes)
     assert n.ok and n.exact
+
+
+def _surface_finite(im):
+    s = im.surface
+    if s is None:
+        return True
+    vals = list(s.inputs.values()) + [v for n in s.nodes.values() for v in n.inputs.values()]
+    for v in vals:
+        for x in (v if isinstance(v, tuple) else (v,)):
+            if isinstance(x, float) and not (math.isfinite(x) and abs(x) <= 3.4028234663852886e38):
+                return False
+    return True
+
+
+def test_fuzz_library_surfaces(tmp_path):
+    """The same mutations of documents of library surfaces (textures, node graphs, 1.38
+    swizzles, UsdPreviewSurface readers): read (every value a float32 socket holds) or one
+    ValueError line, never another exception or a hang.  Every other mutation of two fixtures,
+    to keep it short."""
+    fixtures = Path(__file__).resolve().parent / "mtlx_fixtures"
+    path = str(tmp_path / "case.mtlx")
+    counts, failures = collections.Counter(), []
+
+    def alarm(*_):
+        raise _Timeout()
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    cases = [(attack, doc) for name in ("gltf_orm_138.mtlx", "usd_preview_138.mtlx")
+             for attack, doc in mutations((fixtures / name).read_text(), seed=3)]
+    try:
+        for k, (attack, doc) in enumerate(cases):
+            if k % 2:
+                continue
+            Path(path).write_text(doc)
+            signal.setitimer(signal.ITIMER_REAL, CASE_TIME)
+            try:
+                got = M.read(path)
+                outcome = "read" if all(_surface_finite(im) for im in got) else "non-finite"
+            except ValueError as exc:
+                outcome = "ValueError"
+                if "\n" in str(exc) or path not in str(exc):
+                    failures.append(f"{attack}: not one line naming the file: {str(exc)[:200]!r}")
+            except _Timeout:
+                outcome = "hang"
+            except Exception as exc:  # noqa: BLE001  (what the fuzz looks for)
+                outcome = f"{type(exc).__name__}: {exc}"
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+            counts[(attack, outcome.split(":")[0])] += 1
+            if outcome not in ("read", "ValueError"):
+                failures.append(f"{attack}: {outcome}")
+    finally:
+        signal.signal(signal.SIGALRM, old)
+    assert not failures, failures[:10]
+    assert sum(counts.values()) > 1000
+    assert counts[("input values (NaN, inf, overflow, wrong count, garbage)", "read")] > 100
