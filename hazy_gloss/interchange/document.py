@@ -347,9 +347,10 @@ def read_value(text, type_):
             return x, None
     if type_ in _VECTOR:
         n = _VECTOR[type_]
-        toks = [t for t in text.replace(",", " ").split(" ") if t] if _PLAIN_VECTOR.fullmatch(text) \
+        plain = _PLAIN_VECTOR.fullmatch(text) is not None
+        toks = [t for t in text.replace(",", " ").split(" ") if t] if plain \
             else [t for t in _SPLIT.split(text) if t]
-        if len(toks) == n and _PLAIN_VECTOR.fullmatch(text):
+        if plain and len(toks) == n:
             vals = tuple(map(float, toks))
             if all(abs(v) < _F32_LIMIT for v in vals):
                 return vals, None

@@ -184,6 +184,8 @@ def _safe_pow(a, b):
 
 def C(x):
     """A constant Val."""
+    if type(x) is float:
+        return Val(1, x)
     if isinstance(x, (tuple, list)):
         t = tuple(float(v) for v in x[:3])
         if len(t) == 2:  # a vector2 (uv): z = 0
@@ -946,8 +948,14 @@ class _Surface:
     def v(self, name):
         got = self._memo.get(name)
         if got is None:
-            if name not in self.node.inputs:  # the common case: the nodedef's default
+            inp = self.node.inputs.get(name)
+            if inp is None:  # the common case: the nodedef's default
                 got = _default_val(self.spec_in, name)
+            elif (inp.value is not None and inp.problem is None and inp.nodename is None
+                  and inp.nodegraph is None and inp.interfacename is None and inp.channels is None
+                  and inp.type == self.spec_in.get(name, ("",))[0]):  # a plain authored value
+                x = inp.value
+                got = Val(3, x) if type(x) is tuple and len(x) == 3 else C(x)
             else:
                 got = self.up.input(self.node, self.graph, name, self.spec_in)
             self._memo[name] = got
