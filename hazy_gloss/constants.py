@@ -38,6 +38,8 @@ MAX_ASPECT = 10.0
 MIN_SMOOTHNESS = 1e-4
 #: Largest float32 below 1: r <= 1 - ε keeps η, κ finite in float32 shader math.
 ONE_MINUS_ULP32 = 1.0 - 2.0 ** -23
+#: float32's largest finite value (what a Blender float socket holds).
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def min_roughness(distribution):

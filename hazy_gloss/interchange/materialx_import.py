@@ -687,15 +687,12 @@ def recognise(doc, *, use_stored=True, progress=None):
     return out
 
 
-_F32_MAX = 3.4028234663852886e38
-
-
 def _finite(v):
     """A value Blender's float32 sockets hold (finite, within float32's range)."""
     if isinstance(v, float):
-        return -_F32_MAX <= v <= _F32_MAX
+        return -K.FLOAT32_MAX <= v <= K.FLOAT32_MAX
     if isinstance(v, tuple):
-        return all(isinstance(x, (int, float)) and -_F32_MAX <= x <= _F32_MAX for x in v)
+        return all(isinstance(x, (int, float)) and -K.FLOAT32_MAX <= x <= K.FLOAT32_MAX for x in v)
     return True
 
 

@@ -35,6 +35,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
+from .. import constants as K
 from .document import NODEDEFS, OPENPBR_12_INPUTS
 
 __all__ = ("Link", "TexNode", "SurfaceSpec", "SURFACES", "principled_of", "Upstream",
@@ -884,9 +885,6 @@ def coat_relative_ior(eta, eta_c, coat_w):
     return (1.0 - w) * eta + w * (ratio if ratio > 1.0 else 1.0 / ratio)
 
 
-_F82_MU = 1.0 / 7.0
-
-
 _ERR_MU = tuple(i / 8.0 for i in range(1, 9))
 
 
@@ -903,8 +901,8 @@ def f82_tint_of_conductor(f0, edge):
         r = min(max(float(r), 0.0), 0.999)
         eta, kap = (float(x) for x in gulbrandsen_ior(r, min(max(float(g), 0.0), 1.0)))
         schlick = lambda mu: r + (1.0 - r) * (1.0 - mu) ** 5  # noqa: E731
-        t = min(max(fresnel_conductor_at(_F82_MU, eta, kap) / schlick(_F82_MU), 0.0), 1.0)
-        b = schlick(_F82_MU) * (1.0 - t) / (_F82_MU * (1.0 - _F82_MU) ** 6)  # brdf.f82_tint's
+        t = min(max(fresnel_conductor_at(K.F82_MU, eta, kap) / schlick(K.F82_MU), 0.0), 1.0)
+        b = schlick(K.F82_MU) * (1.0 - t) / (K.F82_MU * (1.0 - K.F82_MU) ** 6)  # brdf.f82_tint's
         for mu in _ERR_MU:
             err = max(err, abs(fresnel_conductor_at(mu, eta, kap) - (schlick(mu) - b * mu * (1.0 - mu) ** 6)))
         tint.append(t)
