@@ -252,7 +252,11 @@ def import_materialx(path, *, progress=None):
     Returns the list of new materials with ``.report`` (one entry per material found:
     ``exact``, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``)."""
     from .blender import interchange as _ix
-    return _ix.import_materialx(path, progress=progress)
+    return _ix.import_materialx(path, progress=progress, apply_haze=_imported_haze)
+
+
+def _imported_haze(mat, node, haze):
+    make_hazy(mat, node=node, **haze)
 
 
 def export_usd(materials=None, path="", *, preview=True):

@@ -39,7 +39,7 @@ import os
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
-from bpy_extras.io_utils import ExportHelper, ImportHelper
+from bpy_extras.io_utils import ExportHelper
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
@@ -297,7 +297,7 @@ def _map_material(im):
     return mat
 
 
-def import_materialx(path, progress=None):
+def import_materialx(path, progress=None, apply_haze=None):
     """Materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
     (.usd/.usda/.usdc, needs usd-core).  Returns an ImportResult (a list of the new
     materials, with ``.report``).  Library surfaces (OpenPBR, standard_surface, gltf_pbr,
@@ -305,7 +305,8 @@ def import_materialx(path, progress=None):
     the add-on's layered exports their layer again, Eq. 1 graphs hazy materials.  Each material
     carries ``mat["hazy_gloss_import"]``: exact, source and the notes of what was not exact.
     ``progress``: callable(fraction, message) — reading is the first half, making the
-    materials the second."""
+    materials the second.  ``apply_haze``: callable(material, bsdf node, make_hazy keywords)
+    that puts an imported haze layer on (api.import_materialx passes api.make_hazy's)."""
     path = bpy.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise ValueError(f"no file {path!r}")
@@ -327,7 +328,7 @@ def import_materialx(path, progress=None):
             elif im.parameters is not None:
                 mat = material.create_material(im.name, **im.parameters)
             elif im.surface is not None:
-                mat = surface_build.build(im)
+                mat = surface_build.build(im, apply_haze=apply_haze)
             else:
                 continue
         except (ValueError, OSError) as exc:
@@ -951,43 +952,6 @@ class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
-    """Read materials from MaterialX (.mtlx) or USD: OpenPBR, Standard Surface, glTF PBR and
-    UsdPreviewSurface surfaces become Principled BSDF materials (OpenPBR 1.2's haze a haze
-    layer), two-lobe mixes hazy materials, with a report of what is not exact"""
-
-    bl_idname = "hazy_gloss.import_materialx"
-    bl_label = "Import Hazy Gloss MaterialX"
-    bl_options = {"REGISTER", "UNDO"}
-
-    filter_glob: StringProperty(default="*.mtlx;*.usd;*.usda;*.usdc", options={"HIDDEN"})
-
-    def execute(self, context):
-        if os.path.splitext(self.filepath)[1].lower() in (".usd", ".usda", ".usdc") and not usd.available():
-            _say(self, "ERROR", usd.USD_MISSING)
-            return {"CANCELLED"}
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        try:
-            res = import_materialx(self.filepath, progress=lambda f, msg: wm.progress_update(int(100 * f)))
-        except (ValueError, OSError, RuntimeError) as exc:
-            _say(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        finally:
-            wm.progress_end()
-        exact = sum(1 for im in res.report if im.material is not None and im.exact)
-        _say(self, "INFO", f"Imported {len(res)} material{'s' if len(res) != 1 else ''} "
-             f"({exact} exact) of {len(res.report)} found")
-        said = 0
-        for im in res.report:
-            if (im.notes or im.material is None) and said < 20:
-                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not imported"))
-                said += 1
-        if said < sum(1 for im in res.report if im.notes or im.material is None):
-            _say(self, "WARNING", "more notes in each material's hazy_gloss_import property")
-        return {"FINISHED"} if res else {"CANCELLED"}
-
-
 class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
     """Make Blender's glTF and USD exporters write the core lobe of this hazy material (its look
     at haziness 0) instead of nothing or the halo; renders are unchanged"""
@@ -1071,7 +1035,6 @@ def draw_material_menu(self, context):
 
 
 classes = (HAZY_GLOSS_OT_export_materialx, HAZY_GLOSS_OT_export_usd,
-           HAZY_GLOSS_OT_import_materialx, HAZY_GLOSS_OT_add_export_fallback,
-           HAZY_GLOSS_OT_remove_export_fallback)
+           HAZY_GLOSS_OT_add_export_fallback, HAZY_GLOSS_OT_remove_export_fallback)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -92,9 +92,11 @@ def _udim_image(path, name, notes):
     return img
 
 
-def build(im, notes=None):
+def build(im, notes=None, apply_haze=None):
     """A new material from ``im.surface``; returns it.  Notes (what this Blender cannot hold)
-    go to ``im.notes``."""
+    go to ``im.notes``.  ``apply_haze(material, bsdf node, keywords)`` makes its haze layer (the
+    public api.make_hazy, passed in by api.import_materialx: this module does not import the
+    API, which imports it)."""
     spec = im.surface
     notes = im.notes if notes is None else notes
     haze = materialx_import.resolve_haze(spec)  # first: it sets the user's F(0) the layer raises
@@ -132,11 +134,13 @@ def build(im, notes=None):
     tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
     out.is_active_output = True
     if haze and (float(haze.get("haziness", 0.0)) > 0.0 or float(haze.get("coat_haziness", 0.0)) > 0.0):
-        from .. import api
-        try:
-            api.make_hazy(mat, node=bsdf, **haze)
-        except ValueError as exc:
-            notes.append(f"the haze layer was not made: {exc}")
+        if apply_haze is None:
+            notes.append(f"the haze layer ({haze}) was not made: import through api.import_materialx")
+        else:
+            try:
+                apply_haze(mat, bsdf, haze)
+            except ValueError as exc:
+                notes.append(f"the haze layer was not made: {exc}")
     return mat
 
 
