@@ -3,8 +3,9 @@
 fallback that makes Blender's own glTF and USD exporters write the core lobe.
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
-``materialx.Source`` objects, creates materials from what is imported, and holds the operators
-(File > Export / Import, the material context menu).  A material with a haze layer (Make Hazy)
+``materialx.Source`` objects, creates materials from what is imported (library surfaces through
+blender/surface_build.py), and holds the operators (File > Export, the material context menu;
+File > Import is blender/interchange_ops.py, over api.import_materialx).  A material with a haze layer (Make Hazy)
 becomes a snapshot of its node tree (:func:`tree_snapshot`), which interchange/layered.py
 writes node by node (docs/interchange.md §5).
 
