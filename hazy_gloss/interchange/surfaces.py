@@ -162,6 +162,14 @@ def _t3(x):
 
 
 def _map(f, *xs):
+    if len(xs) == 2:  # the common case, without the general machinery
+        a, b = xs
+        ta, tb = type(a) is tuple, type(b) is tuple
+        if not (ta or tb):
+            return f(a, b)
+        a = a if ta else (a, a, a)
+        b = b if tb else (b, b, b)
+        return (f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]))
     if any(isinstance(x, tuple) for x in xs):
         cols = [_t3(x) for x in xs]
         return tuple(f(*c) for c in zip(*cols))
@@ -447,14 +455,19 @@ def _as_val(dflt):
 _DEFAULT_VALS = {}
 
 
+def _defaults_of(spec):
+    """{input: its nodedef default as a constant Val} of a spec (shared: constants are not
+    changed)."""
+    table = _DEFAULT_VALS.get(id(spec))
+    if table is None:
+        table = _DEFAULT_VALS[id(spec)] = {k: _as_val(d) for k, (_, d) in spec.items()}
+    return table
+
+
 def _default_val(spec, name):
-    """The nodedef default of an input as a constant Val (shared: constants are not changed)."""
-    key = (id(spec), name)
-    v = _DEFAULT_VALS.get(key, _DEFAULT_VALS)
-    if v is _DEFAULT_VALS:
-        typ, dflt = spec.get(name, ("float", 0.0))
-        v = _DEFAULT_VALS[key] = _as_val(dflt)
-    return v
+    """The nodedef default of an input as a constant Val."""
+    table = _defaults_of(spec)
+    return table[name] if name in table else _as_val(0.0)
 
 
 class Upstream:
@@ -925,6 +938,9 @@ ALIASES = {"open_pbr_surface": {"specular_anisotropy": "specular_roughness_aniso
 class _Surface:
     """One surface node being mapped: its inputs as Vals, the Principled's sockets."""
 
+    __slots__ = ("node", "graph", "notes", "b", "up", "spec_in", "_memo", "out", "_inputs",
+                 "_defaults")
+
     def __init__(self, doc, node, graph, name, notes):
         for old, new in ALIASES.get(node.category, {}).items():
             if old in node.inputs and new not in node.inputs:
@@ -938,6 +954,8 @@ class _Surface:
         self.spec_in = surface_defaults(node)
         self._memo = {}
         self.out = {}
+        self._inputs = node.inputs
+        self._defaults = _defaults_of(self.spec_in)
         spec_in = self.spec_in
         for k in node.inputs:
             if k not in spec_in and not (node.category == "open_pbr_surface" and k == "specular_rotation"):
@@ -946,9 +964,9 @@ class _Surface:
     def v(self, name):
         got = self._memo.get(name)
         if got is None:
-            inp = self.node.inputs.get(name)
+            inp = self._inputs.get(name)
             if inp is None:  # the common case: the nodedef's default
-                got = _default_val(self.spec_in, name)
+                got = self._defaults[name] if name in self._defaults else _default_val(self.spec_in, name)
             elif (inp.value is not None and inp.problem is None and inp.nodename is None
                   and inp.nodegraph is None and inp.interfacename is None and inp.channels is None
                   and inp.type == self.spec_in.get(name, ("",))[0]):  # a plain authored value
@@ -1400,6 +1418,7 @@ def bsdf_core(doc, node, graph, name, notes, core_type, owned=None):
     Cycles renders."""
     s = _Surface(doc, node, graph, name, notes)
     s.spec_in = _DEFAULTS.get((node.category, "BSDF"), {})
+    s._defaults = _defaults_of(s.spec_in)
     v = s.v
     alpha = v("roughness")
     ax, ay = (_t3(alpha.const)[:2] if alpha is not None and alpha.is_const else (0.01, 0.01))
