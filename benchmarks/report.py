@@ -34,6 +34,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_layer_eevee", "perf_layer_eevee.py"),
     ("perf_layer_edit", "perf_layer_edit.py"),
     ("bench_production", "bench_production.py"),
+    ("perf_import", "perf_import.py"),
 )
 #: HG_REPORT_KEEP=perf_layer_eevee (comma-separated names) keeps a section's previous text and
 #: images in the docs instead of rerunning it (perf_layer_eevee takes ~40 min on 2 cores).
@@ -188,7 +189,8 @@ def main():
                        frag["perf_mapping"],
                        marked_section("perf_layer", frag["perf_layer"])]
                       + [kept_section(name) if name in KEEP else marked_section(name, frag[name])
-                         for name in ("perf_layer_eevee", "perf_layer_edit", "bench_production")])
+                         for name in ("perf_layer_eevee", "perf_layer_edit", "bench_production",
+                                      "perf_import")])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
         "Where the paper's formulas are numerically delicate, how large the error of each "

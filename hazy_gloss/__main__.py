@@ -365,12 +365,16 @@ def _add_interchange(sub):
     ex.add_argument("--json", action="store_true", help="print the report as JSON")
     im = sub.add_parser(
         "import-materialx", help="recognise hazy materials in a MaterialX or USD file",
-        description="Recognise hazy materials in a .mtlx (or USD, needs usd-core) file: prints "
-                    "their perceptual parameters and what is not exact.  With --blend, creates "
-                    "them in a new .blend (needs bpy).")
+        description="Read the materials of a .mtlx (or USD, needs usd-core) file: library "
+                    "surfaces (OpenPBR, standard_surface, gltf_pbr, UsdPreviewSurface) as "
+                    "Principled BSDF materials, OpenPBR 1.2 haze as a haze layer, two-lobe "
+                    "mixes as hazy materials; prints what each becomes and what is not exact.  "
+                    "With --blend, creates them in a new .blend (needs bpy).")
     im.add_argument("path")
     im.add_argument("--blend", default=None, help="save the imported materials to this .blend")
     im.add_argument("--json", action="store_true")
+    im.add_argument("--quiet", action="store_true",
+                    help="no progress bar (files of 1 MB and more show one on stderr)")
     en = sub.add_parser(
         "engines", help="closest Unity / Unreal / Filament / OpenPBR 1.2 parameters",
         description="For each hazy material of a .mtlx/.usd file or a .blend, the closest "
@@ -434,44 +438,63 @@ def _export(args):
     return 0 if out.get("validated") is not False else 1
 
 
-def _read_any(path):
+def _read_any(path, progress=None):
     from .interchange import materialx, usd
     if os.path.splitext(path)[1].lower() in (".usd", ".usda", ".usdc", ".usdz"):
         return usd.read(path)
-    return materialx.read(path)
+    return materialx.read(path, progress=progress)
+
+
+def _surface_json(im):
+    if im.surface is None:
+        return None
+    from .interchange.materialx_import import resolve_haze
+    resolve_haze(im.surface)  # the make_hazy keywords (solved per hazy material)
+    return im.surface.to_dict()
 
 
 def _import(args):
     prog = "import-materialx"
     if not os.path.isfile(args.path):
         return _fail(prog, f"no file {args.path!r}")
-    if args.blend:
-        rc = _need_bpy(prog)
-        if rc is not None:
-            return rc
-        from . import api
-        from .blender import cli
-        cli.empty_file()
-        try:
-            res = api.import_materialx(os.path.abspath(args.path))
-        except (ValueError, RuntimeError, OSError) as exc:
-            return _fail(prog, str(exc))
-        found = res.report
-        cli.save_blend(args.blend)
-    else:
-        try:
-            found = _read_any(args.path)
-        except (ValueError, RuntimeError, OSError) as exc:
-            return _fail(prog, str(exc))
-    out = [{"name": im.name, "exact": im.exact, "source": im.source, "parameters": im.parameters,
-            "notes": im.notes, "maps": im.maps} for im in found]
+    from .utils.progress import TextProgress
+    big = os.path.getsize(args.path) >= K.MATERIALX_PROGRESS_BYTES
+    bar = TextProgress("import-materialx", quiet=args.quiet or not big)
+    try:
+        if args.blend:
+            rc = _need_bpy(prog)
+            if rc is not None:
+                return rc
+            from . import api
+            from .blender import cli
+            cli.empty_file()
+            try:
+                res = api.import_materialx(os.path.abspath(args.path), progress=bar)
+            except (ValueError, RuntimeError, OSError) as exc:
+                return _fail(prog, str(exc))
+            found = res.report
+            cli.save_blend(args.blend)
+        else:
+            try:
+                found = _read_any(args.path, progress=bar)
+            except (ValueError, RuntimeError, OSError) as exc:
+                return _fail(prog, str(exc))
+    finally:
+        bar.close()
     if args.json:
+        out = [{"name": im.name, "exact": im.exact, "source": im.source, "parameters": im.parameters,
+                "surface": _surface_json(im), "notes": im.notes, "maps": im.maps} for im in found]
         print(json.dumps(out, indent=1))
     else:
-        for m in out:
-            state = "exact" if m["exact"] else ("approximate" if m["parameters"] or m["maps"] else "not hazy")
-            print(f"{m['name']}: {state} ({m['source'] or '-'})")
-            for note in m["notes"]:
+        for im in found:
+            if im.surface is not None:
+                what = f"{im.surface.bsdf.replace('ShaderNodeBsdf', '')} BSDF" + (
+                    " with a haze layer" if im.surface.haze_target or im.surface.haze else "")
+            else:
+                what = "hazy material" if im.parameters or im.maps else "not imported"
+            state = "exact" if im.exact else ("approximate" if im.ok else "-")
+            print(f"{im.name}: {what}, {state} ({im.source or '-'})")
+            for note in im.notes:
                 print(f"  - {note}")
     return 0
 

@@ -244,15 +244,24 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     return _ix.export_materialx(materials, path, flavour, validate=validate)
 
 
-def import_materialx(path):
-    """Hazy materials from a MaterialX document, or a USD file with MaterialX networks (needs
-    usd-core).  Our own exports come back with their perceptual parameters; a mix of two
-    conductor_bsdf / dielectric_bsdf / generalized_schlick_bsdf lobes, or an OpenPBR 1.2
-    surface with specular_haze, goes through core.inverse_haze_mapping.  Returns the list of
-    new materials with ``.report`` (one entry per material found: ``exact``, ``source``,
-    ``notes``, ``parameters``, ``material``)."""
+def import_materialx(path, *, progress=None):
+    """Materials from a MaterialX document, or a USD file with MaterialX networks (needs
+    usd-core): the surfaces material libraries ship (open_pbr_surface 1.1 and 1.2 with
+    specular_haze, standard_surface, gltf_pbr, UsdPreviewSurface) as Principled BSDF materials
+    with their textures (OpenPBR 1.2's haze as a haze layer, :func:`make_hazy`); the add-on's
+    layered exports as the same layered material; Eq. 1 graphs (our own exports come back with
+    their perceptual parameters, a foreign mix of two conductor_bsdf / dielectric_bsdf /
+    generalized_schlick_bsdf lobes goes through core.inverse_haze_mapping) as hazy materials.
+    A damaged input is read the way MaterialX 1.39.5 reads it and reported; a damaged material
+    is reported and the rest of the file read.  ``progress``: callable(fraction, message).
+    Returns the list of new materials with ``.report`` (one entry per material found:
+    ``exact``, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``)."""
     from .blender import interchange as _ix
-    return _ix.import_materialx(path)
+    return _ix.import_materialx(path, progress=progress, apply_haze=_imported_haze)
+
+
+def _imported_haze(mat, node, haze):
+    make_hazy(mat, node=node, **haze)
 
 
 def export_usd(materials=None, path="", *, preview=True):

@@ -38,6 +38,8 @@ MAX_ASPECT = 10.0
 MIN_SMOOTHNESS = 1e-4
 #: Largest float32 below 1: r <= 1 - ε keeps η, κ finite in float32 shader math.
 ONE_MINUS_ULP32 = 1.0 - 2.0 ** -23
+#: float32's largest finite value (what a Blender float socket holds).
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def min_roughness(distribution):
@@ -126,6 +128,8 @@ MATERIALX_SRGB_COLORSPACE = "srgb_texture"
 MATERIALX_ATTR = "hazygloss"
 #: Version of the perceptual-parameter record stored with an exported material.
 INTERCHANGE_VERSION = 1
+#: import-materialx shows a progress bar for files of this size and more (--quiet: never).
+MATERIALX_PROGRESS_BYTES = 1 << 20
 #: Relative tolerance within which a graph's physical values count as "the same" as the
 #: forward mapping of the stored perceptual parameters (17 significant digits are written).
 INTERCHANGE_RTOL = 1e-6

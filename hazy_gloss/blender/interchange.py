@@ -3,8 +3,9 @@
 fallback that makes Blender's own glTF and USD exporters write the core lobe.
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
-``materialx.Source`` objects, creates materials from what is imported, and holds the operators
-(File > Export / Import, the material context menu).  A material with a haze layer (Make Hazy)
+``materialx.Source`` objects, creates materials from what is imported (library surfaces through
+blender/surface_build.py), and holds the operators (File > Export, the material context menu;
+File > Import is blender/interchange_ops.py, over api.import_materialx).  A material with a haze layer (Make Hazy)
 becomes a snapshot of its node tree (:func:`tree_snapshot`), which interchange/layered.py
 writes node by node (docs/interchange.md §5).
 
@@ -39,12 +40,12 @@ import os
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
-from bpy_extras.io_utils import ExportHelper, ImportHelper
+from bpy_extras.io_utils import ExportHelper
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import engines, layered, materialx, usd
-from . import compat, layer_group, material, stamp
+from . import compat, layer_group, material, stamp, surface_build
 from .context import plain_message, target_material
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -276,7 +277,8 @@ def tree_snapshot(mat):
             view = _core_view(gnode, kind, settings)
             nodes[view.name] = view
             lay.update(core=gnode.name, core_type=kind, settings=settings, live_math=True,
-                       group=gnode.node_tree.name, version=_layer.LAYER_VERSION)
+                       group=gnode.node_tree.name, version=_layer.LAYER_VERSION,
+                       nodes=sorted(n for n in nodes if n.startswith(gnode.name + "/")))
     return layered.Tree(mat.name, nodes, used.name if used is not None else None, lay)
 
 
@@ -413,31 +415,46 @@ def _map_material(im):
     return mat
 
 
-def import_materialx(path):
-    """Hazy materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
+def import_materialx(path, progress=None, apply_haze=None):
+    """Materials from a MaterialX document (.mtlx) or a USD file with MaterialX networks
     (.usd/.usda/.usdc, needs usd-core).  Returns an ImportResult (a list of the new
-    materials, with ``.report``).  Each material carries ``mat["hazy_gloss_import"]``:
-    exact, source and the notes of what was not exact."""
+    materials, with ``.report``).  Library surfaces (OpenPBR, standard_surface, gltf_pbr,
+    UsdPreviewSurface) become Principled BSDF materials (OpenPBR 1.2's haze a haze layer),
+    the add-on's layered exports their layer again, Eq. 1 graphs hazy materials.  Each material
+    carries ``mat["hazy_gloss_import"]``: exact, source and the notes of what was not exact.
+    ``progress``: callable(fraction, message) — reading is the first half, making the
+    materials the second.  ``apply_haze``: callable(material, bsdf node, make_hazy keywords)
+    that puts an imported haze layer on (api.import_materialx passes api.make_hazy's)."""
     path = bpy.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise ValueError(f"no file {path!r}")
+
+    def part(lo):
+        return None if progress is None else (lambda f, msg: progress(lo + 0.5 * f, msg))
+
     if os.path.splitext(path)[1].lower() in (".usd", ".usda", ".usdc", ".usdz"):
         found = usd.read(path)
     else:
-        found = materialx.read(path)
+        found = materialx.read(path, progress=part(0.0))
     mats = []
-    for im in found:
+    step = max(1, len(found) // 100)
+    for i, im in enumerate(found):
         im.material = None
         try:
             if im.maps is not None:
                 mat = _map_material(im)
             elif im.parameters is not None:
                 mat = material.create_material(im.name, **im.parameters)
+            elif im.surface is not None:
+                mat = surface_build.build(im, apply_haze=apply_haze)
             else:
                 continue
         except (ValueError, OSError) as exc:
             im.notes.append(f"not created: {plain_message(exc)}")
             continue
+        finally:
+            if progress is not None and (i % step == 0 or i == len(found) - 1):
+                progress(0.5 + 0.5 * (i + 1) / len(found), "making materials")
         mat[IMPORT_STAMP] = {"file": path, "exact": int(bool(im.exact)), "source": im.source,
                              "notes": "\n".join(im.notes)}
         im.material = mat
@@ -1082,35 +1099,6 @@ class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
-    """Read hazy materials from MaterialX (.mtlx) or USD: two-lobe mixes and OpenPBR 1.2 surfaces
-    with specular haze become hazy materials (inverse haze mapping), with a report of what is
-    not exact"""
-
-    bl_idname = "hazy_gloss.import_materialx"
-    bl_label = "Import Hazy Gloss MaterialX"
-    bl_options = {"REGISTER", "UNDO"}
-
-    filter_glob: StringProperty(default="*.mtlx;*.usd;*.usda;*.usdc", options={"HIDDEN"})
-
-    def execute(self, context):
-        if os.path.splitext(self.filepath)[1].lower() in (".usd", ".usda", ".usdc") and not usd.available():
-            _say(self, "ERROR", usd.USD_MISSING)
-            return {"CANCELLED"}
-        try:
-            res = import_materialx(self.filepath)
-        except (ValueError, OSError, RuntimeError) as exc:
-            _say(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        exact = sum(1 for im in res.report if im.material is not None and im.exact)
-        _say(self, "INFO", f"Imported {len(res)} hazy material{'s' if len(res) != 1 else ''} "
-             f"({exact} exact) of {len(res.report)} found")
-        for im in res.report:
-            if im.notes or im.material is None:
-                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not a hazy material"))
-        return {"FINISHED"} if res else {"CANCELLED"}
-
-
 class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
     """Make Blender's glTF and USD exporters write the core lobe of this hazy material (its look
     at haziness 0) instead of nothing or the halo; renders are unchanged"""
@@ -1194,7 +1182,6 @@ def draw_material_menu(self, context):
 
 
 classes = (HAZY_GLOSS_OT_export_materialx, HAZY_GLOSS_OT_export_usd,
-           HAZY_GLOSS_OT_import_materialx, HAZY_GLOSS_OT_add_export_fallback,
-           HAZY_GLOSS_OT_remove_export_fallback)
+           HAZY_GLOSS_OT_add_export_fallback, HAZY_GLOSS_OT_remove_export_fallback)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

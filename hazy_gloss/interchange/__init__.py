@@ -2,8 +2,12 @@
 """Hazy materials in and out of Blender: MaterialX, USD and other engines (bpy-free).
 
 - :mod:`.materialx` writes each hazy material as an exact Eq. 1 graph of the MaterialX 1.39
-  standard ``pbr`` library (xml.etree: the ``materialx`` package is not needed) and reads such
-  graphs back, also foreign two-lobe mixes and OpenPBR 1.2 surfaces with specular_haze;
+  standard ``pbr`` library (xml.etree: the ``materialx`` package is not needed);
+  :mod:`.materialx_import` reads documents back (:mod:`.document`'s streaming reader, values
+  as MaterialX 1.39.5 reads them): Eq. 1 graphs as hazy materials, the surfaces material
+  libraries ship (OpenPBR 1.1 / 1.2, standard_surface, gltf_pbr, UsdPreviewSurface) as
+  Principled BSDF specs (:mod:`.surfaces`), OpenPBR 1.2's haze as haze-layer parameters
+  (:mod:`.haze_blend`), the add-on's layered exports as their layer;
 - :mod:`.layered` writes a material with a haze layer (Make Hazy) as its own network:
   OpenPBR surfaces / pbr BSDFs mixed by β as the Blender tree mixes them, textures and the
   layer's node math included;

@@ -107,6 +107,23 @@ def fresnel_conductor(cos_d, eta, kappa):
     return 0.5 * (rs + rp)
 
 
+def fresnel_conductor_at(c, eta, kappa):
+    """:func:`fresnel_conductor` for one channel and one cos θ_d, in Python floats: reading a
+    library maps tens of thousands of materials, where numpy's per-call cost is ten times the
+    arithmetic (tests/pure/test_import_surfaces.py checks the two agree)."""
+    c = min(max(float(c), 1e-9), 1.0)
+    c2 = c * c
+    s2 = 1.0 - c2
+    e2, k2 = eta * eta, kappa * kappa
+    t0 = e2 - k2 - s2
+    a2b2 = math.sqrt(t0 * t0 + 4.0 * e2 * k2)
+    a = math.sqrt(max(0.5 * (a2b2 + t0), 0.0))
+    rs = (a2b2 + c2 - 2.0 * a * c) / (a2b2 + c2 + 2.0 * a * c)
+    t1 = a2b2 * c2 + s2 * s2
+    t2 = 2.0 * a * c * s2
+    return 0.5 * (rs + rs * (t1 - t2) / (t1 + t2))
+
+
 def fresnel_dielectric(cos_d, eta):
     """Unpolarised reflectance of a dielectric interface of relative index η (scalar): (...)."""
     c = np.clip(np.asarray(cos_d, dtype=np.float64), 0.0, 1.0)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import re
-import xml.etree.ElementTree as ET
+import xml.etree.ElementTree as ET  # writing
 from dataclasses import dataclass, field
 
 from .. import constants as K
@@ -166,6 +166,56 @@ NODEDEFS = {
         "in2": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_mix_edf": ("mix", "EDF", {"fg": ("EDF", None), "bg": ("EDF", None), "mix": ("float", 0.0)}),
     "ND_add_edf": ("add", "EDF", {"in1": ("EDF", None), "in2": ("EDF", None)}),
+    # surfaces material libraries ship (interchange/surfaces.py reads them as Principled BSDFs)
+    "ND_standard_surface_surfaceshader": ("standard_surface", "surfaceshader", {
+        "base": ("float", 1.0), "base_color": ("color3", (0.8, 0.8, 0.8)),
+        "diffuse_roughness": ("float", 0.0), "metalness": ("float", 0.0),
+        "specular": ("float", 1.0), "specular_color": ("color3", (1.0, 1.0, 1.0)),
+        "specular_roughness": ("float", 0.2), "specular_IOR": ("float", 1.5),
+        "specular_anisotropy": ("float", 0.0), "specular_rotation": ("float", 0.0),
+        "transmission": ("float", 0.0), "transmission_color": ("color3", (1.0, 1.0, 1.0)),
+        "transmission_depth": ("float", 0.0),
+        "transmission_scatter": ("color3", (0.0, 0.0, 0.0)),
+        "transmission_scatter_anisotropy": ("float", 0.0),
+        "transmission_dispersion": ("float", 0.0),
+        "transmission_extra_roughness": ("float", 0.0), "subsurface": ("float", 0.0),
+        "subsurface_color": ("color3", (1.0, 1.0, 1.0)),
+        "subsurface_radius": ("color3", (1.0, 1.0, 1.0)), "subsurface_scale": ("float", 1.0),
+        "subsurface_anisotropy": ("float", 0.0), "sheen": ("float", 0.0),
+        "sheen_color": ("color3", (1.0, 1.0, 1.0)), "sheen_roughness": ("float", 0.3),
+        "coat": ("float", 0.0), "coat_color": ("color3", (1.0, 1.0, 1.0)),
+        "coat_roughness": ("float", 0.1), "coat_anisotropy": ("float", 0.0),
+        "coat_rotation": ("float", 0.0), "coat_IOR": ("float", 1.5),
+        "coat_normal": ("vector3", "Nworld"), "coat_affect_color": ("float", 0.0),
+        "coat_affect_roughness": ("float", 0.0), "thin_film_thickness": ("float", 0.0),
+        "thin_film_IOR": ("float", 1.5), "emission": ("float", 0.0),
+        "emission_color": ("color3", (1.0, 1.0, 1.0)), "opacity": ("color3", (1.0, 1.0, 1.0)),
+        "thin_walled": ("boolean", False), "normal": ("vector3", "Nworld"),
+        "tangent": ("vector3", "Tworld")}),
+    "ND_gltf_pbr_surfaceshader": ("gltf_pbr", "surfaceshader", {
+        "base_color": ("color3", (1.0, 1.0, 1.0)), "metallic": ("float", 1.0),
+        "roughness": ("float", 1.0), "normal": ("vector3", "Nworld"),
+        "tangent": ("vector3", "Tworld"), "occlusion": ("float", 1.0),
+        "transmission": ("float", 0.0), "specular": ("float", 1.0),
+        "specular_color": ("color3", (1.0, 1.0, 1.0)), "ior": ("float", 1.5),
+        "alpha": ("float", 1.0), "alpha_mode": ("integer", 0), "alpha_cutoff": ("float", 0.5),
+        "iridescence": ("float", 0.0), "iridescence_ior": ("float", 1.3),
+        "iridescence_thickness": ("float", 100.0), "sheen_color": ("color3", (0.0, 0.0, 0.0)),
+        "sheen_roughness": ("float", 0.0), "clearcoat": ("float", 0.0),
+        "clearcoat_roughness": ("float", 0.0), "clearcoat_normal": ("vector3", "Nworld"),
+        "emissive": ("color3", (0.0, 0.0, 0.0)), "emissive_strength": ("float", 1.0),
+        "thickness": ("float", 0.0), "attenuation_distance": ("float", None),
+        "attenuation_color": ("color3", (1.0, 1.0, 1.0)), "anisotropy_strength": ("float", 0.0),
+        "anisotropy_rotation": ("float", 0.0), "dispersion": ("float", 0.0)}),
+    "ND_UsdPreviewSurface_surfaceshader": ("UsdPreviewSurface", "surfaceshader", {
+        "diffuseColor": ("color3", (0.18, 0.18, 0.18)),
+        "emissiveColor": ("color3", (0.0, 0.0, 0.0)), "useSpecularWorkflow": ("integer", 0),
+        "specularColor": ("color3", (0.0, 0.0, 0.0)), "metallic": ("float", 0.0),
+        "roughness": ("float", 0.5), "clearcoat": ("float", 0.0),
+        "clearcoatRoughness": ("float", 0.01), "opacity": ("float", 1.0),
+        "opacityMode": ("integer", 0), "opacityThreshold": ("float", 0.0), "ior": ("float", 1.5),
+        "normal": ("vector3", (0.0, 0.0, 1.0)), "displacement": ("float", 0.0),
+        "occlusion": ("float", 1.0)}),
     "ND_open_pbr_surface_surfaceshader": ("open_pbr_surface", "surfaceshader", {
         "base_weight": ("float", 1.0), "base_color": ("color3", (0.8, 0.8, 0.8)),
         "base_diffuse_roughness": ("float", 0.0), "base_metalness": ("float", 0.0),
@@ -192,6 +242,12 @@ NODEDEFS = {
         "geometry_coat_normal": ("vector3", "Nworld"), "geometry_tangent": ("vector3", "Tworld"),
         "geometry_coat_tangent": ("vector3", "Tworld")}),
 }
+
+# standard_surface 1.0.0 (version="1.0.0"): 1.0.1 with the older base defaults; MaterialX's
+# 1.0.1 nodedef inherits from it the same way
+NODEDEFS["ND_standard_surface_surfaceshader_100"] = ("standard_surface", "surfaceshader", dict(
+    NODEDEFS["ND_standard_surface_surfaceshader"][2], base=("float", 0.8),
+    base_color=("color3", (1.0, 1.0, 1.0))))
 
 #: OpenPBR surface inputs the add-on writes or reads, with the spec's defaults (OpenPBR 1.1/1.2).
 OPENPBR_INPUTS = {
@@ -249,21 +305,98 @@ def format_value(value, type_):
     return str(value)
 
 
-def parse_value(text, type_):
-    if text is None:
+#: MaterialX 1.39 stores floats in float32 and refuses a number that rounds beyond its largest
+#: value (``std::istream >> float`` overflows): 2¹²⁸ - 2¹⁰³ is where rounding reaches infinity.
+_F32_LIMIT = 2.0 ** 128 - 2.0 ** 103
+#: What ``std::istream >> float`` accumulates (libstdc++ num_get): sign, digits, one decimal
+#: point, an exponent; the longest such prefix after leading white space is converted.
+_FLOAT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d*)?)")
+_INT_PREFIX = re.compile(r"[ \t\n\v\f\r]*([+-]?\d+)")
+#: MaterialX's ARRAY_VALID_SEPARATORS: vector components split on commas and spaces.
+_SPLIT = re.compile(r"[, ]+")
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_PLAIN = re.compile(_NUM)
+_PLAIN_VECTOR = re.compile(rf"[, ]*{_NUM}(?:[, ]+{_NUM})*[, ]*")
+
+
+def _float_token(tok):
+    """A number as MaterialX 1.39.5 reads it (``std::istream >> float``): the longest numeric
+    prefix, so "0.1, 0.05" is 0.1 and "0.25abc" 0.25; None when there is none, when it
+    overflows float32 or is nan / inf (which the stream does not read).  Kept in float64 (our
+    own files hold 17 digits)."""
+    m = _FLOAT_PREFIX.match(tok)
+    if m is None:
         return None
+    num = m.group(1)
+    if num[-1] in "eE+-":  # "1e", "1e+": the stream's conversion fails
+        return None
+    x = float(num)
+    return x if abs(x) < _F32_LIMIT else None
+
+
+def read_value(text, type_):
+    """(value, problem): a value string read the way MaterialX 1.39.5 reads it
+    (``Value::createValueFromStrings``).  A value MaterialX reads partly (a float written as a
+    list, trailing characters) comes back as MaterialX reads it, with ``problem`` saying so; one
+    it refuses (``getValue()`` is None, ``validate()`` False) gives value None and the problem."""
+    if text is None:
+        return None, None
+    if type_ == "float" and _PLAIN.fullmatch(text):  # the common case: one plain number
+        x = float(text)
+        if abs(x) < _F32_LIMIT:
+            return x, None
     if type_ in _VECTOR:
-        v = tuple(float(p) for p in text.replace(",", " ").split())
-        if len(v) != _VECTOR[type_]:
-            raise ValueError(f"{type_} needs {_VECTOR[type_]} numbers, got {len(v)}")
-        return v
+        n = _VECTOR[type_]
+        plain = _PLAIN_VECTOR.fullmatch(text) is not None
+        toks = [t for t in text.replace(",", " ").split(" ") if t] if plain \
+            else [t for t in _SPLIT.split(text) if t]
+        if plain and len(toks) == n:
+            vals = tuple(map(float, toks))
+            if all(abs(v) < _F32_LIMIT for v in vals):
+                return vals, None
+        if len(toks) != n:
+            return None, (f"value {_clip(text)} is not {n} numbers (type {type_}): ignored, as "
+                          f"MaterialX ignores it")
+        vals = tuple(_float_token(t) for t in toks)
+        if any(v is None for v in vals):
+            return None, f"value {_clip(text)} is not {n} numbers (type {type_}): ignored, as MaterialX ignores it"
+        exact = all(_FLOAT_PREFIX.fullmatch(t) for t in toks)
+        return vals, None if exact else f"value {_clip(text)} read as {_show(vals)}, as MaterialX reads it"
     if type_ == "float":
-        return float(text)
+        v = _float_token(text)
+        if v is None:
+            return None, f"value {_clip(text)} is not a number (type float): ignored, as MaterialX ignores it"
+        exact = _FLOAT_PREFIX.fullmatch(text.strip(" \t\n\v\f\r") or "x") is not None
+        return v, None if exact else f"value {_clip(text)} read as {_show(v)}, as MaterialX reads it"
     if type_ == "integer":
-        return int(text)
+        m = _INT_PREFIX.match(text)
+        if m is None or abs(int(m.group(1))) > 2 ** 31 - 1:
+            return None, f"value {_clip(text)} is not an integer: ignored, as MaterialX ignores it"
+        v = int(m.group(1))
+        exact = m.end() == len(text.rstrip(" \t\n\v\f\r"))
+        return v, None if exact else f"value {_clip(text)} read as {v}, as MaterialX reads it"
     if type_ == "boolean":
-        return text.strip().lower() == "true"
-    return text
+        if text in ("true", "false"):
+            return text == "true", None
+        return None, f"value {_clip(text)} is not true or false: ignored, as MaterialX ignores it"
+    return text, None
+
+
+def _clip(text):
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
+def _show(v):
+    return ", ".join(f"{x:.9g}" for x in v) if isinstance(v, tuple) else f"{v:.9g}"
+
+
+def parse_value(text, type_):
+    """A value string as MaterialX 1.39.5 reads it (:func:`read_value`); ValueError where
+    MaterialX refuses it."""
+    v, problem = read_value(text, type_)
+    if v is None and problem is not None:
+        raise ValueError(problem)
+    return v
 
 
 _NAME_RX = re.compile(r"[^A-Za-z0-9_]")
@@ -288,7 +421,7 @@ def valid_name(text, taken=None):
 # --------------------------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(slots=True)
 class Input:
     name: str
     type: str
@@ -298,13 +431,17 @@ class Input:
     output: str = None
     interfacename: str = None
     colorspace: str = None
+    #: MaterialX 1.37/1.38 swizzle of the connected output ("z", "rgb"...)
+    channels: str = None
+    #: what was wrong with the written value (read_value), None when it read cleanly
+    problem: str = None
 
     @property
     def connected(self):
         return bool(self.nodename or self.nodegraph or self.interfacename)
 
 
-@dataclass
+@dataclass(slots=True)
 class Node:
     name: str
     category: str
@@ -457,77 +594,176 @@ def write_xml(doc, path):
     return path
 
 
-def _read_input(e):
-    t = e.get("type", "")
-    try:
-        value = parse_value(e.get("value"), t)
-    except (ValueError, OverflowError):
-        want = (f"{_VECTOR[t]} numbers separated by commas" if t in _VECTOR else
-                "an integer" if t == "integer" else "a number")
-        raise ValueError(f"input {e.get('name', '')!r}: value {e.get('value', '')[:40]!r} is not "
-                         f"{want} (type {t})") from None
-    return Input(e.get("name", ""), t, value, e.get("nodename"),
-                 e.get("nodegraph"), e.get("output"), e.get("interfacename"), e.get("colorspace"))
+def _input_of(a):
+    """An Input from an <input> element's attributes."""
+    t = a.get("type", "")
+    text = a.get("value")
+    value, problem = read_value(text, t) if text is not None else (None, None)
+    if text is not None:
+        if not t:
+            problem = "has no type: ignored, as MaterialX ignores it"
+        if len(a) == 3:  # name, type, value: the common case, nothing else to look up
+            return Input(a.get("name", ""), t, value, None, None, None, None, None, None, problem)
+    return Input(a.get("name", ""), t, value, a.get("nodename"), a.get("nodegraph"),
+                 a.get("output"), a.get("interfacename"), a.get("colorspace"),
+                 a.get("channels"), problem)
 
 
-def _read_node(e):
-    attrs = {k: v for k, v in e.attrib.items() if k not in ("name", "type")}
-    n = Node(e.get("name", ""), e.tag, e.get("type", ""), attrs=attrs)
-    for c in e:
-        if c.tag == "input":
-            try:
-                i = _read_input(c)
-            except ValueError as exc:
-                raise ValueError(f"<{e.tag} name={e.get('name', '')!r}> {exc}") from None
-            n.inputs[i.name] = i
-    return n
+#: child elements read as a node's inputs (1.37 wrote uniform ones as <parameter>, and
+#: shaderrefs' as <bindinput> / <bindparam>)
+_INPUT_TAGS = frozenset(("input", "parameter", "bindinput", "bindparam"))
+_SKIP = frozenset(("nodedef", "implementation", "typedef", "look", "collection", "geominfo",
+                   "propertyset", "variantset", "backdrop", "token", "unit", "unittypedef",
+                   "attributedef", "targetdef", "materialassign", "lookgroup", "variant", "member",
+                   "propertysetassign"))
+_CHUNK = 1 << 20  # bytes fed to the parser at a time (and the progress step)
+_NOT_ATTRS = ("name", "type")
 
 
-_SKIP = ("nodedef", "implementation", "typedef", "look", "collection", "geominfo", "propertyset",
-         "variantset", "backdrop", "token", "unit", "unittypedef", "attributedef", "targetdef")
+def read_xml(path_or_text, *, text=False, progress=None):
+    """Parse a MaterialX document (file path, or the XML itself with ``text=True``), streaming
+    with expat: elements become Nodes / NodeGraphs / Inputs as they are read, no XML tree is
+    kept, so memory follows the document's content.  Includes (xi:include) are not followed;
+    nodedefs and implementations are skipped.  ``progress``: callable(fraction, message),
+    called as the bytes are read (fraction in [0, 1], non-decreasing).
 
-
-def read_xml(path_or_text, *, text=False):
-    """Parse a MaterialX document (file path, or the XML itself with ``text=True``).  Includes
-    (xi:include) are not followed; nodedefs and implementations are skipped."""
+    MaterialX 1.37 materials (``<material>`` with a ``<shaderref>`` and ``<bindinput>``s) are read
+    as the surfacematerial + shader node 1.38 made of them (MaterialX upgrades them the same
+    way); ``channels`` swizzles and ``fileprefix`` / ``colorspace`` scopes are kept for the
+    importer.  expat expands no external entity and refuses entity amplification."""
+    import io
+    import os
+    from xml.parsers import expat
     where = "the document" if text else str(path_or_text)
+    if text:
+        data = path_or_text.encode("utf-8") if isinstance(path_or_text, str) else path_or_text
+        stream, size = io.BytesIO(data), len(data)
+    else:
+        try:
+            stream = open(path_or_text, "rb")
+        except OSError as exc:
+            raise ValueError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+        size = os.fstat(stream.fileno()).st_size
+    doc = Document(source="" if text else str(path_or_text))
+    reader = _Reader(doc)
+    parser = expat.ParserCreate()
+    parser.buffer_text = True
+    parser.StartElementHandler = reader.start
+    parser.EndElementHandler = reader.end
+    done = 0
     try:
-        root = ET.fromstring(path_or_text) if text else ET.parse(path_or_text).getroot()
-    except ET.ParseError as exc:  # a SyntaxError, not a ValueError: one line, the reader's own
-        raise ValueError(f"{where}: not a well-formed XML file ({exc})") from None
+        with stream:
+            while True:
+                chunk = stream.read(_CHUNK)
+                if not chunk:
+                    break
+                parser.Parse(chunk, False)
+                done += len(chunk)
+                if progress is not None and size:
+                    progress(min(done / size, 1.0), "reading")
+            parser.Parse(b"", True)
+    except expat.ExpatError as exc:
+        raise ValueError(f"{where}: not a well-formed XML file ({expat.errors.messages.get(exc.code, exc)}: "
+                         f"line {exc.lineno}, column {exc.offset})") from None
     except RecursionError:
         raise ValueError(f"{where}: nested too deeply to be a MaterialX document") from None
-    if root.tag != "materialx":
-        raise ValueError(f"{where}: not a MaterialX document (root element <{root.tag}>)")
-    try:
-        return _read_root(root, "" if text else str(path_or_text))
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
-
-
-def _read_root(root, source):
-    doc = Document(attrs=dict(root.attrib), source=source)
-    for e in root:
-        if not isinstance(e.tag, str) or e.tag in _SKIP:
-            continue
-        if e.tag == "nodegraph":
-            if e.get("nodedef"):  # an implementation graph
-                continue
-            g = NodeGraph(e.get("name", ""), attrs={k: v for k, v in e.attrib.items() if k != "name"})
-            for c in e:
-                if not isinstance(c.tag, str):
-                    continue
-                if c.tag == "input":
-                    i = _read_input(c)
-                    g.inputs[i.name] = i
-                elif c.tag == "output":
-                    i = _read_input(c)
-                    g.outputs[i.name] = i
-                else:
-                    n = _read_node(c)
-                    g.nodes[n.name] = n
-            doc.graphs[g.name] = g
-        else:
-            n = _read_node(e)
-            doc.nodes[n.name] = n
+    if not reader.rooted:
+        raise ValueError(f"{where}: not a well-formed XML file (no root element)")
     return doc
+
+
+class _Reader:
+    """expat handlers building the Document: depth 1 the <materialx> root, depth 2 top-level
+    nodes / node graphs / 1.37 materials, depth 3 their inputs, outputs and nodes, depth 4 the
+    inputs of nodes inside node graphs (and of 1.37 shaderrefs)."""
+
+    def __init__(self, doc):
+        self.doc = doc
+        self.rooted = False
+        self.depth = 0
+        self.top = None  #: the Node / NodeGraph / (material Node, [shaderrefs]) being read
+        self.kind = None  #: "node", "graph", "material", "skip"
+        self.inner = None  #: a node inside a graph, or a shaderref, being read
+
+    def start(self, tag, a):
+        self.depth += 1
+        d = self.depth
+        if d == 1:
+            if tag != "materialx":
+                raise ValueError(f"not a MaterialX document (root element <{tag}>)")
+            self.rooted = True
+            self.doc.attrs = dict(a)
+        elif d == 2:
+            if tag in _SKIP or (tag == "nodegraph" and a.get("nodedef")):
+                self.kind = "skip"
+            elif tag == "nodegraph":
+                self.kind = "graph"
+                self.top = NodeGraph(a.get("name", ""), attrs={k: v for k, v in a.items() if k != "name"})
+            elif tag == "material":  # MaterialX 1.37: shaderrefs bound to the material
+                self.kind = "material"
+                self.top = (Node(a.get("name", ""), "surfacematerial", "material",
+                                 attrs={k: v for k, v in a.items() if k not in _NOT_ATTRS}), [])
+            else:
+                self.kind = "node"
+                self.top = Node(a.get("name", ""), tag, a.get("type", ""),
+                                attrs={k: v for k, v in a.items() if k not in _NOT_ATTRS})
+        elif d == 3:
+            k = self.kind
+            if k == "node":
+                if tag in _INPUT_TAGS:
+                    i = _input_of(a)
+                    self.top.inputs[i.name] = i
+            elif k == "graph":
+                if tag in _INPUT_TAGS:
+                    i = _input_of(a)
+                    self.top.inputs[i.name] = i
+                elif tag == "output":
+                    i = _input_of(a)
+                    self.top.outputs[i.name] = i
+                elif tag not in _SKIP:
+                    self.inner = Node(a.get("name", ""), tag, a.get("type", ""),
+                                      attrs={k2: v for k2, v in a.items() if k2 not in _NOT_ATTRS})
+            elif k == "material" and tag == "shaderref":
+                cat = a.get("node", "")
+                self.inner = Node(a.get("name", ""), cat, a.get("type") or "surfaceshader",
+                                  attrs={k2: v for k2, v in a.items() if k2 not in ("name", "type", "node")})
+        elif d == 4 and self.inner is not None and tag in _INPUT_TAGS:
+            i = _input_of(a)
+            self.inner.inputs[i.name] = i
+
+    def end(self, tag):
+        d = self.depth
+        self.depth -= 1
+        if d == 3 and self.inner is not None:
+            if self.kind == "graph":
+                self.top.nodes[self.inner.name] = self.inner
+            elif self.kind == "material":
+                self.top[1].append(self.inner)
+            self.inner = None
+        elif d == 2:
+            k, top = self.kind, self.top
+            self.kind = self.top = None
+            if k == "graph":
+                self.doc.graphs[top.name] = top
+            elif k == "node":
+                self.doc.nodes[top.name] = top
+            elif k == "material":
+                self.material_137(*top)
+
+    def material_137(self, mat, refs):
+        doc = self.doc
+        name = mat.name
+        for shader in refs:
+            sname = shader.name or f"SR_{name}"
+            while sname in doc.nodes:
+                sname += "_"
+            shader.name = sname
+            doc.nodes[sname] = shader
+            key = "displacementshader" if shader.type == "displacementshader" else "surfaceshader"
+            mat.inputs.setdefault(key, Input(key, shader.type, nodename=sname))
+        while name in doc.nodes:
+            name += "_"
+        mat.name = name
+        doc.nodes[name] = mat

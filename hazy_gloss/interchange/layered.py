@@ -873,6 +873,12 @@ class Writer:
         self._shaders[node.name] = got
         return got
 
+    def shader_of_node(self, node):
+        """:meth:`shader` of a node no socket leads to (the user's BSDF a layer node holds)."""
+        if node.name not in self._shaders:
+            self._shaders[node.name] = self._shader(node)
+        return self._shaders[node.name]
+
     def _shader(self, node):
         t = node.type
         if node.mute:
@@ -1113,7 +1119,13 @@ class Writer:
         put("specular_roughness", r_e)
         put("specular_ior", ior)
         put("specular_roughness_anisotropy", a_o)
-        put("transmission_weight", sat(val("Transmission Weight"), "transmission"))
+        trans = sat(val("Transmission Weight"), "transmission")
+        if not (trans.is_const and float(trans.const) == 0.0):
+            self.note(f"“{n}”: transmission is approximate in MaterialX: OpenPBR tints the refracted "
+                      f"light once by transmission_color (the Base Color), Cycles by √Base Color at "
+                      f"each interface, and its dielectric Fresnel is the exact one where Cycles' "
+                      f"Principled keeps F0 (docs/interchange.md §5)")
+        put("transmission_weight", trans)
         put("transmission_color", val("Base Color", "color3"))
         put("subsurface_weight", sat(val("Subsurface Weight"), "subsurface"))
         put("subsurface_color", val("Base Color", "color3"))
@@ -1133,6 +1145,10 @@ class Writer:
         put("emission_color", val("Emission Color", "color3"))
         if node.input("Thin Film Thickness") is not None:
             thick = val("Thin Film Thickness")
+            if not (thick.is_const and float(thick.const) <= 0.1):
+                self.note(f"“{n}”: the thin film is OpenPBR's model in MaterialX (its film on the "
+                          f"specular_ior the layer raised); Cycles' film reflectance differs "
+                          f"(docs/thin-film.md)")
             if thick.is_const:
                 put("thin_film_weight", _c("float", 1.0 if float(thick.const) > 0.1 else 0.0))
             else:
@@ -1211,9 +1227,43 @@ def graph_of(tree, name, notes, *, directory=None):
     return g, w
 
 
-def layer_record(tree):
-    """The layer's state as JSON for the document (hazygloss_layer)."""
+#: Version of the hazygloss_layer record: 2 adds what the importer needs to rebuild the layer
+#: (the core's node, its settings and the user's own values of the inputs the layer owns).
+LAYER_RECORD_VERSION = 2
+
+
+def layer_record(tree, writer=None):
+    """The layer's state as JSON for the document (hazygloss_layer): the haze parameters, the
+    core (its Blender name, type and settings, the MaterialX node written for it) and, per
+    input the layer owns, the user's own value or the MaterialX node of the user's link — what
+    materialx_import needs to rebuild the same layer (the core's other inputs are in its
+    node)."""
     lay = dict(tree.layer or {})
+    lay["record"] = LAYER_RECORD_VERSION
+    core = tree.core()
+    if core is not None:
+        lay["core_props"] = {k: core.props[k] for k in ("distribution", "fresnel_type",
+                                                        "subsurface_method") if k in core.props}
+        if writer is not None and core.name not in writer.surfaces and not core.mute:
+            writer.shader_of_node(core)  # a layer node's core renders inside it: its own surface
+        if writer is not None and core.name in writer.surfaces:
+            lay["core_node"] = writer.surfaces[core.name].name
+        base = {}
+        for name, b in (core.base or {}).items():
+            if "value" in b:
+                c = np.asarray(b["value"], float).reshape(-1)
+                base[name] = {"value": float(c[0]) if c.size == 1 else [float(x) for x in c[:3]]}
+            elif "link" in b and writer is not None:
+                sock = core.input(name)
+                probe = Socket(sock.identifier if sock else name, name, sock.type if sock else "VALUE",
+                               None, tuple(b["link"]), True, False, core.name)
+                v = writer.value(probe, _MX_TYPE.get(probe.type, "float"))
+                if v is not None and not v.is_const:
+                    base[name] = {"node": v.node.name, "output": v.output}
+                elif v is not None:
+                    c = np.asarray(v.const, float).reshape(-1)
+                    base[name] = {"value": float(c[0]) if c.size == 1 else [float(x) for x in c[:3]]}
+        lay["base"] = base
     return json.dumps(lay, sort_keys=True, default=lambda o: list(o) if isinstance(o, tuple) else str(o))
 
 

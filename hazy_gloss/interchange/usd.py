@@ -285,7 +285,12 @@ def _value(v, t):
 
 
 _BY_ID = {name: (cat, typ, spec) for name, (cat, typ, spec) in NODEDEFS.items()}
-_EXTRA_IDS = {"ND_artistic_ior": ("artistic_ior", "multioutput")}
+_EXTRA_IDS = {"ND_artistic_ior": ("artistic_ior", "multioutput"),
+              # UsdShade's own preview network (the USD files most pipelines write)
+              "UsdPreviewSurface": ("UsdPreviewSurface", "surfaceshader"),
+              "UsdUVTexture": ("UsdUVTexture", "multioutput"),
+              "UsdPrimvarReader_float2": ("UsdPrimvarReader", "vector2"),
+              "UsdTransform2d": ("UsdTransform2d", "vector2")}
 
 
 def _category(shader_id):
@@ -310,8 +315,10 @@ def read_document(stage_or_path):
             continue
         mat = UsdShade.Material(prim)
         out = mat.GetSurfaceOutput("mtlx")
-        if not out or not out.HasConnectedSource():
-            continue
+        if not out or not out.HasConnectedSource():  # no MaterialX network: its preview surface
+            out = mat.GetSurfaceOutput()
+            if not out or not out.HasConnectedSource():
+                continue
         blender = prim.HasAttribute("userProperties:blender:data_name")
         squared = []
 
@@ -346,6 +353,10 @@ def read_document(stage_or_path):
         if src is None:
             continue
         surf = node_of(src[0])
+        ng = prim.GetChild("NG")  # a layer network's shaders no connection reaches (its core)
+        for child in (ng.GetChildren() if ng else ()):
+            if child.IsA(UsdShade.Shader):
+                node_of(UsdShade.Shader(child))
         name = prim.GetName()
         m = Node(f"{prim.GetPath()}#material", "surfacematerial", "material")
         m.inputs["surfaceshader"] = Input("surfaceshader", "surfaceshader", nodename=surf.name)
@@ -368,7 +379,8 @@ def _mx_type(type_name):
     t = str(type_name)
     return {"float": "float", "color3f": "color3", "float2": "vector2", "vector3f": "vector3",
             "float3": "vector3", "int": "integer", "bool": "boolean", "string": "string",
-            "asset": "filename", "token": "token"}.get(t, t)
+            "asset": "filename", "token": "token", "normal3f": "vector3", "float4": "vector4",
+            "color4f": "color4", "texCoord2f": "vector2"}.get(t, t)
 
 
 def _follow(source_info):

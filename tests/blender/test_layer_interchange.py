@@ -355,8 +355,11 @@ def test_operator_and_cli_write_layered_materials(env, tmp_path, capsys):
     assert cli.main(["export-materialx", blend, out]) == 0
     assert "MaterialX validate(): ok" in capsys.readouterr().out
     assert _load(out).getNode("Car_Paint").getCategory() == "surfacematerial"
-    res = env.api.import_materialx(out)  # not a crash: said
-    assert len(res) == 0 and "not supported yet" in res.report[0].notes[0]
+    res = env.api.import_materialx(out)  # the same layered material again
+    (im,) = res.report
+    assert im.source == "hazy_gloss layer" and env.api.is_hazy(im.material)
+    haze = env.api.read_parameters(im.material)
+    assert haze["haziness"] == pytest.approx(0.4) and haze["coat_haziness"] == pytest.approx(0.3)
 
 
 # --------------------------------------------------------------------------------------------
@@ -634,8 +637,9 @@ def test_usd_holds_the_same_network(env, tmp_path):
             assert _close(pv.GetInput("diffuseColor").Get(), _bval(core.inputs["Base Color"]), rel=1e-6)
             assert pv.GetInput("ior").Get() == pytest.approx(core.inputs["IOR"].default_value, rel=1e-6)
         assert pv.GetInput("roughness").Get() == pytest.approx(core.inputs["Roughness"].default_value, rel=1e-6)
-    res = env.api.import_materialx(path)
-    assert len(res) == 0 and all("not supported yet" in im.notes[0] for im in res.report)
+    res = env.api.import_materialx(path)  # USD too: every layer comes back as a layer
+    assert len(res) == len(res.report) and all(im.source == "hazy_gloss layer" for im in res.report)
+    assert all(env.api.is_hazy(m) for m in res)
 
 
 # --------------------------------------------------------------------------------------------

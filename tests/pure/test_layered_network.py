@@ -300,3 +300,16 @@ def test_coat_tint_factors():
     assert np.allclose(cy, op)  # the same at normal incidence
     cy, op = L.coat_tint_factor((0.8, 0.8, 0.8), 1.5, math.cos(math.radians(60.0)))
     assert cy[0] < op[0]
+
+
+@pytest.mark.parametrize("values, word", [({"Transmission Weight": 1.0}, "transmission is approximate"),
+                                          ({"Thin Film Thickness": 400.0}, "thin film")])
+def test_exports_note_what_they_approximate(tmp_path, values, word):
+    """Issue 21: a layer exported with transmission or a thin film says that MaterialX draws
+    those with its own models (the export was silent)."""
+    t = tree(principled("Core", core=True, **values), out=output("Core"))
+    rep = M.write([M.Source(t.name, layer=t)], tmp_path / "n.mtlx", validate_with_package=False)
+    assert any(word in n for n in rep.notes), rep.notes
+    plain = tree(principled("Core", core=True), out=output("Core"))
+    rep = M.write([M.Source(plain.name, layer=plain)], tmp_path / "p.mtlx", validate_with_package=False)
+    assert not any(word in n for n in rep.notes)
