@@ -201,30 +201,9 @@ def hand_wired(bpy, layered):
 
 
 def rendered_slots(layered):
-    """The BSDF slots of the layer node Cycles keeps: a Mix whose factor folds to 0 or 1 (it
-    reads no linked input) drops the other side.  Returns (count, exact): not exact where a
-    factor varies per shading point (both sides counted)."""
-    from hazy_gloss import constants as K
+    """(BSDF copies Cycles renders, exact?) of the layer node (blender.layer.rendered_slots)."""
     from hazy_gloss.blender import layer
-    from hazy_gloss.core import layer_graph
-    node = layer.layer_node(layered)
-    lay = layer.graph_of(node)
-    linked = {layer_graph.input_name(s.name) for s in node.inputs if s.is_linked}
-    linked |= {layer_graph.haze_name(p) for p, (n, *_r) in K.HAZE_SOCKETS.items()
-               if node.inputs.get(n) is not None and node.inputs[n].is_linked}
-    exact = [True]
-
-    def count(t):
-        if isinstance(t, layer_graph.Slot):
-            return 1
-        f = None
-        if not t.add and not {e.name for e in lay.graph.used({"f": t.factor})
-                              if e.op == "input"} & linked:
-            f = layer._evaluate(node, {"f": t.factor})[0]["f"]
-        if f is None and not t.add:
-            exact[0] = False
-        return count(t.a) if f == 0.0 else count(t.b) if f == 1.0 else count(t.a) + count(t.b)
-    return count(lay.cycles), exact[0]
+    return layer.rendered_slots(layer.layer_node(layered))
 
 
 def counts(mat):

@@ -58,6 +58,38 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     return mat
 
 
+def upgrade_layers(materials=None):
+    """Turn haze layers saved by an earlier Hazy Gloss (loose nodes in the tree) into layer
+    nodes, with their values (``materials``: all of the file's by default; a layer is also
+    upgraded on its first edit).  Returns the names of the materials upgraded; raises
+    ValueError (one line) when there were old layers and none could be upgraded."""
+    import bpy
+    from .blender import layer
+    from .blender import make_hazy as _make
+    mats = list(bpy.data.materials if materials is None else materials)
+    for m in mats:
+        _material.check_material(m, "upgrade_layers")
+    old = [m for m in mats if layer.is_legacy(m)]
+    status, msg, notes = _make.upgrade_layers(old)
+    if status == "ERROR":
+        raise ValueError(notes[0] if notes else msg)
+    return [m.name for m in old if not layer.is_legacy(m)]
+
+
+def add_haziness_map(mat, *, size=1024, param="haziness"):
+    """Link a paintable float image (filled with the current value, packed into the file) into
+    the layer node's Haziness (``param="coat_haziness"``: Coat Haziness) through an Image
+    Texture, made the active paint slot.  Returns the image; raises ValueError (one line)."""
+    from .blender import layer
+    from .blender import make_hazy as _make
+    _material.check_material(mat, "add_haziness_map")
+    status, msg, _ = _make.add_haziness_map(mat, size=size, param=param)
+    if status == "ERROR":
+        raise ValueError(msg)
+    sock = layer.layer_node(mat).inputs[K.HAZE_SOCKETS[param][0]]
+    return sock.links[0].from_node.image
+
+
 def create_look(look, name=None, **haze):
     """A new Principled material for one of the looks (``hazy_gloss.utils.looks.LOOKS``: CAR_PAINT,
     LACQUERED_WOOD, SATIN_VARNISH, BRUSHED_ALUMINIUM, WORN_PLASTIC) with its haze layer;

@@ -17,6 +17,11 @@ import hazy_gloss  # noqa: E402
 
 def count(mat):
     """Nodes a render evaluates: the material's nodes plus the group's inner nodes (recursively)."""
+    return count_tree(mat.node_tree)
+
+
+def count_tree(tree):
+    """A tree's nodes and its groups' (recursively), frames and group inputs / outputs aside."""
     def inner(tree):
         n = 0
         for node in tree.nodes:
@@ -26,7 +31,7 @@ def count(mat):
             if node.bl_idname == "ShaderNodeGroup" and node.node_tree:
                 n += inner(node.node_tree)
         return n
-    return inner(mat.node_tree)
+    return inner(tree)
 
 
 def layer_rows(api):
@@ -74,14 +79,16 @@ def layer_rows(api):
     mat, b = principled(distribution="MULTI_GGX", **{"Metallic": 1.0})
     texture(mat, b, "Roughness")
     cases.append(("metal, roughness map, Multiscatter GGX", mat, dict(haziness=0.5)))
+    from hazy_gloss.blender import layer
     for label, mat, haze in cases:
-        before = count(mat)
+        top = len(mat.node_tree.nodes)
         api.make_hazy(mat, **haze)
-        nodes = [n for n in mat.node_tree.nodes if api.is_ours(n)]
-        bsdfs = sum(n.bl_idname == "ShaderNodeBsdfPrincipled" for n in nodes)
-        mixes = sum(n.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader") for n in nodes)
-        rows.append(f"| {label} | {before} | {count(mat) - before} | {bsdfs} | {mixes} | "
-                    f"{len(nodes) - bsdfs - mixes} |")
+        node = layer.layer_node(mat)
+        from hazy_gloss.core import layer_graph
+        slots = len(layer_graph.slots_of(layer.graph_of(node).cycles))  # (and one for EEVEE)
+        kept, exact = layer.rendered_slots(node)
+        rows.append(f"| {label} | {top} | {len(mat.node_tree.nodes) - top} | {node.node_tree.name} | "
+                    f"{count_tree(node.node_tree)} | {slots} | {kept}{'' if exact else ' (at most)'} |")
     return rows
 
 
@@ -107,10 +114,13 @@ def main():
              "node inside node groups.", "",
              "| kind | configuration | lean (constants) | in-shader mapping | in-shader, Multiscatter GGX |",
              "|---|---|---:|---:|---:|"] + rows
-    lines += ["", "A haze layer (Make Hazy) on a Principled material: what it adds (copies of the "
-              "BSDF, mixes, node math and the nodes body colour reads):", "",
-              "| material | its nodes | added | BSDF copies | mixes | math and other |",
-              "|---|---:|---:|---:|---:|---:|"] + layer_rows(api)
+    lines += ["", "A haze layer (Make Hazy) on a Principled material: the nodes its tree gains (the "
+              "layer node; the BSDF stays beside it, muted), the group the layer node uses (shared "
+              "by every material of its configuration), its nodes (sub-groups included), its BSDF "
+              "slots and how many of them Cycles renders for these values (a Mix whose factor "
+              "folds to 0 or 1 drops its other side; the group has one more, folded, for EEVEE):", "",
+              "| material | its nodes | added | group | nodes in the group | BSDF slots | rendered |",
+              "|---|---:|---:|---|---:|---:|---:|"] + layer_rows(api)
     text = "\n".join(lines)
     print(text)
     doc = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs",

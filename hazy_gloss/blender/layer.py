@@ -670,6 +670,30 @@ def slot_values(node, role):
     return _evaluate(node, slot.writes)[0]
 
 
+def rendered_slots(node):
+    """How many BSDF slots of the layer node Cycles keeps: a Mix whose factor reads no linked
+    input folds, and at 0 or 1 drops its other side.  Returns (count, exact): not exact where a
+    factor varies per shading point (both sides counted)."""
+    lay = graph_of(node)
+    _, linked_names = _inputs_of(node)
+    linked = {layer_graph.input_name(n) for n in linked_names}
+    linked |= {layer_graph.haze_name(p) for p, (n, *_r) in K.HAZE_SOCKETS.items()
+               if n in linked_names}
+    exact = [True]
+
+    def count(t):
+        if isinstance(t, layer_graph.Slot):
+            return 1
+        f = None
+        if not t.add and not {e.name for e in lay.graph.used({"f": t.factor})
+                              if e.op == "input"} & linked:
+            f = _evaluate(node, {"f": t.factor})[0]["f"]
+        if f is None and not t.add:
+            exact[0] = False
+        return count(t.a) if f == 0.0 else count(t.b) if f == 1.0 else count(t.a) + count(t.b)
+    return count(lay.cycles), exact[0]
+
+
 def read(mat):
     """The perceptual view of a layered material: the haze parameters and the core's own, as
     the layer node holds them (linked inputs report their unlinked value and are listed in
@@ -732,6 +756,7 @@ def read(mat):
         p["kind"] = "LEGACY"
         p["core_reflectivity"] = val("Color", (0.8,) * 3)
     p["shader_mapping"] = bool(p["textured"])
+    p["notes"] = notes(mat)  # (a bypassed layer node, haze that cannot show, ...)
     return p
 
 

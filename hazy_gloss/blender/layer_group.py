@@ -75,7 +75,16 @@ def group_name(kind, settings, smooth=False, baked=False, body=False):
         parts.append("Converted")
     if body:
         parts.append("Body")
-    return f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
+    name = f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
+    for long, short in _SHORTER:  # Blender's ID names hold 63 bytes
+        if len(name.encode()) <= 63:
+            break
+        name = name.replace(long, short)
+    return name
+
+
+_SHORTER = (("Christensen-Burley", "Burley"), ("Multiscatter GGX", "MS GGX"),
+            ("Ashikhmin-Shirley", "AS"), (" BSDF (", " ("))
 
 
 def _stamp_of(kind, settings, smooth, baked=False, body=False):
@@ -348,12 +357,13 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
     # -- the math: one node group per section (readable, and far quicker to build: every
     #    node edit in Blender updates the whole tree it is in) ------------------------------
     outs, part_nodes = _emit_sections(ng, lay, sources)
-    y = 0.0
+    ys = [0.0, 0.0]  # two columns, each part in the shorter one
     for n in part_nodes:
-        n.location = (0.0, y)
-        y -= 60.0 + 22.0 * (len(n.inputs) + len(n.outputs))
-    width = 2.0 * _COLUMN
-    _frame(ng, "The haze mapping (Eq. 3-8 and the corrections), one group per part: Tab to open",
+        col = 0 if ys[0] >= ys[1] else 1
+        n.location = (col * 1.6 * _COLUMN, ys[col])
+        ys[col] -= 60.0 + 22.0 * (len(n.inputs) + len(n.outputs))
+    width = 3.2 * _COLUMN
+    _frame(ng, "Haze mapping (Eqs. 3-8, corrections): a group per part, Tab to open",
            part_nodes, 0.0, 0.0)
     gin.location = (-3.0 * _COLUMN, 0.0)
 
@@ -367,7 +377,7 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
     for tree_name, tree in (("BSDF", lay.cycles), ("EEVEE", lay.eevee)):
         results[tree_name] = _closures(ng, tree, kind, settings, outs, gin2, x_lobes, lobe_nodes)
     gout = ng.nodes.new("NodeGroupOutput")
-    gout.location = (x_lobes + 6.0 * _COLUMN, 0.0)
+    gout.location = (x_lobes + 7.0 * _COLUMN, 0.0)
     for name, sock in results.items():
         ng.links.new(sock, gout.inputs[name])
     _frame(ng, "Lobes: copies of the BSDF with the haze's values, mixed by β", lobe_nodes, 0.0, 0.0)
@@ -486,8 +496,9 @@ def _relayout(nodes):
 
 
 def _closures(ng, tree, kind, settings, outs, gin, x0, made):
-    """Nodes of a layer_graph closure tree; returns the output socket of its root."""
-    count = [0]
+    """Nodes of a layer_graph closure tree, below the BSDFs already ``made``; returns the
+    output socket of its root."""
+    count = [sum(n.bl_idname not in ("ShaderNodeMixShader", "ShaderNodeAddShader") for n in made)]
 
     def visit(node, depth):
         if isinstance(node, layer_graph.Slot):
