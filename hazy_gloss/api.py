@@ -63,10 +63,9 @@ def upgrade_layers(materials=None):
     nodes, with their values (``materials``: all of the file's by default; a layer is also
     upgraded on its first edit).  Returns the names of the materials upgraded; raises
     ValueError (one line) when there were old layers and none could be upgraded."""
-    import bpy
     from .blender import layer
     from .blender import make_hazy as _make
-    mats = list(bpy.data.materials if materials is None else materials)
+    mats = _make.materials_or_all(materials)
     for m in mats:
         _material.check_material(m, "upgrade_layers")
     old = [m for m in mats if layer.is_legacy(m)]

@@ -10,6 +10,7 @@ Both return (status, message, notes): status "FINISHED", "NOOP" or "ERROR".
 """
 import math
 
+import bpy
 import numpy as np
 
 from .. import constants as K
@@ -481,6 +482,11 @@ def import_two_lobe_mix(mat):
 # --------------------------------------------------------------------------------------------
 # Haze layers: upgrade, paintable haziness
 # --------------------------------------------------------------------------------------------
+
+
+def materials_or_all(materials):
+    """``materials`` as a list, or every material of the file when it is None."""
+    return list(bpy.data.materials if materials is None else materials)
 
 
 def upgrade_layers(materials):

@@ -48,6 +48,7 @@ class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def __init__(self, real):
         self.real = real
         self.names = ("hazy_gloss", "bl_ext.user_default.hazy_gloss")
+        self.specs = {}
 
     def _target(self, fullname):
         for n in self.names:
@@ -69,7 +70,22 @@ class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             mod = type(sys)(spec.name)
             mod.__path__ = []
             return mod
-        return importlib.import_module(t)
+        mod = importlib.import_module(t)
+        # importlib sets the alias's spec on the real module: keep what it had, to put back
+        self.specs.setdefault(t, (mod, mod.__spec__, getattr(mod, "__path__", None)))
+        return mod
+
+    def restore(self):
+        """Give the real modules their own ``__spec__`` / ``__path__`` back (Python 3.12+
+        warns when ``__package__ != __spec__.parent``, which the add-on's tests make errors)."""
+        for mod, spec, path in self.specs.values():
+            mod.__spec__ = spec
+            if path is None:
+                if hasattr(mod, "__path__"):
+                    del mod.__path__
+            else:
+                mod.__path__ = path
+        self.specs.clear()
 
     def exec_module(self, module):
         pass
@@ -88,6 +104,10 @@ def alias(hg):
     sys.modules["bl_ext.user_default"] = ns
     yield hg
     sys.meta_path.remove(finder)
+    finder.restore()
+    wrong = [k for k, m in sys.modules.items() if (k == hg.__name__ or k.startswith(hg.__name__ + "."))
+             and getattr(m, "__spec__", None) is not None and m.__spec__.name != k]
+    assert not wrong, f"modules left with an alias's spec: {wrong}"
     for k in [k for k in sys.modules if k == "hazy_gloss" or k.startswith("hazy_gloss.")
               or k.startswith("bl_ext.user_default")]:
         del sys.modules[k]

@@ -524,8 +524,11 @@ def test_peak_is_invariant(env, name):
         moved = float(after[4, 4, ch] / before[4, 4, ch] - 1.0)
         record("layer_film_peak", {name: dict(measured=moved, said=said)})
         assert said is not None and abs(moved - said) <= 0.05 * abs(said) + 2e-5, (moved, said)
-        assert any("thin film" in n and "%" in n for n in env.layer.notes(mat))
-        return
+        if abs(said) > 1e-5:
+            assert any("thin film" in n and "%" in n for n in env.layer.notes(mat))
+            return
+        # no film on this part (4.5's Principled metal): the peak holds like any other
+        assert not any("thin film" in n for n in env.layer.notes(mat))
     assert err <= 1e-5, err
 
 
