@@ -6,7 +6,9 @@
     mat = api.create_material("Brushed", kind="CONDUCTOR", core_reflectivity=(0.9, 0.6, 0.3),
                               edge_tint=(1, 0.8, 0.5), roughness=0.1, haziness=0.8, haze_extent=5)
     api.update_material(mat, haziness=0.3)      # sets socket values; the peak does not change
-    api.make_hazy(bpy.data.materials["Car Paint"], haziness=0.4, coat_haziness=0.6)  # a layer
+    notes = api.make_hazy(bpy.data.materials["Car Paint"], haziness=0.4, coat_haziness=0.6)
+    for line in notes:                          # a layer; what it cannot do, and the fix
+        print(line)
 
 Roughness is Blender's R = √α (α = R²).  Perceptual parameters are stamped on the material as
 an ID property (``mat["hazy_gloss"]``), so a file saved with hazy materials keeps them and
@@ -42,20 +44,31 @@ def create_material(name, *, kind="CONDUCTOR", core_reflectivity=(0.5, 0.5, 0.5)
         smoothness=smoothness, distribution=distribution, shader_mapping=shader_mapping, **extra)
 
 
+class Notes(list):
+    """What a haze layer says of itself after a change (one plain line each: haze that cannot
+    show and the setting that fixes it, a peak it cannot hold, a part it approximates); empty
+    when there is nothing to say.  ``material``: the material."""
+
+    def __init__(self, material, lines=()):
+        super().__init__(lines)
+        self.material = material
+
+
 def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     """Put a haze layer on ``mat``'s own Principled, Metallic or Glossy BSDF (the one closest to
     the Material Output, also inside Mix / Add Shader trees): every input and link of it and
     everything else in the tree stay; at haziness 0 the material renders exactly as before.
+    On a material that has a layer already, the haze values given are set on it.
     Haze keywords: haziness, haze_extent (a number or an (x, y) pair), smoothness,
-    coat_haziness, coat_haze_extent, keep_body_colour; ``node`` (a node or its name) picks the
-    BSDF.  Returns ``mat``; raises ValueError
-    (one line, the reason) when it cannot, touching nothing."""
+    reflectivity_cap, coat_haziness, coat_haze_extent, keep_body_colour; ``node`` (a node or its
+    name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
+    ValueError (one line, the reason) when it cannot, touching nothing."""
     from .blender import make_hazy as _make
     _material.check_material(mat, "make_hazy")
-    status, msg, _ = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
+    status, msg, notes = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
     if status == "ERROR":
         raise ValueError(msg)
-    return mat
+    return Notes(mat, notes)
 
 
 def upgrade_layers(materials=None):
@@ -143,8 +156,8 @@ def update_material(mat, **changes):
     """Change some parameters of a hazy material: socket values are set in place when the node
     structure stays the same, else the hazy nodes are rebuilt keeping the user's links.  On a
     material made hazy with :func:`make_hazy` (a haze layer) the changes are haze parameters
-    (the core's own are its node's inputs).  Returns the HazeMapping of the new parameters
-    (of a layer: of its first constant part, or None when node math varies it per pixel).
+    (the core's own are its node's inputs) and it returns the layer's :class:`Notes`; on a
+    whole hazy material (create_material) the HazeMapping of the new parameters.
 
     Values the user changed in the node editor on the add-on's nodes are read back first (the
     group's inputs of an in-shader material; a lean tree through the inverse haze mapping); what
@@ -160,6 +173,8 @@ def update_material_links(mat, **changes):
 
 def _update(mat, changes):
     out = _material.update_material(mat, **changes)
+    if out[0] is None and _material.layer.is_layered(mat):
+        out = (Notes(mat, _material.layer.notes(mat)), out[1])
     replaced = _material.REPLACED.get(mat.session_uid)
     if replaced:
         import warnings
@@ -247,7 +262,7 @@ def strict_settings():
     return _props.strict_settings()
 
 
-__all__ = ("create_material", "create_look", "make_hazy", "remove_haze", "sync_haze",
+__all__ = ("create_material", "create_look", "make_hazy", "Notes", "remove_haze", "sync_haze",
            "add_eevee_output", "remove_eevee_output", "update_material", "update_material_links",
            "read_parameters", "is_hazy", "map_parameters", "lobes_for", "normalise_parameters",
            "convert_maps", "last_error", "strict_settings", "PARAMETERS", "DEFAULTS", "KINDS",

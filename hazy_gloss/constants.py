@@ -68,6 +68,9 @@ HAZE_SOCKETS = {
                       "λ_h^y: halo width along the bitangent, in units of the core's roughness (Eq. 8)"),
     "smoothness": ("Smoothness", 2.0, MIN_SMOOTHNESS, 1e6,
                    "w: weight of the smooth haze curve (rational Bézier, Eqs. 12-15)"),
+    "reflectivity_cap": ("Reflectivity Cap", 1.0, 0.0, 1.0,
+                         "r_c at most this where haze is on (1: off): room for a halo on a colour "
+                         "at or near 1, which otherwise has none, at the cost of that much peak"),
     "coat_haziness": ("Coat Haziness", 0.0, 0.0, MAX_HAZINESS,
                       "β_h of the clear coat: a halo of its own, on the Coat IOR's Fresnel"),
     "coat_haze_extent": ("Coat Haze Extent", 5.0, 0.0, 1000.0,

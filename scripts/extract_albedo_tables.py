@@ -26,6 +26,12 @@ layering albedo includes), from
 - ``ccl::table_ggx_E`` (32 x 32, [y][x]): the single-scatter GGX albedo E(μ, R); y = μ in 4.5
   and 5.2 (bit-identical), y = √μ in 5.3.  (``table_ggx_Eavg`` is in cycles_ggx_tables.)
 
+and, for a transmissive haze layer under Multiscatter GGX (the glass closure's energy factor
+1/E at the peak), the μ = 1 row of
+
+- ``ccl::table_ggx_glass_E`` (``_ZN3cclL17table_ggx_glass_EE``, [z][y][x] like IOR_S, the same
+  node counts and axes per generation): the single-scatter albedo of a GGX glass closure.
+
 All values are the 6-decimal numbers Cycles' precompute printed (asserted here: printing each
 float32 with 6 decimals round-trips it bit-exactly); the data module stores them as integer
 millionths, n / 10^6 rounded to float32 giving back the very bits read from the wheel (asserted).
@@ -47,6 +53,7 @@ from extract_ggx_tables import WHEELS, read_symbol, run  # noqa: E402
 OUT = ROOT / "hazy_gloss" / "core" / "cycles_albedo_tables.py"
 IOR_S = "_ZN3cclL27table_ggx_gen_schlick_ior_sE"
 E = "_ZN3cclL11table_ggx_EE"
+GLASS_E = "_ZN3cclL17table_ggx_glass_EE"
 #: generation -> (IOR_S nodes per axis, wheels that carry it)
 GENERATIONS = {"V4": (16, ("4.5.15", "5.2.3")), "V53": (32, ("5.3.0",))}
 
@@ -76,7 +83,8 @@ def extract(venv_root=ROOT):
         if not path.exists():
             raise SystemExit(f"missing {path}: run scripts/setup.sh first")
         tables[version] = {"IOR_S": _read(path, IOR_S, (32 ** 3, 16 ** 3)),
-                           "E": _read(path, E, (32 * 32,))}
+                           "E": _read(path, E, (32 * 32,)),
+                           "GLASS_E": _read(path, GLASS_E, (32 ** 3, 16 ** 3))}
     out, same = {}, {}
     for gen, (n, versions) in GENERATIONS.items():
         first = tables[versions[0]]
@@ -86,6 +94,8 @@ def extract(venv_root=ROOT):
         assert first["IOR_S"].size == n ** 3, (gen, first["IOR_S"].size)
         out[f"IOR_S_{gen}"] = (first["IOR_S"], n)
         out[f"E_{gen}"] = (first["E"], 32)
+        assert first["GLASS_E"].size == n ** 3, (gen, first["GLASS_E"].size)
+        out[f"GLASS_E_MU1_{gen}"] = (first["GLASS_E"].reshape(n, n, n)[:, -1, :].ravel(), n)
         same[gen] = versions
     return out, same
 
@@ -115,10 +125,13 @@ def render(tables, same):
         - IOR_S_V53 (5.3): the same quantity at 32 x 32 x 32 nodes i/31, y = √μ.
         - E_V4 (4.5, 5.2) and E_V53 (5.3): ggx_E, 32 x 32 [y][x], single-scatter GGX albedo,
           y = μ (V4) or √μ (V53).
+        - GLASS_E_MU1_V4 (16 x 16) and GLASS_E_MU1_V53 (32 x 32): ggx_glass_E at μ = 1 (its last
+          y row), [z][x]: the single-scatter albedo, reflection plus refraction, of a GGX glass
+          closure seen along the normal, z = F0(η)^¼ (the Multiscatter GGX glass energy factor).
         """
         ''')
     parts = [head]
-    for name in ("IOR_S_V4", "IOR_S_V53", "E_V4", "E_V53"):
+    for name in ("IOR_S_V4", "IOR_S_V53", "E_V4", "E_V53", "GLASS_E_MU1_V4", "GLASS_E_MU1_V53"):
         a, n = tables[name]
         parts.append("\n" + block(name, a, n))
     return "".join(parts)

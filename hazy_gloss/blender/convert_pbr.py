@@ -263,7 +263,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
             if key in sources or "haze_extent" in sources:
                 ext[axis] = layer.TEXTURE
         haze["haze_extent"] = tuple(ext)
-        for key in ("haziness", "coat_haziness", "coat_haze_extent"):
+        for key in ("haziness", "coat_haziness", "coat_haze_extent", "reflectivity_cap"):
             haze[key] = layer.TEXTURE if key in sources else constants.get(key, HAZE_DEFAULTS[key])
         if "haziness" not in sources and "haziness" not in constants and "coat_haziness" not in \
                 sources and "coat_haziness" not in constants:
@@ -276,7 +276,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         feeds = {f"in:{PBR_MAPS[k][0]}": k for k in sources if k in PBR_MAPS}
         consts = {}
         for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y",
-                    "smoothness"):
+                    "smoothness", "reflectivity_cap"):
             src = key if key in sources else "haze_extent" if key.startswith("haze_extent_") else None
             if src in sources:
                 feeds[f"haze:{key}"] = src

@@ -513,7 +513,7 @@ def haze_of(mat):
             vals[param] = TEXTURE if sock.is_linked else float(sock.default_value)
     h["haziness"] = vals.get("haziness", h["haziness"])
     h["haze_extent"] = (vals.get("haze_extent_x", 5.0), vals.get("haze_extent_y", 5.0))
-    for key in ("coat_haziness", "coat_haze_extent"):
+    for key in ("reflectivity_cap", "coat_haziness", "coat_haze_extent"):
         if key in vals:
             h[key] = vals[key]
     if cfg.get("smooth") and "smoothness" in vals:
@@ -821,10 +821,7 @@ def notes(mat):
         return out
     h = haze_of(mat)
     if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
-        betas = [vals[k] for k in ("beta dielectric", "beta metal", "beta") if k in vals]
-        if betas and max(betas) <= 0.0:
-            out.append("no haze shows: the core already reflects all it can (a colour channel at "
-                       "or above 1 leaves no room for a halo)")
+        out += _room_notes(node, vals, linked, h)
     if group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
         note = _body_note(node, vals, linked)
         if note:
@@ -836,11 +833,83 @@ def notes(mat):
     return out
 
 
+#: The Reflectivity Cap a note proposes where a colour at 1 leaves no room for haze.
+SUGGESTED_CAP = 0.98
+
+
+def _f0(ior):
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+def _parts(node, vals, linked):
+    """(β, the core reflectivity the user set (largest channel), what it is) of each part the
+    node renders, from its unlinked values (a linked reflectivity: not judged)."""
+    inp = node.inputs
+    cfg = group_config(node)
+    kind = cfg.get("bsdf")
+
+    def colour(name):
+        return None if name in linked else float(max(inp[name].default_value[:3]))
+    out = []
+    if kind == "PRINCIPLED":
+        m = None if "Metallic" in linked else float(inp["Metallic"].default_value)
+        if m is None or m > 0.0:
+            out.append((vals.get("beta metal", 0.0), colour("Base Color"), "Base Color"))
+        if (m is None or m < 1.0) and not {"IOR", "Specular IOR Level", "Specular Tint"} & set(linked):
+            tint = float(max(inp["Specular Tint"].default_value[:3]))
+            level = 2.0 * max(float(inp["Specular IOR Level"].default_value), 0.0)
+            if float(inp["Transmission Weight"].default_value) > 1e-5:
+                level = 1.0
+            out.append((vals.get("beta dielectric", 0.0),
+                        _f0(float(inp["IOR"].default_value)) * level * tint, "the specular F0"))
+    elif kind == "METALLIC" and cfg.get("settings", {}).get("fresnel_type") == "PHYSICAL_CONDUCTOR":
+        rc = None
+        if not {"IOR", "Extinction"} & set(linked):
+            n = np.asarray(inp["IOR"].default_value[:3], float)
+            k = np.asarray(inp["Extinction"].default_value[:3], float)
+            rc = float((((n - 1) ** 2 + k * k) / ((n + 1) ** 2 + k * k)).max())
+        out.append((vals.get("beta", 0.0), rc, "the F0 of its IOR and Extinction"))
+    elif kind == "METALLIC":
+        out.append((vals.get("beta", 0.0), colour("Base Color"), "Base Color"))
+    else:
+        out.append((vals.get("beta", 0.0), colour("Color"), "Color"))
+    return out
+
+
+def _room_notes(node, vals, linked, haze):
+    """Haze that cannot show or the peak it cannot keep, with the setting that fixes it."""
+    out = []
+    cap = float(haze.get("reflectivity_cap", 1.0))
+    for beta, rc, what in _parts(node, vals, linked):
+        if beta > 0.0 or rc is None:
+            continue
+        if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:
+            loss = 1.0 - SUGGESTED_CAP / min(rc, 1.0)
+            out.append(f"no haze shows: {what} reaches {rc:.3g}, which leaves no room for a halo; "
+                       f"set Reflectivity Cap to {SUGGESTED_CAP} to allow haze (the peak then drops "
+                       f"by {100 * loss:.1f}%)")
+        elif rc <= 1e-6:
+            out.append(f"no haze shows: {what} is 0, so there is no reflection to put a halo "
+                       f"around")
+        elif rc >= min(cap, 1.0) - 1e-6:
+            out.append(f"no haze shows: {what} ({rc:.3g}) leaves no room for a halo at this "
+                       f"Reflectivity Cap ({cap:g}): lower the cap")
+    tint = vals.get("tint narrow")
+    if tint is not None and "Specular Tint" not in linked and "IOR" not in linked and \
+            vals.get("beta dielectric", 0.0) > 0.0:
+        f0 = _f0(float(node.inputs["IOR"].default_value)) * max(tint)
+        if f0 > 1.0:
+            out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
+                       f"through the Specular Tint; lower Haziness")
+    return out
+
+
 def film_peak_change(node, vals=None, linked=None):
-    """How much a thin film moves the layer's peak (hazy / haze-free - 1, the channel that moves
-    most), for the node's unlinked values, or None without a film or haze: the layer raises
-    F(0) as without a film (Eq. 5), and the film's interference is not linear in F(0)
-    (core.thin_film: Cycles' normal-incidence reflectance)."""
+    """How much a thin film moves the layer's peak on a metal part (hazy / haze-free - 1, the
+    channel that moves most), for the node's unlinked values, or None without a film on a hazy
+    metal: the layer raises the metal's F0 (Base Color) as without a film (Eq. 5), and the
+    film's interference on a conductor is not linear in F0 (core.thin_film: Cycles'
+    normal-incidence reflectance).  A dielectric's film is in the layer's node math (exact)."""
     from ..core import thin_film
     if vals is None:
         vals, linked = values(node)
@@ -851,18 +920,9 @@ def film_peak_change(node, vals=None, linked=None):
     film = (float(d.default_value), float(inp["Thin Film IOR"].default_value))
     cfg = group_config(node)
     changes = []
-    if cfg.get("bsdf") == "PRINCIPLED":
+    if cfg.get("bsdf") == "PRINCIPLED":  # (the dielectric part's film is node math: exact)
         tint = np.asarray(inp["Specular Tint"].default_value, float)[:3]
-        level = float(inp["Specular IOR Level"].default_value)
         m = float(inp["Metallic"].default_value)
-        if m < 1.0 and vals.get("beta dielectric", 0.0) > 0.0:
-            ior, ior_h = float(inp["IOR"].default_value), float(vals["IOR dielectric"])
-            f0 = lambda e: ((e - 1.0) / (e + 1.0)) ** 2  # noqa: E731
-            rc = np.clip(f0(ior) * 2.0 * level * tint, 1e-9, 1.0)
-            rh = np.clip(f0(ior_h) * 2.0 * level * tint, 1e-9, 1.0)
-            a = thin_film.dielectric_reflectance(ior, level, tint, *film)
-            b = thin_film.dielectric_reflectance(ior_h, level, tint, *film)
-            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * rc / rh - 1.0)
         if m > 0.0 and vals.get("beta metal", 0.0) > 0.0:
             base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
             raised = np.clip(np.asarray(vals["reflectivity metal"], float), 1e-9, 1.0)
@@ -903,7 +963,12 @@ def _body_note(node, vals, linked):
             distribution=group_config(node).get("settings", {}).get("distribution", "GGX"))
     except (ValueError, FloatingPointError):
         return None
-    return bc.warning()
+    warning = bc.warning()
+    if warning is None:
+        return None
+    most = 1.0 / max(float(np.max(bc.c_face_on)), 1.0)
+    return (f"{warning}: lower Haziness, or a Base Color of at most {most:.2f} keeps the body "
+            f"colour")
 
 
 _SUMMARIES = {}

@@ -21,7 +21,7 @@ from .nodes.builder import TreeBuilder
 from .nodes.emit import emit
 
 #: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
-GROUP_VERSION = 1
+GROUP_VERSION = 2  # 2: transmission and thin films keep the IOR (the tint raises F0)
 
 BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
               "GLOSSY": "ShaderNodeBsdfGlossy"}
@@ -139,8 +139,8 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
 
 _SOURCES = ("blender/layer_group.py", "blender/nodes/emit.py", "blender/nodes/builder.py",
             "core/layer_graph.py", "core/node_math.py", "core/node_multiscatter.py",
-            "core/node_body_colour.py", "core/body_colour.py",
-            "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
+            "core/node_body_colour.py", "core/body_colour.py", "core/node_thin_film.py",
+            "core/thin_film.py", "core/cycles_albedo_tables.py", "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
 _digest = []
 
 
@@ -285,7 +285,7 @@ def _interface(ng, kind, template, smooth, baked=False):
     for param in haze_params(kind, smooth):
         name, default, lo, hi, desc = K.HAZE_SOCKETS[param]
         s = iface.new_socket(name=name, in_out="INPUT", socket_type="NodeSocketFloat", parent=haze)
-        if param in ("haziness", "coat_haziness") and hasattr(s, "subtype"):
+        if param in ("haziness", "coat_haziness", "reflectivity_cap") and hasattr(s, "subtype"):
             s.subtype = "FACTOR"
         s.default_value, s.min_value, s.max_value, s.description = default, lo, hi, desc
 
@@ -295,6 +295,7 @@ def haze_params(kind, smooth):
     out = ["haziness", "haze_extent_x", "haze_extent_y"]
     if smooth:
         out.append("smoothness")
+    out.append("reflectivity_cap")
     if kind == "PRINCIPLED":
         out += ["coat_haziness", "coat_haze_extent"]
     return out

@@ -213,16 +213,21 @@ def _inputs(core, entries, where, problems, fatal):
     return out
 
 
+#: Haze keys a stamp may lack: smoothness (Eq. 7), and what layers saved before it existed
+#: could not hold (their reading is the default).
+_OPTIONAL_HAZE = ("smoothness", "reflectivity_cap")
+
+
 def _haze(raw, baked, problems):
     """The layer's haze parameters that read (HAZE defaults for the missing optional ones)."""
     out = {}
     if not isinstance(raw, dict):
         problems.append((f"layer.haze is {_kind_of(raw)}, not a group of haze parameters",
-                         tuple(k for k in HAZE_PARAMETERS if k != "smoothness")))
+                         tuple(k for k in HAZE_PARAMETERS if k not in _OPTIONAL_HAZE)))
         return out
     for key in HAZE_PARAMETERS:
         if key not in raw:
-            if key != "smoothness":
+            if key not in _OPTIONAL_HAZE:
                 problems.append((f"layer.haze.{key} is missing", (key,)))
             continue
         v = raw[key]

@@ -85,7 +85,8 @@ def _tables(gen):
     n = 32 if gen == "V53" else 16
     return {"ior_s": _parse(getattr(_albedo_tables, f"IOR_S_{gen}"), (n, n, n)),
             "e": _parse(getattr(_albedo_tables, f"E_{gen}"), (32, 32)),
-            "eavg": np.asarray(getattr(_ggx_tables, f"EAVG_{gen}"), np.float32).astype(np.float64)}
+            "eavg": np.asarray(getattr(_ggx_tables, f"EAVG_{gen}"), np.float32).astype(np.float64),
+            "glass_e_mu1": _parse(getattr(_albedo_tables, f"GLASS_E_MU1_{gen}"), (n, n))}
 
 
 def _saturate(x):

@@ -21,10 +21,11 @@ the numpy mapping without rendering.
 - RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
   Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
   the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).
-- TABLE(u, v): a lookup in a float table of the graph (:meth:`Graph.table`, H x W values):
-  an Image Texture of a float Non-Color image (Linear, Extend) read at the texture coordinate
-  (u, v), as Cycles' kernel reads images (kernel/util/image.h interp_linear: x = u W - 0.5,
-  bilinear between texels, indices clamped); a vector with the value in every lane.
+- TABLE(u, v): a lookup in a float table of the graph (:meth:`Graph.table`, H x W values, or
+  H x W x 3 for a colour table): an Image Texture of a float Non-Color image (Linear, Extend)
+  read at the texture coordinate (u, v), as Cycles' kernel reads images (kernel/util/image.h
+  interp_linear: x = u W - 0.5, bilinear between texels, indices clamped); a vector with the
+  value in every lane (a colour table: its three channels).
 - Building folds constants (in float32 with the same semantics, as Cycles' own constant folding
   does) and merges identical sub-expressions, so a graph fed constants emits only the nodes
   that depend on linked inputs, and never two nodes computing the same thing.
@@ -40,7 +41,8 @@ __all__ = ("Expr", "Graph", "evaluate", "ramp_table", "SCALAR_OPS", "VECTOR_OPS"
 #: Math node operations used here, with their arity.
 SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "SQRT": 1, "MINIMUM": 2, "MAXIMUM": 2, "LESS_THAN": 2,
-              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3, "FLOOR": 1}
+              "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3, "FLOOR": 1,
+              "COSINE": 1, "EXPONENT": 1}
 #: Vector Math node operations used here (SCALE: vector × scalar).
 VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1, "FLOOR": 1,
@@ -257,11 +259,12 @@ class Graph:
         return self._make("RAMP", (x,), vector=True, stops=stops, **kw)
 
     def table(self, name, data, u, v, **kw):
-        """A lookup in the float table ``data`` (H x W; registered as ``name``) at the texture
-        coordinate (u, v) in [0, 1]²: texel (i, j) is centred at ((j + ½)/W, (i + ½)/H)."""
+        """A lookup in the float table ``data`` (H x W, or H x W x 3 for colours; registered as
+        ``name``) at the texture coordinate (u, v) in [0, 1]²: texel (i, j) is centred at
+        ((j + ½)/W, (i + ½)/H)."""
         data = np.ascontiguousarray(np.asarray(data, dtype=_F32))
-        if data.ndim != 2 or min(data.shape) < 1:
-            raise ValueError("a table is a 2-D array")
+        if data.ndim not in (2, 3) or min(data.shape[:2]) < 1 or data.shape[2:] not in ((), (3,)):
+            raise ValueError("a table is an H x W or H x W x 3 array")
         have = self.tables.get(name)
         if have is not None and (have.shape != data.shape or not np.array_equal(have, data)):
             raise ValueError(f"table {name!r} is registered with other values")
@@ -271,7 +274,7 @@ class Graph:
             raise TypeError("a table is read at two scalars")
         if u.is_const and v.is_const:
             with np.errstate(all="ignore"):
-                return self.const(tuple(np.repeat(_table_lookup(data, u.value, v.value), 3)))
+                return self.const(tuple(_table_rgb(data, u.value, v.value)))
         return self._make("TABLE", (u, v), vector=True, stops=name, **kw)
 
     def vclamp01(self, v, **kw):
@@ -389,6 +392,8 @@ _SCALAR = {
     "ABSOLUTE": np.abs,
     "FLOOR": np.floor,
     "CLAMP": _clamp,
+    "COSINE": np.cos,
+    "EXPONENT": np.exp,
 }
 
 
@@ -435,6 +440,14 @@ def _ramp_lookup(table, f):
 _RAMP_CACHE = {}
 
 
+def _table_rgb(data, u, v):
+    """_table_lookup of a grey (H, W) table in every lane, or of each channel of an (H, W, 3)
+    one: (..., 3)."""
+    if data.ndim == 2:
+        return np.repeat(_table_lookup(data, u, v)[..., None], 3, axis=-1)
+    return np.stack([_table_lookup(data[..., c], u, v) for c in range(3)], axis=-1)
+
+
 def _table_lookup(data, u, v):
     """kernel/util/image.h interp_linear with EXTENSION_EXTEND on a float image, one channel."""
     h, w = data.shape
@@ -470,7 +483,7 @@ def _apply_arrays(op, vals, vector_args, clamp, lane, stops):
         return _ramp_lookup(table, vals[0])
     if op == "TABLE":  # (stops: the table itself, handed in by evaluate)
         u, v = np.broadcast_arrays(vals[0], vals[1])
-        return np.repeat(_table_lookup(stops, u, v)[..., None], 3, axis=-1)
+        return _table_rgb(stops, u, v)
     if op == "VDOT_PRODUCT":
         a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
                                      for v, is_vec in zip(vals, vector_args)))

@@ -37,8 +37,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .. import constants as K
-from . import node_body_colour, node_math
+from . import node_body_colour, node_math, node_thin_film
 from .graph import Graph
+from .multiscatter import LATEST as _LATEST
 
 __all__ = ("Config", "Slot", "Mix", "Layer", "build", "input_name", "haze_name", "baked_name",
            "slots_of", "BSDF_TYPES", "BAKED")
@@ -50,6 +51,10 @@ BSDF_TYPES = ("PRINCIPLED", "METALLIC", "GLOSSY")
 _DIV_MIN = 1e-30
 #: Cycles' CLOSURE_WEIGHT_CUTOFF: a coat below it is not built (kernel/svm/types.h).
 _WEIGHT_CUTOFF = 1e-5
+#: kernel/svm/types.h THINFILM_THICKNESS_CUTOFF (nm): thinner films are off.
+_FILM_CUTOFF = 0.1
+#: Fixed-point steps for the energy factor of a thin wall's raised tint (mapping.md §13).
+_THIN_FIXED_POINT = 2
 
 
 def input_name(socket):
@@ -81,6 +86,12 @@ class Config:
     version: tuple = None
     baked: bool = False
     body: bool = False
+
+    @property
+    def thin_wall(self):
+        """Whether this Blender's Principled BSDF has a Thin Wall input (5.2 on)."""
+        v = self.version or _LATEST
+        return self.bsdf == "PRINCIPLED" and (int(v[0]), int(v[1])) >= (5, 2)
 
     def key(self):
         return (self.bsdf, self.distribution, self.fresnel, self.smooth,
@@ -203,6 +214,13 @@ def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, 
                              distribution=dist, multiscatter=ms, tint=tint, version=cfg.version)
 
 
+def _cap(g, x, rc):
+    """The core reflectivity the mapping raises: at most the Reflectivity Cap (a colour at 1
+    leaves no room for a halo; below it the peak drops by as much)."""
+    return g.vmath("MINIMUM", rc, g.clamp(x.haze("reflectivity_cap"), 0.0, 1.0),
+                   label="r_c (capped)")
+
+
 def _on(g, haziness):
     """1 where haze is on (β_h > 0), else 0: what the selects of the user's own values read."""
     return g.math("GREATER_THAN", haziness, 0.0, label="haze on")
@@ -271,29 +289,113 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
                       bh, label="β_h of the base")
     on = _on(g, bh_eff)
 
-    # -- dielectric part: F0 = F0(IOR) 2 Level Specular Tint, raised through the IOR ------------
-    _section(g, "Dielectric part: haze mapping (β, IOR raised so that F(0) = r)")
+    # -- dielectric part: F0 = F0(IOR) 2 Level Specular Tint, raised through the IOR; where light
+    #    passes through (Transmission Weight > 0) or a thin film interferes, the IOR stays (it
+    #    sets the refraction and the film) and the Specular Tint, which scales F0 alone
+    #    (svm/closure.h), raises it (mapping.md §13)
+    _section(g, "Dielectric part: haze mapping (β, IOR or Specular Tint raised so that F(0) = r)")
     ior = x("IOR")
+    tint = x("Specular Tint", True)
     f0_user = _f0(g, ior)
+    tr = g.math("GREATER_THAN", x("Transmission Weight"), _WEIGHT_CUTOFF, label="transmissive")
+    film = g.math("GREATER_THAN", x("Thin Film Thickness"), _FILM_CUTOFF, label="thin film")
+    keep = g.maximum(tr, film, label="IOR kept")
+    # the transmission lobe's F0 has no Specular IOR Level (generalized_schlick_setup): the
+    # peak of a partly transmissive point is F0 tint ((1 - w) 2 Level + w), linear in the tint
     level = g.mul(g.maximum(x("Specular IOR Level"), 0.0), 2.0)
-    rc_d = g.vmath("SCALE", x("Specular Tint", True), g.mul(f0_user, level))
+    level = g.select(tr, g.mix(g.clamp(x("Transmission Weight"), 0.0, 1.0), level, 1.0), level)
+    rc_d = g.vmath("SCALE", tint, g.mul(f0_user, level))
+    # a film: F(0) is the film's F scaled per channel by F (1 + s (τ F0/F0_real - 1)),
+    # s = saturate((1 - F)/(1 - F0_real)) (generalized_schlick_fresnel); the closure's η: the
+    # transmission lobe's IOR, or the specular's with Specular IOR Level applied
+    eta_s, f0_s, _ = node_body_colour.kernel_specular(g, ior, g.mul(level, 0.5))
+    f_film = node_thin_film.dielectric_film(g, x("Thin Film Thickness"), x("Thin Film IOR"),
+                                            eta_s, version=cfg.version)
+    scale = g.vmath("SCALE", g.vmath("MINIMUM", g.vmath("SCALE", tint, f0_s), 1.0),
+                    g.div(1.0, g.maximum(f0_s, _DIV_MIN)))
+    s_film = g.vclamp01(g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, f_film),
+                                g.div(1.0, g.maximum(g.sub(1.0, f0_s), _DIV_MIN))))
+    f_base = g.select(film, f_film, g.vmath("SCALE", (1.0, 1.0, 1.0), f0_s),
+                      label="F (before the tint)")
+    s_tint = g.select(film, s_film, (1.0, 1.0, 1.0), label="s (the tint's share)")
+    rc_d = g.select(film, g.vmath("MULTIPLY", f_film, g.vmath("MULTIPLY_ADD", s_film, g.vmath(
+        "SUBTRACT", scale, 1.0), 1.0)), rc_d)
+
+    def tint_for(target):
+        """The Specular Tint giving the peak ``target`` (per channel): 1 + (target/F - 1)/s."""
+        q = g.vmath("DIVIDE", target, g.vmath("MAXIMUM", f_base, _DIV_MIN))
+        return g.vmath("ADD", g.vmath("DIVIDE", g.vmath("SUBTRACT", q, 1.0),
+                                      g.vmath("MAXIMUM", s_tint, _DIV_MIN)), 1.0)
+    thin = None
+    if cfg.thin_wall:
+        # a thin wall's reflection lobe is always energy-compensated with F_ss = Specular Tint
+        # (bsdf_thin_glass_reflection_setup): its peak is R'(F0 tint) S(tint)
+        thin = g.mul(tr, g.math("GREATER_THAN", x("Thin Wall"), 0.5), label="thin wall")
+        x_n = _roughness_index(g, rough, g.value(0.0))
+        rc_d = g.select(thin, g.vmath("MULTIPLY", _thin_reflectance(g, rc_d, x("Base Color", True)),
+                                      node_body_colour.peak_energy(g, tint, x_n, cfg.version)), rc_d)
+    rc_d = _cap(g, x, rc_d)
     md = _part(g, x, cfg, kind="DIELECTRIC", rc=rc_d, edge=0.0, rough=rough, aniso=aniso, rot=rot,
                haziness=bh_eff)
-    v["ior_d"] = g.select(on, _ior_from_f0(g, g.mul(f0_user, _gain(g, md))), ior,
-                          label="IOR (raised)")
+    gain = _gain(g, md)
+    raised_ior = _ior_from_f0(g, g.mul(f0_user, gain))
+    v["ior_d"] = g.select(g.mul(on, g.sub(1.0, keep)), raised_ior, ior, label="IOR (raised)")
+    # converted maps hold the raised IOR everywhere (they have no tint map: mapping.md §13)
+    v["ior_baked"] = g.select(on, raised_ior, ior)
     v["beta_d"] = g.mul(md["beta"], on, label="β dielectric")
+    # transmissive: the halo is a mirror lobe of weight f = β r̂ and colour r / r̂ that transmits
+    # nothing, so the narrow lobe keeps the refraction and (1 - f) of it; its F0 is raised by
+    # t = (1 - f p S_w / (r̂_c S_n)) / (1 - f), which keeps the peak (S: Multiscatter GGX's
+    # energy factors at the peak, 1 for GGX) and makes R + T the original's
+    f_t = g.mul(v["beta_d"], md["reflectivity_max"], label="f = β r̂ (mirror)")
+    v["mix_d"] = g.select(tr, f_t, v["beta_d"], label="mix of the dielectric lobes")
+    halo = g.mul(f_t, md["peak_ratio"])
+    v["mirror_colour"] = g.vmath("SCALE", rc_d, g.div(1.0, g.maximum(md["core_max"], _DIV_MIN)),
+                                 label="r / r̂")
+    if cfg.distribution == "MULTI_GGX":  # the mirror's factor per channel: F82, F_ss = c + (1-c)/21
+        x_w = _roughness_index(g, md["roughness_wide"], md["anisotropy_wide"])
+        e_n, _ = node_body_colour.peak_albedos(g, _roughness_index(g, rough, aniso), x_w, ior,
+                                               cfg.version)
+        fss = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, v["mirror_colour"]), 1.0 / 21.0,
+                      v["mirror_colour"])
+        halo = g.vmath("SCALE", node_body_colour.peak_energy(g, fss, x_w, cfg.version), halo,
+                       label="f p S_w")
+        s_n = g.div(1.0, e_n)
+    else:
+        s_n = 1.0
+    if thin is not None:  # the thin wall's S is in r̂_c already
+        s_n = g.select(thin, 1.0, s_n)
+    # t per channel, (1 - f p S_w / (r̂_c S_n)) / (1 - f) >= 0
+    share = g.vmath("SCALE", halo, g.div(1.0, g.maximum(g.mul(md["core_max"], s_n), _DIV_MIN)))
+    t_n = g.vmath("SCALE", g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, share), 0.0),
+                  g.div(1.0, g.maximum(g.sub(1.0, f_t), _DIV_MIN)), label="t (narrow F0 gain)")
+    narrow = tint_for(g.vmath("MULTIPLY", rc_d, t_n))
+    if thin is not None:
+        base_c = x("Base Color", True)
+        target = g.vmath("MULTIPLY", rc_d, t_n)  # R'(s F0) S(s) = target: S from the last root
+        s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
+            g, tint, x_n, cfg.version)), f0_user, base_c)
+        for _ in range(_THIN_FIXED_POINT):
+            s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
+                g, s0, x_n, cfg.version)), f0_user, base_c)
+        narrow = g.select(thin, s0, narrow)
+    raised = tint_for(g.vmath("SCALE", rc_d, gain))
+    tinted = g.mul(on, keep, label="F0 raised by the tint")
+    v["tint_n"] = g.select(tinted, g.select(tr, narrow, raised), tint, label="Specular Tint (narrow)")
+    v["tint_w"] = g.select(tinted, raised, tint, label="Specular Tint (wide)")
+    v["mirror"] = g.mul(on, tr, label="wide lobe is the mirror")
 
     # -- metal part: F82-tint with F0 = Base Color, raised per channel (Eq. 5) ---------------
     _section(g, "Metal part: haze mapping (β, Base Color raised to r)")
     base = x("Base Color", True)
-    mm = _part(g, x, cfg, kind="DIELECTRIC", rc=base, edge=0.0, rough=rough, aniso=aniso, rot=rot,
-               haziness=bh_eff, lobe="F82_TINT", tint=x("Specular Tint", True))
+    mm = _part(g, x, cfg, kind="DIELECTRIC", rc=_cap(g, x, base), edge=0.0, rough=rough,
+               aniso=aniso, rot=rot, haziness=bh_eff, lobe="F82_TINT", tint=x("Specular Tint", True))
     v["base_m"] = g.select(on, mm["reflectivity"], base, label="Base Color (raised)")
     v["beta_m"] = g.mul(mm["beta"], on, label="β metal")
     # α_w depends on α_n and λ_h only: the same for both parts
     v.update(roughness_wide=md["roughness_wide"], anisotropy_wide=md["anisotropy_wide"],
              rotation_wide=md["rotation_wide"])
-    if cfg.body:
+    if cfg.body:  # (where the tint raises F0, the body is not compensated: mapping.md §13)
         _section(g, "Keep Body Colour: the base under the raised specular as it was")
         kw = dict(tint=x("Specular Tint", True), level=x("Specular IOR Level"),
                   multiscatter=cfg.distribution == "MULTI_GGX", version=cfg.version)
@@ -301,11 +403,40 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
             g, mu=node_body_colour.mu_from_facing(g), beta=v["beta_d"], ior=ior,
             ior_hazy=v["ior_d"], rough_n=_roughness_index(g, rough, aniso),
             rough_w=_roughness_index(g, v["roughness_wide"], v["anisotropy_wide"]), **kw)
-        v["base_d"] = g.select(on, g.vmath("MINIMUM", g.vmath("MULTIPLY", base, c), 1.0), base,
-                               label="Base Color (body kept)")
+        v["base_d"] = g.select(g.sub(on, tinted), g.vmath("MINIMUM", g.vmath("MULTIPLY", base, c), 1.0),
+                               base, label="Base Color (body kept)")
     shown = {"reflectivity dielectric": md["reflectivity"],
-             "haze room dielectric": md.get("halo_max", md["halo_intensity"])}
+             "haze room dielectric": md.get("halo_max", md["halo_intensity"]),
+             "transmissive": tr, "tint narrow": v["tint_n"], "mix dielectric": v["mix_d"]}
     return v, split, shown
+
+
+def _thin_reflectance(g, front, base):
+    """A thin wall's reflection at normal incidence (bsdf_thin_glass_fresnel): the front
+    interface's R, then the internal bounces R' = R + c² R (1 - R)² / (1 - c² R²), c the
+    clamped Base Color (the wall's absorption)."""
+    c2 = g.vmath("MULTIPLY", g.vclamp01(base), g.vclamp01(base))
+    r = front
+    omr = g.vmath("SUBTRACT", 1.0, r)
+    back = g.vmath("MULTIPLY", g.vmath("MULTIPLY", c2, r), g.vmath("MULTIPLY", omr, omr))
+    den = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, g.vmath("MULTIPLY", c2, g.vmath(
+        "MULTIPLY", r, r))), _DIV_MIN)
+    return g.vmath("ADD", r, g.vmath("DIVIDE", back, den))
+
+
+def _thin_tint(g, target, f0, base):
+    """The narrow lobe's Specular Tint of a transmissive thin wall, per channel, whose peak
+    R'(s F0) (_thin_reflectance) is ``target``: R' (1 - c² R²) = R (1 + c²) - 2 c² R² is a
+    quadratic in R, whose root in [0, 1] is R = 2R' / (1 + c² + √((1 + c²)² - 4 c² R' (2 - R')))
+    (no cancellation; c = 0 gives R = R')."""
+    c2 = g.vmath("MULTIPLY", g.vclamp01(base), g.vclamp01(base))
+    p = g.vclamp01(target)
+    b = g.vmath("ADD", c2, 1.0)
+    disc = g.vmath("SUBTRACT", g.vmath("MULTIPLY", b, b), g.vmath("MULTIPLY", g.vmath(
+        "SCALE", c2, 4.0), g.vmath("MULTIPLY", p, g.vmath("SUBTRACT", 2.0, p))))
+    r = g.vmath("DIVIDE", g.vmath("SCALE", p, 2.0), g.vmath("MAXIMUM", g.vmath(
+        "ADD", b, g.vsqrt(disc)), _DIV_MIN))
+    return g.vmath("SCALE", r, g.div(1.0, g.maximum(f0, _DIV_MIN)), label="Specular Tint (thin wall)")
 
 
 def _roughness_index(g, roughness, anisotropy):
@@ -326,6 +457,8 @@ def _principled_baked(g, x, m, a_metal, b_metal):
     v = {k: g.input(baked_name(k), vector=vec) for k, (_, vec) in BAKED.items()}
     on = g.math("GREATER_THAN", g.maximum(g.maximum(v["beta_d"], v["beta_m"]), v["beta_c"]), 0.0)
     split = g.mul(g.sub(b_metal, a_metal), on, label="split (0 < m < 1, haze on)")
+    tint = x("Specular Tint", True)
+    v.update(mix_d=v["beta_d"], tint_n=tint, tint_w=tint, mirror=0.0, mirror_colour=(1.0, 1.0, 1.0))
     return v, split, {}
 
 
@@ -339,17 +472,25 @@ def _principled(g, x, cfg):
         v, split, shown = _principled_baked(g, x, m, a_metal, b_metal)
     else:
         v, split, shown = _principled_mapping(g, x, cfg, m, a_metal, b_metal)
-    ior, base = x("IOR"), x("Base Color", True)
+    ior, base, tint = x("IOR"), x("Base Color", True), x("Specular Tint", True)
 
     def slot(role, part_metal, lobe_wide, coat):
         """``part_metal``: an Expr 1 (metal) / 0 (dielectric); ``coat``: "narrow", "wide" or
         an Expr 1 (wide) / 0 (narrow)."""
         w = {"Metallic": g.select(split, g.select(part_metal, 1.0, 0.0), metallic),
              "IOR": g.select(part_metal, ior, v["ior_d"]),
-             "Base Color": g.select(part_metal, v["base_m"], v.get("base_d", base))}
+             "Base Color": g.select(part_metal, v["base_m"], v.get("base_d", base)),
+             "Specular Tint": g.select(part_metal, tint, v["tint_w" if lobe_wide else "tint_n"])}
         if lobe_wide:
             w.update({"Roughness": v["roughness_wide"], "Anisotropic": v["anisotropy_wide"],
                       "Anisotropic Rotation": v["rotation_wide"]})
+            # a transmissive dielectric's halo: a mirror (Metallic 1, F0 = r / r̂, white F82,
+            # no film)
+            mirror = g.select(part_metal, 0.0, v["mirror"])
+            w["Metallic"] = g.select(mirror, 1.0, w["Metallic"])
+            w["Base Color"] = g.select(mirror, v["mirror_colour"], w["Base Color"])
+            w["Specular Tint"] = g.select(mirror, (1.0, 1.0, 1.0), w["Specular Tint"])
+            w["Thin Film Thickness"] = g.select(mirror, 0.0, x("Thin Film Thickness"))
         w["Coat IOR"] = v["coat_ior"]
         if coat == "wide":
             w["Coat Roughness"] = v["coat_roughness_wide"]
@@ -365,8 +506,8 @@ def _principled(g, x, cfg):
     s4 = slot("B wide", b_metal, True, b_coat)
     s5 = Slot("user under the wide coat", {"Coat IOR": v["coat_ior"],
                                            "Coat Roughness": v["coat_roughness_wide"]})
-    beta_a = g.select(a_metal, v["beta_m"], v["beta_d"], label="β_A")
-    beta_b = g.select(b_metal, v["beta_m"], v["beta_d"], label="β_B")
+    beta_a = g.select(a_metal, v["beta_m"], v["mix_d"], label="β_A")
+    beta_b = g.select(b_metal, v["beta_m"], v["mix_d"], label="β_B")
     f_ab = g.select(split, m, v["beta_c"], label="f_AB (m, or β coat)")
     f5 = g.mul(split, v["beta_c"], label="f_5 (β coat of a split)")
     cycles = Mix("Mix coat of a split", f5,
@@ -382,13 +523,14 @@ def _principled(g, x, cfg):
     r_fc = node_math.folded_roughness(g, v["beta_c"], coat_rough, v["coat_roughness_wide"])
     eevee = Slot("EEVEE folded", {"Roughness": g.mix(m, r_fd, r_fm),
                                   "Base Color": g.vmix(m, base, v["base_m"]), "IOR": v["ior_d"],
+                                  "Specular Tint": g.vmix(m, v["tint_w"], tint),
                                   "Coat IOR": v["coat_ior"], "Coat Roughness": r_fc})
     shown.update({"beta dielectric": v["beta_d"], "beta metal": v["beta_m"],
                   "beta coat": v["beta_c"], "IOR dielectric": v["ior_d"],
                   "reflectivity metal": v["base_m"], "roughness wide": v["roughness_wide"],
                   "coat IOR": v["coat_ior"], "coat roughness wide": v["coat_roughness_wide"],
                   "split": split})
-    baked = {k: v[k] for k in BAKED}
+    baked = {k: v.get(k + "_baked", v[k]) for k in BAKED}
     return cycles, eevee, shown, baked
 
 
@@ -404,16 +546,16 @@ def _metallic(g, x, cfg):
     rough, aniso, rot = x("Roughness"), x("Anisotropy"), x("Rotation")
     if cfg.fresnel == "PHYSICAL_CONDUCTOR":
         rc, edge = node_math.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
-        m = _part(g, x, cfg, kind="CONDUCTOR", rc=rc, edge=edge, rough=rough, aniso=aniso,
-                  rot=rot, haziness=bh)
+        m = _part(g, x, cfg, kind="CONDUCTOR", rc=_cap(g, x, rc), edge=edge, rough=rough,
+                  aniso=aniso, rot=rot, haziness=bh)
         own = {"IOR": g.select(on, m["ior"], x("IOR", True), label="IOR (η, raised)"),
                "Extinction": g.select(on, m["extinction"], x("Extinction", True),
                                       label="Extinction (κ, raised)")}
         shown = {"ior": own["IOR"], "extinction": own["Extinction"]}
     else:
         base = x("Base Color", True)
-        m = _part(g, x, cfg, kind="DIELECTRIC", rc=base, edge=0.0, rough=rough, aniso=aniso,
-                  rot=rot, haziness=bh, lobe="F82_TINT", tint=x("Edge Tint", True))
+        m = _part(g, x, cfg, kind="DIELECTRIC", rc=_cap(g, x, base), edge=0.0, rough=rough,
+                  aniso=aniso, rot=rot, haziness=bh, lobe="F82_TINT", tint=x("Edge Tint", True))
         own = {"Base Color": g.select(on, m["reflectivity"], base, label="Base Color (raised)")}
         shown = {}
     _section(g, "What each BSDF gets")
@@ -434,8 +576,8 @@ def _glossy(g, x, cfg):
     on = _on(g, bh)
     aniso, rot = node_math.glossy_to_metallic(g, x("Anisotropy"), x("Rotation"))
     colour = x("Color", True)
-    m = _part(g, x, cfg, kind="LEGACY", rc=colour, edge=0.0, rough=x("Roughness"), aniso=aniso,
-              rot=rot, haziness=bh)
+    m = _part(g, x, cfg, kind="LEGACY", rc=_cap(g, x, colour), edge=0.0, rough=x("Roughness"),
+              aniso=aniso, rot=rot, haziness=bh)
     _section(g, "What each BSDF gets")
     narrow = g.select(on, m["colour_narrow"], colour, label="Color k_n")
     wide = {"Color": g.select(on, m["colour_wide"], (0.0, 0.0, 0.0), label="Color k_w"),

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from . import body_colour as _bc
 
-__all__ = ("specular_albedo", "compensation", "FACING")
+__all__ = ("specular_albedo", "compensation", "peak_albedos", "peak_energy", "FACING")
 
 #: The graph input holding the Layer Weight node's Facing (1 - |N·I|, Blend 0.5).
 FACING = "geom:facing"
@@ -32,7 +32,7 @@ def _tables(version):
     s = t["ior_s"]  # [z][y][x]
     n = s.shape[0]
     return gen, {"ior_s": (s.reshape(n * n, n), n), "e": (t["e"], 32),
-                 "eavg": (t["eavg"].reshape(1, -1), 32)}
+                 "eavg": (t["eavg"].reshape(1, -1), 32), "glass_e": (t["glass_e_mu1"], n)}
 
 
 def _coord(g, x, n):
@@ -55,6 +55,35 @@ def _read3(g, name, data, n, x, y, z):
     s0 = _read2(g, name, data, x, y, n, n, g.mul(k0, float(n)), n * n)
     s1 = _read2(g, name, data, x, y, n, n, g.mul(k1, float(n)), n * n)
     return g.mix(t, s0, s1)
+
+
+def peak_albedos(g, rough_n, rough_w, ior, version=None):
+    """(E_glass(1, x_n, η), E(1, x_w)) at a view along the normal: the single-scatter albedos
+    behind Multiscatter GGX's energy factor 1/E (microfacet_ggx_preserve_energy) of a glass
+    closure of roughness index ``rough_n`` and IOR ``ior`` and of a reflection closure of
+    ``rough_w`` (the table rows y = 1: μ and √μ give the same row)."""
+    gen, tabs = _tables(version)
+    g_data, n = tabs["glass_e"]
+    z = g.sqrt(g.math("ABSOLUTE", g.div(g.sub(ior, 1.0), g.add(ior, 1.0))))
+    e_glass = _read2(g, f"glass E(1) {gen}", g_data, rough_n, z, n, n)
+    e_data, _ = tabs["e"]
+    e_wide = _read2(g, f"E {gen}", e_data, rough_w, 1.0, 32, 32)
+    return g.at_least(e_glass, 1e-6), g.at_least(e_wide, 1e-6)
+
+
+def peak_energy(g, fss, rough, version=None):
+    """Multiscatter GGX's factor on a reflection closure at a view along the normal
+    (microfacet_ggx_preserve_energy): 1 + F_ms m, m = (1 - E)/E, F_ms = F_ss E_avg /
+    (1 - F_ss (1 - E_avg)), per channel of ``fss`` (E = E(1, x), E_avg(x), x = ``rough``)."""
+    gen, tabs = _tables(version)
+    e_data, _ = tabs["e"]
+    e = g.at_least(_read2(g, f"E {gen}", e_data, rough, 1.0, 32, 32), 1e-6)
+    a_data, _ = tabs["eavg"]
+    eavg = _read2(g, f"Eavg {gen}", a_data, rough, 0.0, 32, 1)
+    m = g.div(g.sub(1.0, e), e)
+    den = g.vmath("SUBTRACT", 1.0, g.vmath("SCALE", fss, g.sub(1.0, eavg)))
+    fms = g.vmath("DIVIDE", g.vmath("SCALE", fss, eavg), g.vmath("MAXIMUM", den, _TINY))
+    return g.vmath("MULTIPLY_ADD", fms, m, 1.0)
 
 
 def _f0(g, eta):

@@ -33,19 +33,21 @@ TANGENTS = ("UV_MAP", "RADIAL_X", "RADIAL_Y", "RADIAL_Z")
 
 #: The parameters of a haze layer on a user's BSDF (Make Hazy); the core's own parameters stay
 #: on its node.
-HAZE_PARAMETERS = ("haziness", "haze_extent", "smoothness", "coat_haziness", "coat_haze_extent",
-                   "keep_body_colour")
-HAZE_DEFAULTS = dict(haziness=0.0, haze_extent=(5.0, 5.0), smoothness=None, coat_haziness=0.0,
-                     coat_haze_extent=5.0, keep_body_colour=False)
+HAZE_PARAMETERS = ("haziness", "haze_extent", "smoothness", "reflectivity_cap", "coat_haziness",
+                   "coat_haze_extent", "keep_body_colour")
+HAZE_DEFAULTS = dict(haziness=0.0, haze_extent=(5.0, 5.0), smoothness=None, reflectivity_cap=1.0,
+                     coat_haziness=0.0, coat_haze_extent=5.0, keep_body_colour=False)
 
 #: (lo, hi) of the numeric parameters, hi None = unbounded; colours per channel.
 RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "base_color": (0.0, 1.0),
           "roughness": (0.0, 1.0), "anisotropy": (0.0, 1.0), "transmission": (0.0, 1.0),
           "haziness": (0.0, K.MAX_HAZINESS), "haze_extent": (0.0, None),
           "rotation": (-math.inf, math.inf), "smoothness": (K.MIN_SMOOTHNESS, math.inf),
-          "coat_haziness": (0.0, K.MAX_HAZINESS), "coat_haze_extent": (0.0, None)}
+          "coat_haziness": (0.0, K.MAX_HAZINESS), "coat_haze_extent": (0.0, None),
+          "reflectivity_cap": (0.0, 1.0)}
 _COLOURS = ("core_reflectivity", "edge_tint", "base_color")
 _WHY = {"haziness": " (1 would break energy conservation)",
+        "reflectivity_cap": " (1: no cap)",
         "haze_extent": " (units of the core's roughness)",
         "smoothness": " (the Bézier weight w; None selects Eq. 7)"}
 
@@ -238,7 +240,7 @@ def normalise_haze(params, current=None):
               f"valid: {', '.join(HAZE_PARAMETERS)}")
     h = dict(HAZE_DEFAULTS if current is None else current)
     h.update(params)
-    for name in ("haziness", "coat_haziness"):
+    for name in ("haziness", "coat_haziness", "reflectivity_cap"):
         h[name] = _in_range(name, _number(name, h[name]))
     h["haze_extent"] = _extent(h["haze_extent"])
     h["coat_haze_extent"] = check_value("coat_haze_extent", h["coat_haze_extent"])

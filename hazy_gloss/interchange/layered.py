@@ -645,6 +645,8 @@ class Writer:
                                             one, zero, n),
              "ABSOLUTE": lambda: self.unary("absval", a, n, np.abs),
              "FLOOR": lambda: self.unary("floor", a, n, np.floor),
+             "COSINE": lambda: self.unary("cos", a, n, np.cos),
+             "EXPONENT": lambda: self.unary("exp", a, n, np.exp),
              "SIGN": lambda: self.unary("sign", a, n, np.sign)}.get(op)
         if r is None:
             self.note(f"Math {op.title()} (“{n}”) is not exported")

@@ -44,6 +44,9 @@ def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_
             emitter.visit(e)
             if nodes_by_expr is not None and e.op != "input":
                 nodes_by_expr[e.index] = emitter.sockets[e.index].node
+                helper = getattr(emitter, "helpers", {}).get(e.index)
+                if helper is not None:  # (a table's coordinate node, placed with it)
+                    nodes_by_expr[e.index - 0.5] = helper
     finally:
         tb.reuse = None
     return _replace(outputs, emitter.value)
@@ -72,6 +75,7 @@ class _ShaderEmitter:
         self.sockets = {}
         self.depth = {}
         self.separated = {}
+        self.helpers = {}  # expression index -> a node made beside its own (a table's UV)
 
     def value(self, e):
         return _const(e) if e.is_const else self.sockets[e.index]
@@ -162,6 +166,7 @@ class _ShaderEmitter:
             n = self._node("ShaderNodeTexImage", e, interpolation="Linear", extension="EXTEND")
             n.image = table_image(e.value, self.tables[e.value])
             uv = self.tb.node("ShaderNodeCombineXYZ")
+            self.helpers[e.index] = uv
             self.tb.place(uv, max(self.depth[e.index] - 1, 0))
             tb.feed(uv.inputs[0], self.value(e.args[0]))
             tb.feed(uv.inputs[1], self.value(e.args[1]))
@@ -197,10 +202,11 @@ def table_image(name, data):
     img = bpy.data.images.get(full)
     if img is not None and img.get("hazy_gloss_table") == digest:
         return img
-    h, w = data.shape
+    h, w = data.shape[:2]
     img = bpy.data.images.new(full, w, h, alpha=False, float_buffer=True, is_data=True)
     px = np.ones((h, w, 4), np.float32)
-    px[..., :3] = np.asarray(data, np.float32)[..., None]
+    data = np.asarray(data, np.float32)
+    px[..., :3] = data if data.ndim == 3 else data[..., None]
     img.pixels.foreach_set(px.ravel())
     if hasattr(img, "use_half_precision"):
         img.use_half_precision = False
