@@ -37,7 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .. import constants as K
-from . import node_body_colour, node_math, node_thin_film
+from . import node_body_colour, node_math, node_multiscatter, node_thin_film
 from .graph import Graph
 from .multiscatter import LATEST as _LATEST
 
@@ -54,7 +54,7 @@ _WEIGHT_CUTOFF = 1e-5
 #: kernel/svm/types.h THINFILM_THICKNESS_CUTOFF (nm): thinner films are off.
 _FILM_CUTOFF = 0.1
 #: Fixed-point steps for the energy factor of a thin wall's raised tint (mapping.md §13).
-_THIN_FIXED_POINT = 2
+_THIN_FIXED_POINT = 4
 
 
 def input_name(socket):
@@ -199,7 +199,8 @@ def _section(g, title):
     g.sections.append((title, len(g.nodes)))
 
 
-def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, tint=None):
+def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, tint=None,
+          affine=None):
     """node_math.mapping of one part with the layer's inputs (always the anisotropic form:
     anisotropy and the two extents may be animated or textured)."""
     src = dict(core_reflectivity=rc, edge_tint=edge, roughness=rough, anisotropy=aniso,
@@ -211,7 +212,8 @@ def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, 
     if dist == "MULTI_GGX":
         ms = lobe or node_math.MULTISCATTER_LOBE[kind]
     return node_math.mapping(g, src, kind=kind, anisotropic=True, smooth=cfg.smooth,
-                             distribution=dist, multiscatter=ms, tint=tint, version=cfg.version)
+                             distribution=dist, multiscatter=ms, tint=tint, version=cfg.version,
+                             affine=affine if ms else None)
 
 
 def _cap(g, x, rc):
@@ -335,8 +337,16 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
         rc_d = g.select(thin, g.vmath("MULTIPLY", _thin_reflectance(g, rc_d, x("Base Color", True)),
                                       node_body_colour.peak_energy(g, tint, x_n, cfg.version)), rc_d)
     rc_d = _cap(g, x, rc_d)
+    # Multiscatter GGX: a tinted lobe's F_ss = f0' + s_η (1 - f0'), f0' = F0 τ' and τ' affine in
+    # the peak r (tint_for): a + b r per channel (microfacet_ggx_preserve_energy)
+    s_eta = node_multiscatter.dielectric_s(g, f0_s)
+    inv_s = g.vmath("DIVIDE", 1.0, g.vmath("MAXIMUM", s_tint, _DIV_MIN))
+    a_t = g.vmath("MULTIPLY_ADD", g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, inv_s),
+                                          g.mul(f0_s, g.sub(1.0, s_eta))), 1.0, s_eta)
+    b_t = g.vmath("SCALE", g.vmath("DIVIDE", inv_s, g.vmath("MAXIMUM", f_base, _DIV_MIN)),
+                  g.mul(f0_s, g.sub(1.0, s_eta)))
     md = _part(g, x, cfg, kind="DIELECTRIC", rc=rc_d, edge=0.0, rough=rough, aniso=aniso, rot=rot,
-               haziness=bh_eff)
+               haziness=bh_eff, affine=(keep, a_t, b_t))
     gain = _gain(g, md)
     raised_ior = _ior_from_f0(g, g.mul(f0_user, gain))
     v["ior_d"] = g.select(g.mul(on, g.sub(1.0, keep)), raised_ior, ior, label="IOR (raised)")

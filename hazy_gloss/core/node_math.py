@@ -32,7 +32,7 @@ MULTISCATTER_LOBE = {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGA
 
 
 def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatter=None,
-            tint=None, version=None, iterations=None):
+            tint=None, version=None, iterations=None, affine=None):
     """The physical parameters of Eq. 1 from perceptual inputs ``src`` (name -> Expr or number;
     see INPUTS).
 
@@ -41,7 +41,8 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
     ``tint`` the Specular / Edge Tint colour), "DIELECTRIC", "LEGACY", "COAT" (kind DIELECTRIC,
     grey r_c = F0 of the Coat IOR): β and r keep the peak under Cycles' Multiscatter GGX energy
     factor (core.node_multiscatter; ``version`` picks the Cycles reproduced, None = the running
-    Blender; ``iterations`` overrides its Newton step counts).  Independent of
+    Blender; ``iterations`` overrides its Newton step counts; ``affine``: node_multiscatter's,
+    for a dielectric whose F0 the Specular Tint raises).  Independent of
     ``distribution``, whose p is GGX's for MULTI_GGX: the coat is always energy preserving.  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
     rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity,
     reflectivity_max (r̂), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
@@ -127,7 +128,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
         x_w = g.sqrt(g.sqrt(g.mul(wx_, wy_))) if anisotropic else g.sqrt(wx_)
         ms = correct(g, out, lobe=lobe, rc=rc, p=p, x_n=x_n, x_w=x_w, haziness=bh_ms,
                      edge_tint=src.get("edge_tint"), tint=tint, version=version,
-                     iterations=iterations)
+                     iterations=iterations, affine=affine)
         out.update(ms)
         beta, r, r_hat = ms["beta"], ms["reflectivity"], ms["reflectivity_max"]
         omr_hat = g.maximum(g.sub(1.0, r_hat), _TINY)

@@ -28,7 +28,7 @@ from .. import constants as K
 from . import cycles_ggx_tables as _tables
 from .multiscatter import _exact_conductor, _generation
 
-__all__ = ("LOBES", "ITERATIONS", "table_stops", "correct")
+__all__ = ("LOBES", "ITERATIONS", "table_stops", "correct", "dielectric_s")
 
 #: Lobe types (core.multiscatter.LOBES).
 LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
@@ -194,11 +194,13 @@ def _affine(g, a, b):
 
 
 def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None, version=None,
-            iterations=None):
+            iterations=None, affine=None):
     """Corrected (β, r, ...) for the single-scatter node mapping ``ss`` (node_math's outputs:
     reflectivity_max, core_max, chroma, peak_complement); ``rc`` the clamped r_c, ``p`` the
     peak ratio, ``x_n``, ``x_w`` the lobes' roughness indices (α_x α_y)^¼, ``haziness`` β_h
-    (or the Bézier's share β_h t/k̂_7).  Returns beta, reflectivity, reflectivity_max,
+    (or the Bézier's share β_h t/k̂_7).  ``affine`` (DIELECTRIC only): (on, a, b), where ``on``
+    (1 / 0 per point) says the lobes raise F0 through the Specular Tint, whose F_ss is then
+    a + b r per channel (the IOR's s fixed).  Returns beta, reflectivity, reflectivity_max,
     halo_intensity, halo_max (k̂_max) and, for Glossy lobes, colour_narrow, colour_wide.
     peak_ratio / peak_complement stay the single-scatter p, 1 - p of the node math."""
     lobe = str(lobe).upper()
@@ -242,9 +244,20 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
         b_m = g.sub(1.0, a_m)
         max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
     elif lobe == "DIELECTRIC":  # F = r + s (1 - r), s from r̂ (Specular Tint r / r̂)
-        f0 = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, rc), _dielectric_s(g, ss["core_max"]), rc)
+        f0 = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, rc), dielectric_s(g, ss["core_max"]), rc)
         f1 = 1.0
         max_model = lambda u: (lambda f, df: (f, f, df, df))(*_dielectric_max(g, u))  # noqa: E731
+        if affine is not None:  # where the tint raises F0: F_ss = a + b r
+            keep, a_t, b_t = affine
+            f0 = g.select(keep, g.vmath("MULTIPLY_ADD", rc, b_t, a_t), f0)
+            f1 = g.select(keep, g.vmath("ADD", a_t, b_t), (1.0, 1.0, 1.0))
+            a_tm, b_tm, raise_ior = lane_m(a_t), lane_m(b_t), max_model
+
+            def max_model(u):
+                f, _, df, _ = raise_ior(u)
+                f = g.select(keep, g.madd(u, b_tm, a_tm), f)
+                df = g.select(keep, b_tm, df)
+                return f, f, df, df
     else:  # COAT: F_ss = fresnel_dielectric_Fss(η(r̂))
         f0, f1 = _fit(g, rc)[0], 2.0 / (_FIT_A - _FIT_B)
         max_model = lambda u: (lambda f, df: (f, f, df, df))(*_fit(g, u))  # noqa: E731
@@ -300,15 +313,20 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
             r = _fixed_beta_step(v, r, beta, T, lambda x, f=f, df=df: (f, f, df, df), tn, tw, p)
     else:
         if lobe == "DIELECTRIC":  # s fixed by r̂: F affine in r
-            sd = _dielectric_s(g, u)
-            vec_model = _affine(g, sd, g.sub(1.0, sd))
+            sd = dielectric_s(g, u)
+            if affine is None:
+                vec_model = _affine(g, sd, g.sub(1.0, sd))
+            else:
+                one = (1.0, 1.0, 1.0)
+                vec_model = _affine(g, g.select(keep, a_t, g.vmath("SCALE", one, sd)),
+                                    g.select(keep, b_t, g.vmath("SCALE", one, g.sub(1.0, sd))))
         for _ in range(it["c"]):
             r = _fixed_beta_step(v, r, beta, T, vec_model, tn, tw, p)
     out["reflectivity"] = r
     return out
 
 
-def _dielectric_s(g, r_hat):
+def dielectric_s(g, r_hat):
     """The Principled dielectric's s = saturate((F_ss,d(η) - F0(η))/(1 - F0(η))), F0(η) = r̂."""
     f, _ = _fit(g, r_hat)
     return g.clamp(g.div(g.sub(f, r_hat), g.maximum(g.sub(1.0, r_hat), _TINY)), 0.0, 1.0)
