@@ -35,6 +35,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_layer_edit", "perf_layer_edit.py"),
     ("bench_production", "bench_production.py"),
     ("perf_import", "perf_import.py"),
+    ("bench_real_materials", "bench_real_materials.py"),
 )
 #: HG_REPORT_KEEP=perf_layer_eevee (comma-separated names) keeps a section's previous text and
 #: images in the docs instead of rerunning it (perf_layer_eevee takes ~40 min on 2 cores).
@@ -190,7 +191,7 @@ def main():
                        marked_section("perf_layer", frag["perf_layer"])]
                       + [kept_section(name) if name in KEEP else marked_section(name, frag[name])
                          for name in ("perf_layer_eevee", "perf_layer_edit", "bench_production",
-                                      "perf_import")])
+                                      "perf_import", "bench_real_materials")])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
         "Where the paper's formulas are numerically delicate, how large the error of each "

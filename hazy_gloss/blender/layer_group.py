@@ -168,7 +168,18 @@ def _cache_path(name):
         base = bpy.utils.extension_path_user(__package__.rpartition(".blender")[0],
                                              path="layer_groups", create=True)
     except (ValueError, TypeError, AttributeError, RuntimeError):
-        return None  # not loaded as an extension (a script's import): no cache
+        # registered by a script (import hazy_gloss; register()): a per-user temporary folder
+        import getpass
+        import tempfile
+        try:
+            user = re.sub(r"[^A-Za-z0-9]+", "_", getpass.getuser())
+        except (KeyError, OSError):
+            user = "user"
+        base = os.path.join(tempfile.gettempdir(), f"hazy_gloss_{user}", "layer_groups")
+        try:
+            os.makedirs(base, exist_ok=True)
+        except OSError:
+            return None
     slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
     return os.path.join(base, f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend")
 
