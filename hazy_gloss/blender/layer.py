@@ -320,9 +320,12 @@ def _take_inputs(tree, src, dst):
         if target is None:
             continue
         if hasattr(sock, "default_value") and hasattr(target, "default_value"):
-            target.default_value = socket_value(target, _plain(sock.default_value))
+            value = socket_value(target, _plain(sock.default_value))
+            if _plain(target.default_value) != _plain(value):  # (each set updates the tree)
+                target.default_value = value
         for link in into.get(sock.identifier, ()):
-            tree.links.new(link.from_socket, target)
+            # a new group node's input has no link to replace: no limit to verify
+            tree.links.new(link.from_socket, target, verify_limits=False)
 
 
 def _links_into(tree, node):
@@ -637,7 +640,7 @@ def graph_of(node):
 _NEEDED = {}
 
 
-def _evaluate(node, outputs):
+def _evaluate(node, outputs, lazy=False):
     lay = graph_of(node)
     vals, linked = _inputs_of(node)
     key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
@@ -649,7 +652,7 @@ def _evaluate(node, outputs):
         v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
         vector = lay.graph.inputs[name].vector
         inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
-    out = evaluate(outputs, inputs, lay.graph.tables)
+    out = evaluate(outputs, inputs, lay.graph.tables, lazy=lazy)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
 
@@ -815,11 +818,13 @@ def notes(mat):
             out.append(f"its haze comes from converted maps made for other {', '.join(changed)}: "
                        f"convert the maps again (or Remove Haze, then Make Hazy for a live layer)")
         return out
+    h = haze_of(mat)
+    if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
+        return out  # no haze set here: nothing it could not do
     try:
-        vals, linked = values(node)
+        vals, linked = _evaluate(node, _note_outputs(node), lazy=True)
     except (ValueError, TypeError, KeyError):
         return out
-    h = haze_of(mat)
     if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
         out += _room_notes(node, vals, linked, h)
     if group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
@@ -831,6 +836,21 @@ def notes(mat):
         out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
                    f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
     return out
+
+
+def _note_outputs(node):
+    """The shown values the notes read for this node (evaluating all of them costs ~10 ms: the
+    film and glass math is skipped where the node has neither)."""
+    shown = graph_of(node).shown
+    keys = {"beta dielectric", "beta metal", "beta", "reflectivity metal", "reflectivity"}
+    inp = node.inputs
+    tr, film = inp.get("Transmission Weight"), inp.get("Thin Film Thickness")
+    if (tr is not None and (tr.is_linked or tr.default_value > 0.0)) or \
+            (film is not None and (film.is_linked or film.default_value > 0.1)):
+        keys.add("tint narrow")
+    if group_config(node).get("body"):
+        keys |= {"roughness wide", "IOR dielectric"}
+    return {k: shown[k] for k in keys if k in shown}
 
 
 #: The Reflectivity Cap a note proposes where a colour at 1 leaves no room for haze.

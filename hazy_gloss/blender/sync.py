@@ -27,6 +27,8 @@ def sync(mat, *, force=False):
     to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
     if mat is None or mat.library is not None:
         return False
+    if _todays_layer(mat):  # its group computes everything: only a fallback to follow
+        return _follow_fallback(mat, force)
     if not layer.is_layered(mat):
         if not material.is_hazy(mat):
             return False
@@ -58,6 +60,16 @@ def sync(mat, *, force=False):
     _fingerprints.pop(key, None)
     refresh_derived(mat)
     return True
+
+
+def _todays_layer(mat):
+    """A cheap look at the stamp (every edit of a layered material asks): a record of today's
+    layer node.  Anything else (damaged, legacy, no layer) takes the full reading."""
+    try:
+        rec = mat.get(K.STAMP, {}).get("layer")
+        return rec is not None and rec.get("version") == layer.LAYER_VERSION
+    except (AttributeError, TypeError):
+        return False
 
 
 def _follow_fallback(mat, force):

@@ -568,10 +568,13 @@ _FAST = {
 }
 
 
-def evaluate(outputs, inputs, tables=None):
+def evaluate(outputs, inputs, tables=None, *, lazy=False):
     """Values of ``outputs`` (an Expr, a list or a dict of them) for ``inputs`` (name ->
     float32 array, vectors shaped (..., 3)), with Blender's node semantics in float32.
-    ``tables``: the graph's (Graph.tables), for TABLE lookups."""
+    ``tables``: the graph's (Graph.tables), for TABLE lookups.  ``lazy`` (one shading point
+    only): a select whose factor is exactly 0 or 1 skips the side it drops — the same values
+    wherever that side is finite (a NaN there makes Blender's Mix node NaN; lazy does not see
+    it), for advice that need not pay for branches a point does not take."""
     exprs = _flatten(outputs)
     cache = {}
     tables = tables or {}
@@ -590,6 +593,10 @@ def evaluate(outputs, inputs, tables=None):
         for k, v in cache.items():
             if v.ndim == 0:
                 cache[k] = v[()]
+        if lazy:
+            with np.errstate(all="ignore"):
+                _evaluate_point(exprs, plan, cache, tables)
+            return _outputs(outputs, cache)
     with np.errstate(all="ignore"):
         for e, args, vector_args, fast in plan:
             if e.op == "input":
@@ -608,7 +615,10 @@ def evaluate(outputs, inputs, tables=None):
                 e.op, vals, vector_args, e.clamp, e.lane,
                 e.value if e.op == "RAMP" else tables[e.value] if e.op == "TABLE" else None)
             cache[e.index] = out[()] if point and out.ndim == 0 else out
+    return _outputs(outputs, cache)
 
+
+def _outputs(outputs, cache):
     def out(o):
         if isinstance(o, dict):
             return {k: out(v) for k, v in o.items()}
@@ -618,6 +628,61 @@ def evaluate(outputs, inputs, tables=None):
             return np.asarray(o.value, dtype=_F32) if o.is_const else np.asarray(cache[o.index])
         return o
     return out(outputs)
+
+
+def _step(e, args, vector_args, fast, cache, tables):
+    """One plan step at one shading point (values in ``cache``)."""
+    vals = [a[2] if a[0] else cache[a[1]] for a in args]
+    if fast is not None:
+        out = fast(*vals)
+        return _saturate(out)[()] if e.clamp else out
+    if e.op == "TABLE" and e.value not in tables:
+        raise KeyError(f"no table {e.value!r} (evaluate(..., tables=graph.tables))")
+    out = _apply_arrays(e.op, vals, vector_args, e.clamp, e.lane,
+                        e.value if e.op == "RAMP" else tables[e.value] if e.op == "TABLE" else None)
+    return out[()] if out.ndim == 0 else out
+
+
+def _evaluate_point(exprs, plan, cache, tables):
+    """evaluate(lazy=True) at one shading point: demand-driven, a scalar select (MIX) whose
+    factor is exactly 0 or 1 evaluates only the side it keeps ((1 - t) a + t b is a, or b,
+    where the other side is finite), without the work of the side not taken (a layer's film,
+    glass and Multiscatter branches)."""
+    steps = {e.index: (e, args, v, f) for e, args, v, f in plan}
+    stack = [e.index for e in exprs if not e.is_const]
+    while stack:
+        i = stack[-1]
+        if i in cache:
+            stack.pop()
+            continue
+        e, args, vector_args, fast = steps[i]
+        need = [a[1] for a in args if not a[0]]
+        if e.op == "MIX" and not vector_args[0] and not args[0][0]:
+            t = args[0][1]
+            if t not in cache:
+                stack.append(t)
+                continue
+            tv = cache[t]
+            keep = [a for a in args[1:] if not a[0]]
+            if tv == 0.0 or tv == 1.0:
+                side = args[1] if tv == 0.0 else args[2]
+                if side[0]:
+                    cache[i] = side[2]
+                    stack.pop()
+                    continue
+                if side[1] not in cache:
+                    stack.append(side[1])
+                    continue
+                cache[i] = cache[side[1]]
+                stack.pop()
+                continue
+            need = [a[1] for a in keep]
+        missing = [j for j in need if j not in cache]
+        if missing:
+            stack.extend(missing)
+            continue
+        cache[i] = _step(e, args, vector_args, fast, cache, tables)
+        stack.pop()
 
 
 def _topo(exprs):
