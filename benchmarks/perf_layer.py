@@ -155,7 +155,8 @@ def floor(bpy, label, images):
 def hand_wired(bpy, layered):
     """The layer node's Cycles closure tree typed in: a fresh Principled BSDF per slot with the
     node's inputs and the values the group's math gives it, Mix Shaders with the factors it
-    gives (layer.slot_values / the group's graph evaluated: constant inputs only)."""
+    gives (layer_probe.slot_values / the group's graph evaluated: constant inputs only)."""
+    import layer_probe
     from hazy_gloss.blender import layer
     from hazy_gloss.core import layer_graph
     node = layer.layer_node(layered)
@@ -177,13 +178,13 @@ def hand_wired(bpy, layered):
                 if s.name in b.inputs and hasattr(s, "default_value"):
                     v = s.default_value
                     b.inputs[s.name].default_value = tuple(v) if hasattr(v, "__len__") else v
-            for k, v in layer.slot_values(node, t.role).items():
+            for k, v in layer_probe.slot_values(layer, node, t.role).items():
                 sock = b.inputs[k]
                 if isinstance(v, tuple) and len(sock.default_value) == 4:
                     v = v[:3] + (1.0,)
                 sock.default_value = v
             return b.outputs[0]
-        f = layer._evaluate(node, {"f": t.factor})[0]["f"] if not t.add else None
+        f = layer.evaluate(node, {"f": t.factor})[0]["f"] if not t.add else None
         if f == 0.0:
             return build(t.a)
         if f == 1.0:
@@ -201,9 +202,10 @@ def hand_wired(bpy, layered):
 
 
 def rendered_slots(layered):
-    """(BSDF copies Cycles renders, exact?) of the layer node (blender.layer.rendered_slots)."""
+    """(BSDF copies Cycles renders, exact?) of the layer node (layer_probe.rendered_slots)."""
+    import layer_probe
     from hazy_gloss.blender import layer
-    return layer.rendered_slots(layer.layer_node(layered))
+    return layer_probe.rendered_slots(layer, layer.layer_node(layered))
 
 
 def counts(mat):

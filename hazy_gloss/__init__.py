@@ -11,8 +11,6 @@ Layout (in the spirit of glTF-Blender-IO):
 Importing this package does not import bpy; ``register()`` does.
 """
 
-bl_info_version = (0, 1, 0)
-
 
 def register():
     from .blender import registration

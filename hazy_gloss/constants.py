@@ -24,9 +24,8 @@ NODE_DISTRIBUTIONS = {
 #: (the paper's β_h ∈ [0, 1)); every path clamps to this one value.
 MAX_HAZINESS = 0.9999
 
-#: Cycles turns a lobe into a perfect mirror when α_x α_y <= 2e-10 (R < 0.00376).
-MIRROR_ALPHA_PRODUCT = 2e-10
-#: Smallest roughness R the add-on gives a hazy lobe, just above the mirror cut-off.
+#: Smallest roughness R the add-on gives a hazy lobe, just above the mirror cut-off (Cycles
+#: turns a lobe into a perfect mirror when α_x α_y <= 2e-10, i.e. R < 0.00376).
 MIN_ROUGHNESS = 0.004
 #: Cycles clamps Ashikhmin-Shirley α to >= 1e-4 and drops a lobe whose α are all <= 1e-4.
 MIN_ROUGHNESS_AS = 0.0101

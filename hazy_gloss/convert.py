@@ -22,7 +22,6 @@ the bottom row); nothing here depends on the order.
 from __future__ import annotations
 
 import difflib
-import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field

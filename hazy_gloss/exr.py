@@ -41,7 +41,7 @@ class ExrError(ImageFileError):
 
 _MAGIC = K.EXR_MAGIC
 #: Version field: bit 9 single-part tiled, 10 long names, 11 deep data, 12 multi-part.
-_TILED, _LONG_NAMES, _DEEP, _MULTIPART = 0x200, 0x400, 0x800, 0x1000
+_TILED, _DEEP, _MULTIPART = 0x200, 0x800, 0x1000
 #: compression id -> (name, scanlines per chunk); OpenEXR 3.4's ids.
 _COMPRESSION = {0: ("NONE", 1), 1: ("RLE", 1), 2: ("ZIPS", 1), 3: ("ZIP", 16), 4: ("PIZ", 32),
                 5: ("PXR24", 16), 6: ("B44", 32), 7: ("B44A", 32), 8: ("DWAA", 32),

@@ -18,7 +18,7 @@ V0 - Eq.11(β, r) + Eq.11(β', r').  The haze mapping (Eq. 7 with the rendered p
 its complement, Eq. 4-5) turns an edited haziness β_h and core reflectivity r_c into β', r'.
 docs/compositing.md explains the render set-up (hazy_gloss.blender.composite).
 
-- :func:`passes_from_exr`, :func:`recomposite`, :func:`recomposite_parameters`: numpy;
+- :func:`passes_from_exr`, :func:`recomposite`: numpy;
 - :func:`compositor_graph`: the same computation as node math (core.graph), from which the
   compositor group "Hazy Gloss Recomposite" is generated.
 """
@@ -32,8 +32,6 @@ from .exr import ExrError, read_exr
 
 #: View layer custom property read by the hazy materials (Attribute node, type VIEW_LAYER).
 PROPERTY = "hg_recomposite"
-#: Modes: 0 normal; 1..4 = (lobe, Fresnel) variants for camera rays.
-MODES = {"NARROW_DELTA": 1, "NARROW_ONE": 2, "WIDE_DELTA": 3, "WIDE_ONE": 4}
 #: View layer per mode (order = c1..c4 above).
 LAYERS = ("HG Narrow Delta", "HG Narrow One", "HG Wide Delta", "HG Wide One")
 #: Pass keys of :func:`recomposite` in the same order (plus "original", the ordinary render).
@@ -221,21 +219,6 @@ def _run(passes, *args):
     g = Graph()
     i = {k: g.input(k, vector=v[0]) for k, v in GRAPH_INPUTS.items()}
     return evaluate(compositor_graph(g, i), _graph_inputs(passes, *args))
-
-
-def recomposite_parameters(passes, haziness=None, core_reflectivity=None, *,
-                           haziness_factor=1.0, core_reflectivity_factor=1.0):
-    """Per-pixel (β, r, hazy) for edited perceptual parameters.
-
-    haziness             new β_h: a number or an (H, W) map; None keeps the rendered one
-    core_reflectivity    new r_c: a number (grey), an RGB triple or an (H, W, 3) map; None keeps
-    *_factor             0..1 (number or (H, W) mask): blend from the rendered value to the new
-                         one (a mask edits part of the image)
-    Returns (β', r', β, r, hazy): the edited and the rendered β (H, W) and r (H, W, 3), all 0
-    outside hazy surfaces, and the hazy mask (H, W) bool.  Where both factors are 0 the edited
-    values are the rendered ones exactly."""
-    o = _run(passes, haziness, core_reflectivity, haziness_factor, core_reflectivity_factor)
-    return o["beta"], o["reflectivity"], o["beta0"], o["r0"], o["hazy"] > 0
 
 
 def recomposite(passes, haziness=None, core_reflectivity=None, *, haziness_factor=1.0,

@@ -6,7 +6,7 @@ Principled BSDF (docs/interchange.md §5), bpy-free:
     .venv/bin/python scripts/layer_interchange_report.py --print  # prints it instead
 
 For every part of every look (hazy_gloss/utils/looks.py: the dielectric or metal base, the coat)
-the layer's constants as blender/layer.py maps them (interchange.layered.layer_part), then:
+the layer's constants as blender/layer.py maps them (tests/pure/openpbr_measure.layer_part), then:
 
 - the Fresnel gap: where the exact dielectric Fresnel of the raised η dips below F0, Cycles'
   Principled keeps F0 (max(F_η, F0)) and MaterialX's dielectric_bsdf does not;
@@ -29,8 +29,9 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests", "pure"))  # openpbr_measure (not shipped)
 
-from hazy_gloss.interchange import layered as L  # noqa: E402
+import openpbr_measure as measure  # noqa: E402
 from hazy_gloss.utils.looks import LOOKS  # noqa: E402
 
 DOC = os.path.join(ROOT, "docs", "interchange.md")
@@ -61,33 +62,33 @@ def rows(distribution):
             if p.get("Metallic", 0.0) >= 1.0:
                 base = p.get("Base Color", (0.8, 0.8, 0.8, 1.0))[:3]
                 tint = p.get("Specular Tint", (1.0, 1.0, 1.0, 1.0))[:3]
-                part = L.layer_part(base, rough, h["haziness"], ext, distribution, lobe="F82_TINT",
+                part = measure.layer_part(base, rough, h["haziness"], ext, distribution, lobe="F82_TINT",
                                     tint=tint)
                 out.append((look.name, "metal (F82-tint: the same model)", f"r = {max(part['r']):.3f}",
-                            "—", "0 / 0", L.materialx_peak_drift(part), "—"))
+                            "—", "0 / 0", measure.materialx_peak_drift(part), "—"))
             else:
-                part = L.hazy_dielectric(float(p.get("IOR", 1.5)), roughness=rough,
+                part = measure.hazy_dielectric(float(p.get("IOR", 1.5)), roughness=rough,
                                          haziness=h["haziness"], haze_extent=ext, distribution=distribution)
-                e = L.specular_error(part)
+                e = measure.specular_error(part)
                 out.append((look.name, "dielectric", f"η' = {part['eta']:.3f}",
-                            f"{L.fresnel_gap(part['eta']):.3f}", f"{e['max']:.3f} / {e['mean']:.4f}",
-                            L.materialx_peak_drift(part), "—"))
+                            f"{measure.fresnel_gap(part['eta']):.3f}", f"{e['max']:.3f} / {e['mean']:.4f}",
+                            measure.materialx_peak_drift(part), "—"))
         if h.get("coat_haziness", 0.0) > 0.0 and p.get("Coat Weight", 0.0) > 0.0:
             ci = float(p.get("Coat IOR", 1.5))
             cext = float(h.get("coat_haze_extent", 5.0))
-            part = L.layer_part(_f0(ci), float(p.get("Coat Roughness", 0.03)), h["coat_haziness"],
+            part = measure.layer_part(_f0(ci), float(p.get("Coat Roughness", 0.03)), h["coat_haziness"],
                                 cext, "MULTI_GGX", lobe="COAT")  # the coat is always compensated
             eta_c = float(_eta(max(part["r"])))
             albedo = np.asarray(p.get("Base Color", (0.8, 0.8, 0.8, 1.0))[:3], float)
-            dark = L.coat_darkening_factor(albedo, eta_c)
+            dark = measure.coat_darkening_factor(albedo, eta_c)
             out.append((look.name, "coat", f"η_c' = {eta_c:.3f} (user {ci:g})",
-                        "— (exact in both)", "0 / 0", L.materialx_peak_drift(part),
+                        "— (exact in both)", "0 / 0", measure.materialx_peak_drift(part),
                         ", ".join(f"{x:.3f}" for x in dark)))
     for name, kw in EXTRA:
-        part = L.hazy_dielectric(distribution=distribution, **kw)
-        e = L.specular_error(part)
-        out.append((name, "dielectric", f"η' = {part['eta']:.3f}", f"{L.fresnel_gap(part['eta']):.3f}",
-                    f"{e['max']:.3f} / {e['mean']:.4f}", L.materialx_peak_drift(part), "—"))
+        part = measure.hazy_dielectric(distribution=distribution, **kw)
+        e = measure.specular_error(part)
+        out.append((name, "dielectric", f"η' = {part['eta']:.3f}", f"{measure.fresnel_gap(part['eta']):.3f}",
+                    f"{e['max']:.3f} / {e['mean']:.4f}", measure.materialx_peak_drift(part), "—"))
     return out
 
 

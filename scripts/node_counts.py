@@ -8,11 +8,14 @@ markers) and prints them.
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))  # layer_probe
 
 import bpy  # noqa: E402
 
 import hazy_gloss  # noqa: E402
+import layer_probe  # noqa: E402
 
 
 def count(mat):
@@ -86,7 +89,7 @@ def layer_rows(api):
         node = layer.layer_node(mat)
         from hazy_gloss.core import layer_graph
         slots = len(layer_graph.slots_of(layer.graph_of(node).cycles))  # (and one for EEVEE)
-        kept, exact = layer.rendered_slots(node)
+        kept, exact = layer_probe.rendered_slots(layer, node)
         rows.append(f"| {label} | {top} | {len(mat.node_tree.nodes) - top} | {node.node_tree.name} | "
                     f"{count_tree(node.node_tree)} | {slots} | {kept}{'' if exact else ' (at most)'} |")
     return rows

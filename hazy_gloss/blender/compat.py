@@ -12,48 +12,12 @@ VERSION = bpy.app.version
 _SCENE_PROPS = bpy.types.Scene.bl_rna.properties
 
 
-def eevee_engine_id():
-    """5.x accepts only BLENDER_EEVEE; 4.2-4.5 call the new EEVEE BLENDER_EEVEE_NEXT."""
-    items = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
-    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in items else "BLENDER_EEVEE"
-
-
 def new_material(name):
     """A material with a node tree (use_nodes is deprecated in 5.0, required in 4.x)."""
     mat = bpy.data.materials.new(name)
     if VERSION < (5, 0, 0):
         mat.use_nodes = True
     return mat
-
-
-def exact_conductor_fresnel():
-    """Metallic BSDF PHYSICAL_CONDUCTOR is the exact conductor Fresnel from 5.0 on; 4.5 uses an
-    approximation exact only at normal incidence (BLENDER-FACTS.md)."""
-    return VERSION >= (5, 0, 0)
-
-
-def metallic_thin_film():
-    """5.3 added Thin Film Thickness / IOR inputs to the Metallic BSDF (Principled had them
-    since 4.2)."""
-    return _node_has_input("ShaderNodeBsdfMetallic", "Thin Film Thickness")
-
-
-_INPUTS = {}
-
-
-def _node_has_input(bl_idname, name):
-    """Whether a shader node type has an input socket ``name`` (probed once on a scratch tree)."""
-    key = (bl_idname, name)
-    if key not in _INPUTS:
-        tree = bpy.data.node_groups.new(".hazy_gloss_probe", "ShaderNodeTree")
-        try:
-            node = tree.nodes.new(bl_idname)
-            for sock in node.inputs:
-                _INPUTS[(bl_idname, sock.name)] = True
-            _INPUTS.setdefault(key, False)
-        finally:
-            bpy.data.node_groups.remove(tree)
-    return _INPUTS[key]
 
 
 def shader_add_menu():

@@ -261,10 +261,6 @@ def _scene_state(scene):
     return {k: v for k, v in state.items() if k in types and isinstance(v, types[k])}
 
 
-def is_recomposite_material(mat):
-    return mat is not None and STAMP in mat
-
-
 # ============================================================================================
 # bpy glue: view layers and output
 # ============================================================================================
@@ -356,11 +352,6 @@ def _scan(scene):
             mats.update(hazy)
             objects.add(ob.name)
     return sorted(mats, key=lambda m: m.name), objects
-
-
-def hazy_materials(scene):
-    """Hazy materials shown by the objects of ``scene``."""
-    return _scan(scene)[0]
 
 
 def _holdout_collection(scene, hazy_objects):

@@ -280,7 +280,6 @@ class HAZY_GLOSS_OT_convert_maps(_ModalConversion, bpy.types.Operator):
             layout.prop(self, "interpolation")
 
     def execute(self, context):
-        wm = context.window_manager
         obj = getattr(context, "object", None)
         mat = obj.active_material if obj is not None else None
         if self.wire and mat is None:

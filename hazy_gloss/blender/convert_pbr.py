@@ -497,11 +497,6 @@ def convert_set_steps(folder, out_dir, *, haze, material=None, name=None, overri
                                          interpolation=interpolation, progress=progress))
 
 
-def convert_set_folder(folder, out_dir, **options):
-    """Blocking :func:`convert_set_steps`."""
-    return core.drain(convert_set_steps(folder, out_dir, **options))
-
-
 class LibraryReport:
     """What a library batch did: ``done`` [(set, ConversionResult)], ``failed`` [(set,
     one-line reason)], ``cancelled`` (the set being converted then was undone; the sets done

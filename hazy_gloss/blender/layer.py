@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core import layer_graph
-from ..core.graph import evaluate
+from ..core.graph import evaluate as evaluate_graph
 from ..core.parameters import HAZE_DEFAULTS
 from . import compat, layer_group, legacy_layer, stamp
 from .nodes.builder import socket_value
@@ -36,7 +36,6 @@ from .nodes.builder import socket_value
 LAYER_VERSION = 2
 STAMP_VERSION = 3  # 3: the layer as one node
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
-CORE_TYPES = tuple(layer_group.BSDF_NODES.values()) + ("ShaderNodeBsdfAnisotropic",)
 HAZE = HAZE_DEFAULTS
 #: A haze value fed by a link (a map, a procedural mask): its value is per shading point.
 TEXTURE = "texture"
@@ -44,8 +43,6 @@ PARKED_SUFFIX = " (before haze)"
 #: constants.ROLE of the layer node (the add-on's node: it builds and removes it).
 LAYER_ROLE = "Haze layer"
 _PARKED_LABEL = " — before haze (Remove Haze restores it)"
-_RESTORE = ("name", "label", "location", "width", "hide", "mute", "parent", "use_custom_color",
-            "color")
 
 
 def core_type(node):
@@ -600,7 +597,7 @@ def upgrade(mat):
 # --------------------------------------------------------------------------------------------
 
 
-def _inputs_of(node):
+def inputs_of(node):
     """{graph input name: value} of the layer node's unlinked inputs and the names linked."""
     vals, linked = {}, []
     for s in node.inputs:
@@ -640,9 +637,11 @@ def graph_of(node):
 _NEEDED = {}
 
 
-def _evaluate(node, outputs, lazy=False):
+def evaluate(node, outputs, lazy=False):
+    """({name: value} of the graph ``outputs`` of the layer node's group for the node's
+    unlinked input values, the names of its linked inputs)."""
     lay = graph_of(node)
-    vals, linked = _inputs_of(node)
+    vals, linked = inputs_of(node)
     key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
     needed = _NEEDED.get(key)
     if needed is None:
@@ -652,7 +651,7 @@ def _evaluate(node, outputs, lazy=False):
         v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
         vector = lay.graph.inputs[name].vector
         inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
-    out = evaluate(outputs, inputs, lay.graph.tables, lazy=lazy)
+    out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
 
@@ -660,41 +659,7 @@ def _evaluate(node, outputs, lazy=False):
 def values(node):
     """What the layer's group computes from the node's unlinked input values (the panel's
     Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
-    return _evaluate(node, graph_of(node).shown)
-
-
-def slot_values(node, role):
-    """{input: value} the group gives its BSDF slot ``role`` (core.layer_graph: "A narrow",
-    ..., "EEVEE folded") for the node's unlinked input values (inputs it passes on are left
-    out)."""
-    lay = graph_of(node)
-    slot = next(s for tree in (lay.cycles, lay.eevee) for s in layer_graph.slots_of(tree)
-                if s.role == role)
-    return _evaluate(node, slot.writes)[0]
-
-
-def rendered_slots(node):
-    """How many BSDF slots of the layer node Cycles keeps: a Mix whose factor reads no linked
-    input folds, and at 0 or 1 drops its other side.  Returns (count, exact): not exact where a
-    factor varies per shading point (both sides counted)."""
-    lay = graph_of(node)
-    _, linked_names = _inputs_of(node)
-    linked = {layer_graph.input_name(n) for n in linked_names}
-    linked |= {layer_graph.haze_name(p) for p, (n, *_r) in K.HAZE_SOCKETS.items()
-               if n in linked_names}
-    exact = [True]
-
-    def count(t):
-        if isinstance(t, layer_graph.Slot):
-            return 1
-        f = None
-        if not t.add and not {e.name for e in lay.graph.used({"f": t.factor})
-                              if e.op == "input"} & linked:
-            f = _evaluate(node, {"f": t.factor})[0]["f"]
-        if f is None and not t.add:
-            exact[0] = False
-        return count(t.a) if f == 0.0 else count(t.b) if f == 1.0 else count(t.a) + count(t.b)
-    return count(lay.cycles), exact[0]
+    return evaluate(node, graph_of(node).shown)
 
 
 def read(mat):
@@ -726,7 +691,7 @@ def read(mat):
              anisotropy=val(aniso), rotation=val(rot), edge_tint=(0.0, 0.0, 0.0),
              base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP",
              shader_mapping=False, **h)
-    _, linked = _inputs_of(node)
+    _, linked = inputs_of(node)
     p["textured"] = sorted(n for n in linked if n not in {v[0] for v in K.HAZE_SOCKETS.values()})
     p["animated"] = animated_inputs(node)
     p["notes"] = notes(mat)
@@ -822,7 +787,7 @@ def notes(mat):
     if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
         return out  # no haze set here: nothing it could not do
     try:
-        vals, linked = _evaluate(node, _note_outputs(node), lazy=True)
+        vals, linked = evaluate(node, _note_outputs(node), lazy=True)
     except (ValueError, TypeError, KeyError):
         return out
     if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
@@ -989,9 +954,6 @@ def _body_note(node, vals, linked):
     most = 1.0 / max(float(np.max(bc.c_face_on)), 1.0)
     return (f"{warning}: lower Haziness, or a Base Color of at most {most:.2f} keeps the body "
             f"colour")
-
-
-_SUMMARIES = {}
 
 
 def summary(mat):

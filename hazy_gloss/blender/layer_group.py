@@ -34,7 +34,6 @@ _LABEL = {"PRINCIPLED": "Hazy Principled BSDF", "METALLIC": "Hazy Metallic BSDF"
           "GLOSSY": "Hazy Glossy BSDF"}
 _SETTING_LABEL = {"RANDOM_WALK": "", "RANDOM_WALK_SKIN": "Skin", "BURLEY": "Christensen-Burley",
                   "F82": "F82", "PHYSICAL_CONDUCTOR": "Physical"}
-OUTPUTS = ("BSDF", "EEVEE")
 
 
 def version_tag(version=None):

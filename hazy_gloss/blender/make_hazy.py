@@ -14,14 +14,11 @@ import bpy
 import numpy as np
 
 from .. import constants as K
-from ..core import gulbrandsen_inverse, inverse_haze_mapping
+from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
-from . import layer, material, preferences
+from . import layer, material
 from .context import edit_problem, maps_problem, plain_message
-
-MIN_ROUGHNESS = K.MIN_ROUGHNESS
-NODE_DISTRIBUTIONS = K.NODE_DISTRIBUTIONS
 
 
 def _is_live(mat):
@@ -100,18 +97,6 @@ def find_core_bsdf(tree):
     """The BSDF Make Hazy puts its layer on: the one closest to the Material Output."""
     found, _ = surface_bsdfs(tree)
     return found[0] if found else None
-
-
-def glossy_to_metallic_anisotropy(a):
-    """Glossy Anisotropy -> (Metallic anisotropy, extra rotation in turns, exact?).
-
-    Glossy: a >= 0: α_x = R²(1-a), α_y = R²/(1-a) (y long); a < 0 mirrored (x long).  Metallic:
-    α_x = R²/s, α_y = R² s, s² = 1 - 0.9 A (x long, aspect <= 10)."""
-    a = float(np.clip(a, -0.99, 0.99))
-    ratio = (1.0 - abs(a)) ** 2
-    aniso = float(metallic_anisotropy(ratio))
-    exact = ratio >= 0.1 - 1e-12
-    return aniso, (0.25 if a > 0 else 0.0), exact
 
 
 # --------------------------------------------------------------------------------------------
@@ -232,8 +217,8 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
                      f"layer per material: pick the BSDF with the operator's Node option)")
     lnode = layer.layer_node(mat)
     r = lnode.inputs.get("Roughness") if lnode is not None else None
-    if r is not None and not r.is_linked and r.default_value < MIN_ROUGHNESS:
-        notes.append(f"roughness {r.default_value:.4g} is below {MIN_ROUGHNESS}: haze needs a "
+    if r is not None and not r.is_linked and r.default_value < K.MIN_ROUGHNESS:
+        notes.append(f"roughness {r.default_value:.4g} is below {K.MIN_ROUGHNESS}: haze needs a "
                      f"rough core (a perfect mirror cannot carry a halo)")
     notes += layer.notes(mat)
     msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
@@ -430,7 +415,7 @@ def import_two_lobe_mix(mat):
     aniso = float(metallic_anisotropy(ratio))
     if ratio < 0.1 - 1e-9:
         notes.append("core anisotropy beyond 10:1 limited")
-    params = dict(kind=kind, distribution=dist if dist in NODE_DISTRIBUTIONS[kind] else "GGX",
+    params = dict(kind=kind, distribution=dist if dist in K.NODE_DISTRIBUTIONS[kind] else "GGX",
                   core_reflectivity=tuple(float(x) for x in inv.core_reflectivity),
                   edge_tint=edge_tint if edge_tint is not None else
                   tuple(float(x) for x in inv.edge_tint),
@@ -534,14 +519,12 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     if sock.is_linked:
         return ("ERROR", f"{sock.name} of “{node.name}” is linked to “{sock.links[0].from_node.name}” "
                 f"already: disconnect it first to paint a map instead", [])
-    import bpy
     size = int(size)
     if not 16 <= size <= 16384:
         return "ERROR", f"size must be 16 to 16384 pixels, got {size}", []
     value = float(sock.default_value)
     img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
                               float_buffer=True, is_data=True)
-    import numpy as np
     px = np.full(size * size * 4, value, np.float32)
     px[3::4] = 1.0
     img.pixels.foreach_set(px)

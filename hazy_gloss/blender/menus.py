@@ -23,7 +23,7 @@ from ..core.lobes import check_kind
 from ..utils import looks, presets
 from . import compat, interchange
 from .context import PRESET_SUBDIR
-from .nodes.groups import all_configurations, ensure_group, group_label, group_name
+from .nodes.groups import all_configurations, ensure_group, group_label
 
 KINDS = K.KINDS
 

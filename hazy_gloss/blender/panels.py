@@ -15,7 +15,6 @@ an image in ``draw()`` is forbidden, so it is not used for the panel.  ``hazy_gl
 writes full-resolution float copies into hidden image data-blocks (zero users: not saved).
 Plots are recomputed only when the parameters or the plot settings change.
 """
-from collections import OrderedDict
 
 import bpy
 import numpy as np
@@ -304,10 +303,6 @@ def draw_material(layout, context, mat, idname):
             panel.operator("hazy_gloss.plot_to_image", icon="IMAGE_DATA")
 
 
-_PART_NAMES = {"DIELECTRIC": "Dielectric", "METAL": "Metal", "PHYSICAL": "Metal",
-               "GLOSSY": "Glossy", "COAT": "Coat"}
-
-
 _SHOWN = (("beta dielectric", "Dielectric: β"), ("IOR dielectric", "Dielectric: IOR"),
           ("reflectivity dielectric", "Dielectric: r = F(0)"), ("beta metal", "Metal: β"),
           ("reflectivity metal", "Metal: r = F(0)"), ("beta", "β"), ("reflectivity", "r = F(0)"),
@@ -495,8 +490,6 @@ class HAZY_GLOSS_PT_shader_editor(bpy.types.Panel):
 
     def draw(self, context):
         draw_material(self.layout, context, _context_material(context), "hazy_gloss_node")
-
-
 
 
 class HAZY_GLOSS_PT_recomposite(bpy.types.Panel):

@@ -25,7 +25,6 @@ _PLOT_CACHE_SIZE = 16
 PLOT_SIZE = 160
 
 IMAGE_NAMES = {"haze": ".Hazy Gloss · haze intensity", "brdf": ".Hazy Gloss · BRDF slice"}
-RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # hazy_gloss/composite.py
 
 
 # --------------------------------------------------------------------------------------------
@@ -96,7 +95,6 @@ def plot_image(which, rgba):
     img.pixels.foreach_set(np.ascontiguousarray(linear, dtype=np.float32).ravel())
     img.update()
     return img
-
 
 
 def open_previews():

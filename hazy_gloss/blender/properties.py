@@ -28,7 +28,6 @@ Edits go through :func:`edit_material`, which
   (:data:`last_error`, shown by the panel).
 """
 import math
-import time
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty
@@ -70,8 +69,6 @@ _TANGENT_IDS = [i[0] for i in TANGENT_ITEMS]
 #: material session_uid -> plain-language message of the last refused change (the panel shows
 #: it).  session_uid, not the name: a file loaded later may reuse the name.
 last_error = {}
-#: Timing of the last edits in seconds (newest last), for the latency test and the panel.
-timings = []
 _busy = set()
 
 
@@ -92,11 +89,6 @@ def error_for(mat):
 def has_hazy_nodes(mat):
     tree = getattr(mat, "node_tree", None)
     return tree is not None and bool(material.ours(tree))
-
-
-def is_live(mat):
-    """A hazy material whose tree still holds the add-on's nodes."""
-    return material.is_hazy(mat) and has_hazy_nodes(mat)
 
 
 def parameters(mat):
@@ -130,7 +122,6 @@ def edit_material(mat, **changes):
         last_error[mat.session_uid] = problem
         return None, problem
     _busy.add(key)
-    t0 = time.perf_counter()
     try:
         m, dropped = material.update_material(mat, **changes)
     except (ValueError, TypeError) as exc:
@@ -139,8 +130,6 @@ def edit_material(mat, **changes):
         return None, msg
     finally:
         _busy.discard(key)
-    timings.append(time.perf_counter() - t0)
-    del timings[:-200]
     said = []  # one line (the panel shows last_error as one label)
     if dropped:
         said.append("Disconnected (no such input any more): " + ", ".join(dropped))

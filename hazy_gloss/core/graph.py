@@ -322,19 +322,6 @@ class Graph:
                 order.append(e)
         return order
 
-    def signature(self, outputs):
-        """The structure of the nodes ``outputs`` need (operations and wiring, not constant
-        values): two graphs with the same signature emit the same nodes."""
-        order = self.used(outputs)
-        pos = {e.index: i for i, e in enumerate(order)}
-        rows = []
-        for e in order:
-            args = tuple(("c", a.vector) if a.is_const else pos[a.index] for a in e.args)
-            rows.append((e.op, e.name, e.vector, e.clamp, e.lane, args,
-                         len(e.value) if e.op == "RAMP" else None))
-        outs = tuple(("c",) if e.is_const else pos[e.index] for e in _flatten(outputs))
-        return hash((tuple(rows), outs))
-
 
 def _flatten(outputs):
     if isinstance(outputs, Expr):

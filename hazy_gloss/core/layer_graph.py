@@ -233,11 +233,6 @@ def _gain(g, m):
     return g.div(m["reflectivity_max"], g.maximum(m["core_max"], _DIV_MIN))
 
 
-def _wide(m):
-    return {"roughness": m["roughness_wide"], "anisotropy": m["anisotropy_wide"],
-            "rotation": m["rotation_wide"]}
-
-
 # --------------------------------------------------------------------------------------------
 # Principled BSDF
 # --------------------------------------------------------------------------------------------

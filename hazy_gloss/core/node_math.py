@@ -283,8 +283,8 @@ def gulbrandsen_inverse(g, eta, kappa):
 
 
 def glossy_to_metallic(g, anisotropy, rotation):
-    """A Glossy lobe's (anisotropy, rotation) in the Metallic convention (blender.make_hazy's
-    glossy_to_metallic_anisotropy): α_y/α_x = (1 - |a|)², a > 0 turns the long axis by ¼."""
+    """A Glossy lobe's (anisotropy, rotation) in the Metallic convention (Metallic: α_x = R²/s,
+    α_y = R² s, s² = 1 - 0.9 A): α_y/α_x = (1 - |a|)², a > 0 turns the long axis by ¼."""
     a = g.minimum(g.maximum(anisotropy, -0.99), 0.99)
     k = g.sub(1.0, g.math("ABSOLUTE", a))
     metallic = g.clamp(g.div(g.madd(k, g.mul(k, -1.0), 1.0), 0.9), 0.0, 1.0)

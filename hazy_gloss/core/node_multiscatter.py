@@ -76,9 +76,6 @@ class _Ops:
     def __call__(self, op, *a):
         return self.g.vmath(op, *a) if self.vec else self.g.math(op, *a)
 
-    def clamp01(self, a):
-        return self.g.vclamp01(a) if self.vec else self.g.clamp(a, 0.0, 1.0)
-
 
 def _excess(o, t, f):
     """(M = S - 1, dS/dF) of table ``t`` at Fresnel average ``f``."""

@@ -24,7 +24,7 @@ import numpy as np
 from .. import constants as K
 
 __all__ = ("microfacet", "fresnel_conductor", "fresnel_dielectric", "schlick", "f82_tint",
-           "principled_dielectric", "Lobe", "Lobes", "half_vector_quadrature", "peak_value")
+           "principled_dielectric", "Lobe", "Lobes", "half_vector_quadrature")
 
 
 # --------------------------------------------------------------------------------------------
@@ -77,11 +77,6 @@ def microfacet(wi, wo, ax, ay, distribution="GGX"):
     g2 = 1.0 / (1.0 + _lambda(wi, ax, ay, dist) + _lambda(wo, ax, ay, dist))
     f = _ndf(h, ax, ay, dist) * g2 / (4.0 * np.maximum(ci, 1e-12) * np.maximum(co, 1e-12))
     return np.where(ok, f, 0.0)
-
-
-def peak_value(ax, ay):
-    """f(n, n) of a lobe without Fresnel: D(n) G = 1/(π α_x α_y), over 4 (both distributions)."""
-    return 1.0 / (4.0 * math.pi * float(ax) * float(ay))
 
 
 # --------------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from .. import constants as K
 
-__all__ = ("Input", "Node", "NodeGraph", "Document", "NODEDEFS", "nodedef_for", "format_value",
+__all__ = ("Input", "Node", "NodeGraph", "Document", "NODEDEFS", "format_value",
            "parse_value", "valid_name", "read_xml", "write_xml", "to_xml_string")
 
 # --------------------------------------------------------------------------------------------
@@ -264,14 +264,6 @@ OPENPBR_12_INPUTS = {"specular_haze": ("float", 0.0), "specular_haze_spread": ("
 #: cannot hold (the importer reports them).
 OPENPBR_UNSUPPORTED = {"coat_weight": 0.0, "fuzz_weight": 0.0, "thin_film_weight": 0.0,
                        "subsurface_weight": 0.0, "emission_luminance": 0.0}
-
-
-def nodedef_for(category, out_type):
-    """The first nodedef name of NODEDEFS with this category and output type, or None."""
-    for name, (cat, typ, _) in NODEDEFS.items():
-        if cat == category and typ == out_type:
-            return name
-    return None
 
 
 # --------------------------------------------------------------------------------------------

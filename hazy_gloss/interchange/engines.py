@@ -302,7 +302,7 @@ def filament(lobes):
     # clear coat: (i) coat = core, base = halo; (ii) coat = halo, base = core
     alts = {}
     rmax = float(np.max(r))
-    rho_w, a_w = _tb_from_alpha(wx, wy)
+    _, a_w = _tb_from_alpha(wx, wy)
     for name, (coat_alpha, coat_w, base_ax, base_ay, base_w) in {
         "clear_coat_core": (math.sqrt(ax * ay), 1.0 - beta, wx, wy, beta),
         "clear_coat_halo": (math.sqrt(wx * wy), beta, ax, ay, 1.0 - beta),

@@ -3,7 +3,7 @@
 
 Barla, Pacanowski & Vangorp 2018, "A Composite BRDF Model for Hazy Gloss".  The paper gives the
 narrow roughness as α_n (the microfacet α); the add-on's ``roughness`` is Blender's R = √α, so
-every preset stores the paper's value in ``paper`` and the converted one in ``parameters``.
+every preset stores the paper's α_n in ``alpha`` and :meth:`Preset.parameters` gives Blender's R.
 
 Where the paper does not print a value (the colour of a "dark greenish Lambertian base", the
 conductor reflectivity of Figure 3's bottom row, a single haziness for a figure that sweeps it)
@@ -47,12 +47,6 @@ class Preset:
                 f"α_n {self.alpha:g} (R {roughness_from_alpha(self.alpha):.4g}), "
                 f"β_h {self.haziness:g}, λ_h {_fmt(self.haze_extent)}")
         return text + (f". {self.notes}" if self.notes else "")
-
-    @property
-    def paper(self):
-        """The values in the paper's notation."""
-        return dict(r_c=self.core_reflectivity, g=self.edge_tint, alpha_n=self.alpha,
-                    beta_h=self.haziness, lambda_h=self.haze_extent)
 
     def parameters(self):
         p = dict(kind=self.kind, distribution="GGX", core_reflectivity=self.core_reflectivity,

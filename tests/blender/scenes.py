@@ -44,8 +44,8 @@ VERSION = bpy.app.version
 
 
 # ------------------------------------------------------------------------------------------------
-# Version differences (mirrors hazy_gloss/blender/compat.py, but the harness must not depend on
-# the code under test)
+# Version differences (as hazy_gloss/blender/compat.py meets them; the harness must not depend
+# on the code under test)
 # ------------------------------------------------------------------------------------------------
 
 

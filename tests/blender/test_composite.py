@@ -345,20 +345,20 @@ def test_operators_setup_and_clear(mods):
     assert {a.name for a in scene.view_layers["HG Narrow Delta"].aovs} == {a for a, _, _ in rc.AOVS}
     assert scene.render.image_settings.file_format == "OPEN_EXR_MULTILAYER"
     for m in mats.values():
-        assert comp.is_recomposite_material(m)
+        assert comp.STAMP in m
         link = m.node_tree.nodes["Material Output"].inputs["Surface"].links[0]
         assert link.from_node.name.startswith("HG RC")
         lobes = [n for n in m.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfMetallic"
                  and n.name.startswith("HG RC")]
         assert len(lobes) == 2 and all(n.fresnel_type == "F82" for n in lobes)
-    assert not comp.is_recomposite_material(legacy_as)  # skipped: rendered as non-hazy
+    assert comp.STAMP not in legacy_as  # skipped: rendered as non-hazy
     assert bpy.data.node_groups.get(rc.GROUP_NAME) is not None
 
     assert bpy.ops.hazy_gloss.clear_recomposite() == {"FINISHED"}
     assert len(scene.view_layers) == n_layers and scene.view_layers[0].use
     assert comp.HOLDOUT_COLLECTION not in bpy.data.collections
     for m in (*mats.values(), legacy_as):
-        assert not comp.is_recomposite_material(m)
+        assert comp.STAMP not in m
         assert not any(n.name.startswith("HG RC") for n in m.node_tree.nodes)
         link = m.node_tree.nodes["Material Output"].inputs["Surface"].links[0]
         assert link.from_node.name == surface_before[m.name]

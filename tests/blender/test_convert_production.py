@@ -146,10 +146,15 @@ def _udim_set(folder, n=8):
     return folder
 
 
+def _convert_set(mods, folder, out_dir, **options):
+    """A PBR set folder converted to the end (what the operator steps between events)."""
+    return mods.core.drain(mods.pbr.convert_set_steps(folder, out_dir, **options))
+
+
 def test_udim_pbr_set_converts_tile_by_tile_and_is_wired(mods, tmp_path):
     src = _udim_set(tmp_path / "crate")
-    res = mods.pbr.convert_set_folder(str(src), str(tmp_path / "maps"), haze={"haziness": 0.4},
-                                      name="Crate")
+    res = _convert_set(mods, str(src), str(tmp_path / "maps"), haze={"haziness": 0.4},
+                       name="Crate")
     mat = res.material
     assert res.report.tiles == [1001, 1002]
     assert all("<UDIM>" in p for p in res.values())
@@ -164,13 +169,14 @@ def test_udim_pbr_set_converts_tile_by_tile_and_is_wired(mods, tmp_path):
     # per tile: the metal tile's raised base colour, the dielectric tile's IOR, read back
     exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".exr")
     beta_metal = {t: exr.read_exr(res["beta_metal"].replace("<UDIM>", str(t)))["R"] for t in (1001, 1002)}
-    one = mods.pbr.convert_set_folder  # the same set, tile 1002 alone, gives tile 1002's maps
+    # the same set, tile 1002 alone, gives tile 1002's maps
     solo = tmp_path / "solo"
     solo.mkdir()
     for f in src.iterdir():
         if ".1002." in f.name:
             (solo / f.name.replace(".1002", "")).write_bytes(f.read_bytes())
-    alone = one(str(solo), str(tmp_path / "solo_maps"), haze={"haziness": 0.4}, name="Solo")
+    alone = _convert_set(mods, str(solo), str(tmp_path / "solo_maps"), haze={"haziness": 0.4},
+                         name="Solo")
     assert np.array_equal(exr.read_exr(alone["beta_metal"])["R"], beta_metal[1002])
 
 

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import layer_probe
 import scenes
 from measurements import record
 from test_layer import car_paint, glossy_node, in_a_mix, metallic_map, metallic_node, principled
@@ -137,9 +138,9 @@ def test_folded_roughness_keeps_the_peak(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
     node = env.layer.layer_node(mat)
-    folded = env.layer.slot_values(node, "EEVEE folded")
-    wide = env.layer.slot_values(node, "A wide")  # metal under the narrow coat
-    under_wide_coat = env.layer.slot_values(node, "B narrow")  # (m = 1: B is A under the wide coat)
+    folded = layer_probe.slot_values(env.layer, node, "EEVEE folded")
+    wide = layer_probe.slot_values(env.layer, node, "A wide")  # metal under the narrow coat
+    under_wide_coat = layer_probe.slot_values(env.layer, node, "B narrow")  # (m = 1: B is A under the wide coat)
     vals, _ = env.layer.values(node)
 
     def peak_alpha(beta, r_n, r_w):
@@ -251,13 +252,13 @@ def test_the_output_follows_the_layer_and_the_panel(env, hg):
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
     assert env.api.add_eevee_output(mat)["added"]
     node = env.layer.layer_node(mat)
-    r0 = env.layer.slot_values(node, "EEVEE folded")["Roughness"]
+    r0 = layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"]
     env.api.update_material(mat, haziness=0.8)
     assert env.E.has_eevee_output(mat)
-    r1 = env.layer.slot_values(node, "EEVEE folded")["Roughness"]
+    r1 = layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"]
     assert r1 > r0 * 1.01  # more haze: a wider folded lobe
     node.inputs["Roughness"].default_value = 0.5  # the user edits the node
-    assert env.layer.slot_values(node, "EEVEE folded")["Roughness"] > r1 * 1.2
+    assert layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"] > r1 * 1.2
     settings = mat.hazy_gloss_settings
     assert settings.eevee_output == "AUTO"
     settings.eevee_output = "FULL"

@@ -12,6 +12,7 @@ from MaterialX import PyMaterialXGenGlsl as mx_glsl
 from MaterialX import PyMaterialXGenShader as mx_gen
 
 import mx_eval
+import openpbr_measure as measure
 from hazy_gloss.core.graph import Graph, evaluate, ramp_table
 from hazy_gloss.interchange import layered as L
 from hazy_gloss.interchange import materialx as M
@@ -80,7 +81,7 @@ def test_coat_darkening_formula_is_the_librarys(lib):
     ev = _openpbr(lib, n, coat_ior=ior, base_color=base, specular_weight=np.ones(n),
                   subsurface_color=base, subsurface_weight=np.zeros(n), base_metalness=np.ones(n))
     got = ev.value("base_darkening").astype(np.float64)
-    want = np.array([L.coat_darkening_factor(b, e) for b, e in zip(base, ior)])
+    want = np.array([measure.coat_darkening_factor(b, e) for b, e in zip(base, ior)])
     assert np.allclose(got, want, rtol=1e-5)
 
 
@@ -276,29 +277,29 @@ def test_unsupported_nodes_are_said_and_written_at_the_socket_value(tmp_path, li
 def test_principled_fresnel_is_max_of_exact_and_f0():
     mu = np.linspace(0.0, 1.0, 501)
     for eta in (1.3, 1.5, 2.5, 4.0, 6.0):
-        f = L.principled_fresnel(mu, eta)[:, 0]
+        f = measure.principled_fresnel(mu, eta)[:, 0]
         assert np.allclose(f, np.maximum(fresnel_dielectric(mu, eta), ((eta - 1) / (eta + 1)) ** 2))
     # the exact Fresnel only dips below F0 for the high IORs haze writes
-    assert max(L.fresnel_gap(e) for e in np.linspace(1.01, 3.0, 60)) < 1e-12
-    assert L.fresnel_gap(6.0) > 0.1
+    assert max(measure.fresnel_gap(e) for e in np.linspace(1.01, 3.0, 60)) < 1e-12
+    assert measure.fresnel_gap(6.0) > 0.1
 
 
 def test_specular_difference_keeps_the_peak():
     for h in (0.2, 0.5, 0.8):
-        lob = L.hazy_dielectric(1.5, roughness=0.3, haziness=h)
-        e = L.specular_error(lob, n_theta=80, n_phi=24)
+        lob = measure.hazy_dielectric(1.5, roughness=0.3, haziness=h)
+        e = measure.specular_error(lob, n_theta=80, n_phi=24)
         assert e["peak"] < 1e-12
         if lob["eta"] <= 3.0:
             assert e["max"] < 1e-9  # where F_η ≥ F0 everywhere the two Fresnels agree
     # the raised η of a hazy dielectric: the peak holds, the dip does not
-    lob = L.hazy_dielectric(1.5, roughness=0.3, haziness=0.5)
-    assert lob["eta"] > 5.0 and L.specular_error(lob, n_theta=80, n_phi=24)["max"] > 0.05
+    lob = measure.hazy_dielectric(1.5, roughness=0.3, haziness=0.5)
+    assert lob["eta"] > 5.0 and measure.specular_error(lob, n_theta=80, n_phi=24)["max"] > 0.05
 
 
 def test_coat_tint_factors():
-    cy, op = L.coat_tint_factor((0.8, 0.8, 0.8), 1.5, 1.0)
+    cy, op = measure.coat_tint_factor((0.8, 0.8, 0.8), 1.5, 1.0)
     assert np.allclose(cy, op)  # the same at normal incidence
-    cy, op = L.coat_tint_factor((0.8, 0.8, 0.8), 1.5, math.cos(math.radians(60.0)))
+    cy, op = measure.coat_tint_factor((0.8, 0.8, 0.8), 1.5, math.cos(math.radians(60.0)))
     assert cy[0] < op[0]
 
 
