@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -628,9 +630,8 @@ class Progress:
     being done (map or step, UDIM tile, set), percent and time left."""
 
     def __init__(self, callback=None, clock=None):
-        import time as _time
         self.callback = callback
-        self.clock = clock or _time.monotonic
+        self.clock = clock or time.monotonic
         self.total = 0
         self.done = 0
         self.message = ""
@@ -741,7 +742,6 @@ def udim_sets(filenames):
     """File names with the tiles of a UDIM set (``name.1001.png``, ``name_1002.png``: a 4-digit
     tile 1001-2000 before the extension) folded into one ``name.<UDIM>.png``; others as they
     are."""
-    import re
     global _UDIM_FILE
     if _UDIM_FILE is None:
         _UDIM_FILE = re.compile(r"\A(?P<head>.*[._])(?P<tile>\d{4})(?P<ext>\.[^.]+)\Z")
@@ -760,7 +760,6 @@ def detect_pbr_set(filenames):
     use (PBR_NAME_PARTS; UDIM tiles are one ``<UDIM>`` name, :func:`udim_sets`); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
     refused when it is the only normal map (Blender's Normal Map node reads OpenGL normals).
     Raises ConversionError when two files claim one map or none is found."""
-    import re
     found, clash, directx = {}, {}, []
     named = {}
     for fn in sorted(udim_sets(filenames)):

@@ -29,12 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import constants as K
-from .imagecheck import MAX_IMAGE_PIXELS, ImageFileError
 
 __all__ = ("ExrError", "ExrPart", "read_exr", "exr_header_check", "MAX_DECODED_BYTES")
 
 
-class ExrError(ImageFileError):
+class ExrError(ValueError):
     """A malformed or unsupported OpenEXR file (a ``ValueError``); ``str()`` is one line,
     ``"<path>: <defect>"``."""
 
@@ -53,14 +52,9 @@ _PIXEL_TYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
 _PIXEL_TYPE_NAMES = {0: "UINT", 1: "HALF", 2: "FLOAT"}
 _PART_TYPES = ("scanlineimage", "tiledimage", "deepscanline", "deeptile")
 
-#: Limits (hazy_gloss.constants).  The float32 result of read_exr is at most twice
-#: MAX_DECODED_BYTES (HALF channels).
-MAX_NAME = K.MAX_EXR_NAME
-MAX_ATTRIBUTES = K.MAX_EXR_ATTRIBUTES
-MAX_PARTS = K.MAX_EXR_PARTS
-MAX_CHANNELS = K.MAX_EXR_CHANNELS
+#: Decoded pixel data read_exr accepts (hazy_gloss.constants, as every other limit here): its
+#: float32 result is at most twice this (HALF channels).
 MAX_DECODED_BYTES = K.MAX_EXR_DECODED_BYTES
-MAX_CHUNKS = K.MAX_EXR_CHUNKS
 
 #: Attribute type and size that the parser relies on (others are skipped unread).
 _ATTR_TYPES = {"channels": ("chlist", None), "compression": ("compression", 1),
@@ -102,7 +96,7 @@ class _Reader:
         self.need(pos, struct.calcsize(fmt), what)
         return struct.unpack_from(fmt, self.buf, pos)
 
-    def cstring(self, pos, what, limit=MAX_NAME, end=None):
+    def cstring(self, pos, what, limit=K.MAX_EXR_NAME, end=None):
         """A NUL-terminated string of at most ``limit`` bytes starting at ``pos``."""
         stop = min(self.n if end is None else end, pos + limit + 1)
         nul = self.buf.find(b"\0", pos, stop)
@@ -119,8 +113,8 @@ def _parse_header(rd, pos, part):
     attrs = {}
     where = f"header of part {part}"
     while True:
-        if len(attrs) > MAX_ATTRIBUTES:
-            raise rd.error(f"{where} has more than {MAX_ATTRIBUTES} attributes")
+        if len(attrs) > K.MAX_EXR_ATTRIBUTES:
+            raise rd.error(f"{where} has more than {K.MAX_EXR_ATTRIBUTES} attributes")
         name, pos = rd.cstring(pos, f"attribute name in the {where}")
         if not name:
             return attrs, pos
@@ -154,12 +148,12 @@ def _parse_channels(rd, raw):
             if p != len(raw) - 1:
                 raise rd.error(f"channel list has {len(raw) - p - 1} bytes after its end")
             break
-        if len(out) >= MAX_CHANNELS:
-            raise rd.error(f"more than {MAX_CHANNELS} channels")
-        nul = raw.find(b"\0", p, p + MAX_NAME + 1)
+        if len(out) >= K.MAX_EXR_CHANNELS:
+            raise rd.error(f"more than {K.MAX_EXR_CHANNELS} channels")
+        nul = raw.find(b"\0", p, p + K.MAX_EXR_NAME + 1)
         if nul < 0:
             raise rd.error(f"channel name at byte {p} of the channel list is not terminated "
-                           f"within {MAX_NAME} bytes")
+                           f"within {K.MAX_EXR_NAME} bytes")
         name = raw[p:nul].decode("utf-8", "replace")
         if nul + 17 > len(raw):
             raise rd.error(f"channel {name!r}: the channel list is cut off")
@@ -225,9 +219,9 @@ class _Part:
                 raise rd.error(f"part {index} has an invalid pixelAspectRatio {par}")
         x0, y0, x1, y1 = self.window
         self.width, self.height = x1 - x0 + 1, y1 - y0 + 1
-        if self.width * self.height > MAX_IMAGE_PIXELS:
+        if self.width * self.height > K.MAX_IMAGE_PIXELS:
             raise rd.error(f"part {index}: {self.width} x {self.height} pixels exceeds the "
-                           f"limit of {MAX_IMAGE_PIXELS}")
+                           f"limit of {K.MAX_IMAGE_PIXELS}")
         self.name = attrs["name"][1].rstrip(b"\0").decode("utf-8", "replace") \
             if "name" in attrs else None
         if "type" in attrs:
@@ -285,8 +279,8 @@ class _Part:
             nx_, ny_ = -(-lw // tx), -(-lh // ty)
             self.levels[(lx, ly)] = (lw, lh, nx_, ny_, base)
             base += nx_ * ny_
-            if base > MAX_CHUNKS:
-                raise rd.error(f"tiled part {self.index} has more than {MAX_CHUNKS} tiles")
+            if base > K.MAX_EXR_CHUNKS:
+                raise rd.error(f"tiled part {self.index} has more than {K.MAX_EXR_CHUNKS} tiles")
         self.chunks = base
 
     def line_bytes(self, y_lo, y_hi):
@@ -311,8 +305,8 @@ def _parse(rd, keep=False):
         raise rd.error(f"invalid OpenEXR version flags {version:#x} (multi-part and tiled)")
     pos, headers = 8, []
     while True:
-        if len(headers) >= MAX_PARTS:
-            raise rd.error(f"more than {MAX_PARTS} parts")
+        if len(headers) >= K.MAX_EXR_PARTS:
+            raise rd.error(f"more than {K.MAX_EXR_PARTS} parts")
         attrs, pos = _parse_header(rd, pos, len(headers))
         if not attrs:
             raise rd.error(f"header of part {len(headers)} is empty")
@@ -326,8 +320,8 @@ def _parse(rd, keep=False):
     parts = [_Part(rd, attrs, i, multipart, version) for i, attrs in enumerate(headers)]
 
     total = sum(part.chunks for part in parts)
-    if total > MAX_CHUNKS:
-        raise rd.error(f"{total} chunks exceeds the limit of {MAX_CHUNKS}")
+    if total > K.MAX_EXR_CHUNKS:
+        raise rd.error(f"{total} chunks exceeds the limit of {K.MAX_EXR_CHUNKS}")
     tables = []
     for part in parts:
         n = part.chunks
@@ -411,7 +405,7 @@ def exr_header_check(path):
     Checks the magic number and version flags; every header attribute (name and type
     NUL-terminated within 255 bytes, size >= 0 and within the file, no duplicates, the types and
     sizes of the standard attributes); each part's channel list, compression, data/display
-    window (non-empty, at most :data:`~hazy_gloss.imagecheck.MAX_IMAGE_PIXELS`), type, tile
+    window (non-empty, at most :data:`~hazy_gloss.constants.MAX_IMAGE_PIXELS`), type, tile
     description and chunkCount; the offset table fits the file; every chunk's part number,
     scanline or tile coordinates and size match its header, lie within the file (so a cut-off
     last chunk is caught) and do not overlap.  Scanline and tiled parts with any codec are

@@ -19,6 +19,7 @@ import zlib
 from typing import NamedTuple
 
 from . import constants as K
+from .exr import ExrError, exr_header_check
 
 __all__ = ("ImageFileError", "ImageInfo", "check_image_file", "check_png",
            "MAX_IMAGE_PIXELS")
@@ -166,8 +167,10 @@ def check_image_file(path):
     if not head:
         raise ImageFileError(f"{path}: the file is empty")
     if head[:4] == _EXR_MAGIC:
-        from .exr import exr_header_check
-        parts = exr_header_check(path)
+        try:
+            parts = exr_header_check(path)
+        except ExrError as exc:
+            raise ImageFileError(str(exc)) from exc
         return ImageInfo("OPEN_EXR", parts[0].width, parts[0].height)
     if head == _PNG_SIGNATURE:
         w, h = check_png(path)

@@ -28,6 +28,7 @@ import numpy as np
 
 from . import constants as K
 from .core import node_math
+from .core.graph import Graph, evaluate
 from .exr import ExrError, read_exr
 
 #: View layer custom property read by the hazy materials (Attribute node, type VIEW_LAYER).
@@ -215,7 +216,6 @@ def _graph_inputs(passes, haziness, core_reflectivity, haziness_factor, core_ref
 
 
 def _run(passes, *args):
-    from .core.graph import Graph, evaluate
     g = Graph()
     i = {k: g.input(k, vector=v[0]) for k, v in GRAPH_INPUTS.items()}
     return evaluate(compositor_graph(g, i), _graph_inputs(passes, *args))

@@ -137,7 +137,7 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
 # --------------------------------------------------------------------------------------------
 
 _SOURCES = ("blender/layer_group.py", "blender/nodes/emit.py", "blender/nodes/builder.py",
-            "core/layer_graph.py", "core/node_math.py", "core/node_multiscatter.py",
+            "core/layer_graph.py", "core/node_math.py", "core/node_fresnel.py", "core/node_multiscatter.py",
             "core/node_body_colour.py", "core/body_colour.py", "core/node_thin_film.py",
             "core/thin_film.py", "core/cycles_albedo_tables.py", "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
 _digest = []

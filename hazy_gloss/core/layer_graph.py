@@ -37,7 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .. import constants as K
-from . import node_body_colour, node_math, node_multiscatter, node_thin_film
+from . import node_body_colour, node_fresnel, node_math, node_multiscatter, node_thin_film
 from .graph import Graph
 from .multiscatter import LATEST as _LATEST
 
@@ -550,7 +550,7 @@ def _metallic(g, x, cfg):
     on = _on(g, bh)
     rough, aniso, rot = x("Roughness"), x("Anisotropy"), x("Rotation")
     if cfg.fresnel == "PHYSICAL_CONDUCTOR":
-        rc, edge = node_math.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
+        rc, edge = node_fresnel.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
         m = _part(g, x, cfg, kind="CONDUCTOR", rc=_cap(g, x, rc), edge=edge, rough=rough,
                   aniso=aniso, rot=rot, haziness=bh)
         own = {"IOR": g.select(on, m["ior"], x("IOR", True), label="IOR (η, raised)"),

@@ -11,16 +11,17 @@ safe divide (x / 0 = 0) is relied upon where a quotient is unused (its select we
 from __future__ import annotations
 
 from .. import constants as K
+from .node_fresnel import TINY, gulbrandsen
+from .node_multiscatter import correct
 
-__all__ = ("mapping", "haze_terms", "reflectivity", "gulbrandsen", "gulbrandsen_inverse",
-           "glossy_to_metallic", "folded_roughness", "INPUTS")
+__all__ = ("mapping", "haze_terms", "reflectivity", "glossy_to_metallic", "folded_roughness",
+           "INPUTS")
 
 #: Inputs of :func:`mapping` (vector ones are colours).
 INPUTS = {"core_reflectivity": True, "edge_tint": True, "roughness": False, "anisotropy": False,
           "rotation": False, "haziness": False, "haze_extent_x": False, "haze_extent_y": False,
           "smoothness": False}
 
-_TINY = 1.0 - K.ONE_MINUS_ULP32  # 2^-23: 1 - r is kept >= this (r <= 1 - ε)
 #: Divisors that can underflow (p, 1 - p, r̂_c, c_2 of garbage or extreme texels) are kept >= this
 #: where they divide: a quotient in the branch a Mix node does not select must stay finite
 #: (0 · inf = NaN); nothing visible depends on values below it.
@@ -115,7 +116,6 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
     out["reflectivity"] = r
     out["chroma"] = chroma
     if multiscatter:  # Multiscatter GGX: β, r from (*) (docs/mapping.md §11), 1 - r by subtraction
-        from .node_multiscatter import correct
         lobe = MULTISCATTER_LOBE[kind] if multiscatter is True else str(multiscatter).upper()
         if smooth:  # β_h keeps its meaning: the Bézier's share k̂_h / k̂_7 of Eq. 7's bound
             k7 = g.minimum(g.div(rc_max, g.maximum(p, _DIV_MIN)), g.div(g.sub(1.0, rc_max), g.maximum(q, _DIV_MIN)))
@@ -131,8 +131,8 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
                      iterations=iterations, affine=affine)
         out.update(ms)
         beta, r, r_hat = ms["beta"], ms["reflectivity"], ms["reflectivity_max"]
-        omr_hat = g.maximum(g.sub(1.0, r_hat), _TINY)
-        omr_v = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, r), _TINY)
+        omr_hat = g.maximum(g.sub(1.0, r_hat), TINY)
+        omr_v = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, r), TINY)
         r = g.vmath("MINIMUM", r, K.ONE_MINUS_ULP32)
         chroma = g.vmath("DIVIDE", ms["reflectivity"], r_hat)
 
@@ -140,7 +140,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
         out["ior"], out["extinction"] = gulbrandsen(g, r, omr_v, src["edge_tint"])
     elif kind == "DIELECTRIC":
         sq = g.add(g.sqrt(r_hat), 1.0)
-        out["ior"] = g.div(g.mul(sq, sq), g.maximum(omr_hat, _TINY), label="η = (1+√r̂)/(1-√r̂)")
+        out["ior"] = g.div(g.mul(sq, sq), g.maximum(omr_hat, TINY), label="η = (1+√r̂)/(1-√r̂)")
         out["specular_tint"] = chroma  # black where r_c = 0 (r̂ = 0 there: it does not matter)
     elif "colour_narrow" not in out:
         out["colour_narrow"] = g.vmath("SCALE", r, g.sub(1.0, beta), label="k_n = (1-β) r")
@@ -243,43 +243,8 @@ def reflectivity(g, rc, rc_max, r_hat, omr_hat):
     chroma = g.vmath("DIVIDE", rc, rc_max, label="chroma c")
     r = g.vmul(r_hat, chroma, label="r")
     omr_v = g.vmix(chroma, 1.0, omr_hat, label="1 - r")  # (1-c) 1 + c (1-r̂): one node
-    omr_v = g.vmath("MAXIMUM", omr_v, _TINY)
+    omr_v = g.vmath("MAXIMUM", omr_v, TINY)
     return r, omr_v, chroma
-
-
-def gulbrandsen(g, r, omr_v, edge_tint):
-    """Gulbrandsen 2014 (η, κ) from r, 1 - r and g per channel, κ in non-negative terms
-    (docs/mapping.md §7): with A = g/(1+r) and B = (1-g)(1+√r)²/(1-r),
-    η = A (1-r) + B and κ = 2 √(r A (A + 2 B/(1-r)))."""
-    gt = g.vclamp01(edge_tint, label="g")
-    s = g.vsqrt(r, label="√r")
-    opr = g.vmath("ADD", r, 1.0)
-    a = g.vmath("DIVIDE", gt, opr, label="A = g/(1+r)")
-    ops2 = g.vmath("MULTIPLY_ADD", s, 2.0, opr, label="(1+√r)² = 2√r + 1 + r")
-    b = g.vmath("DIVIDE", g.vmix(gt, ops2, 0.0), omr_v, label="B")  # (1-g) (1+√r)² / (1-r)
-    eta = g.vmath("MULTIPLY_ADD", a, omr_v, b, label="η")
-    inner = g.vmul(a, g.vmath("MULTIPLY_ADD", g.vmath("DIVIDE", b, omr_v), 2.0, a))
-    kappa = g.vmul(2.0, g.vsqrt(g.vmul(inner, r)), label="κ")
-    return eta, kappa
-
-
-def gulbrandsen_inverse(g, eta, kappa):
-    """(r, g) per channel from (η, κ) (core.mapping.gulbrandsen_inverse):
-    r = ((η-1)² + κ²)/((η+1)² + κ²), g = (n_d - η)/(n_d - n_m) with n_d = (1+√r)²/(1-r) and
-    n_m = (1-r)/(1+r); η, κ < 0 read as 0 (the Metallic BSDF clamps them)."""
-    eta = g.vmath("MAXIMUM", eta, 0.0)
-    k2 = g.vmath("MULTIPLY", kappa, kappa)
-    em, ep = g.vmath("SUBTRACT", eta, 1.0), g.vmath("ADD", eta, 1.0)
-    num = g.vmath("MULTIPLY_ADD", em, em, k2)
-    den = g.vmath("MULTIPLY_ADD", ep, ep, k2)
-    r = g.vmath("MINIMUM", g.vmath("DIVIDE", num, den), K.ONE_MINUS_ULP32, label="r")
-    # 1 - r = 4η / ((η+1)² + κ²): no cancellation
-    omr = g.vmath("MAXIMUM", g.vmath("DIVIDE", g.vmath("SCALE", eta, 4.0), den), _TINY)
-    ops = g.vmath("ADD", g.vsqrt(r), 1.0)
-    n_d = g.vmath("DIVIDE", g.vmath("MULTIPLY", ops, ops), omr)
-    n_m = g.vmath("DIVIDE", omr, g.vmath("ADD", r, 1.0))
-    tint = g.vmath("DIVIDE", g.vmath("SUBTRACT", n_d, eta), g.vmath("SUBTRACT", n_d, n_m))
-    return r, g.vclamp01(tint, label="g")
 
 
 def glossy_to_metallic(g, anisotropy, rotation):

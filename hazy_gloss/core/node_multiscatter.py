@@ -27,6 +27,7 @@ import numpy as np
 from .. import constants as K
 from . import cycles_ggx_tables as _tables
 from .multiscatter import _exact_conductor, _generation
+from .node_fresnel import TINY, gulbrandsen
 
 __all__ = ("LOBES", "ITERATIONS", "table_stops", "correct", "dielectric_s")
 
@@ -46,7 +47,6 @@ _K82 = 1.0 / (18.0 * _F ** 6)  # 7/f⁶ · 1/126 (fresnel_f82_Fss of fresnel_f82
 #: Kulla-Conty's fit at η = (1+s)/(1-s), s = √r̂: (η-1)/(4.08567 + 1.00071 η) = 2s/(A - B s)
 _FIT_A = 4.08567 + 1.00071
 _FIT_B = 4.08567 - 1.00071
-_TINY = 1.0 - K.ONE_MINUS_ULP32
 _DIV_MIN = 1e-30
 
 
@@ -141,8 +141,7 @@ def _dielectric_max(g, u):
 def _conductor_fss(g, r, edge, exact):
     """The Metallic node's F_ss (physical conductor) at F(0) = r, Gulbrandsen's η, κ (vectors):
     F82 fit through F(1) = r and F_c(1/7), saturated (fresnel_conductor_Fss)."""
-    from .node_math import gulbrandsen
-    omr = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, r), _TINY)
+    omr = g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, r), TINY)
     r = g.vmath("MINIMUM", r, K.ONE_MINUS_ULP32)
     eta, kappa = gulbrandsen(g, r, omr, edge)
     c = 1.0 / 7.0
@@ -236,7 +235,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
         exact = _exact_conductor(version)
         f0, f1 = _conductor_fss(g, rc, edge_tint, exact), 1.0
         h = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc),
-                    g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), _TINY))
+                    g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), TINY))
         a_m = lane_m(h)
         b_m = g.sub(1.0, a_m)
         max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
@@ -300,7 +299,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
     if lobe == "CONDUCTOR":  # exact F_ss at each iterate, F' by the secant through the last two
         r_prev, f_prev = rc, f0
         for _ in range(it.get("c0", 0)):  # steps on the chord model (per channel h frozen at r_c)
-            hv = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc), g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), _TINY))
+            hv = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc), g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), TINY))
             r = _fixed_beta_step(v, r, beta, T, _affine(g, hv, g.vmath("SUBTRACT", 1.0, hv)), tn, tw, p)
         for _ in range(it["c"]):
             f = _conductor_fss(g, r, edge_tint, exact)
@@ -326,7 +325,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
 def dielectric_s(g, r_hat):
     """The Principled dielectric's s = saturate((F_ss,d(η) - F0(η))/(1 - F0(η))), F0(η) = r̂."""
     f, _ = _fit(g, r_hat)
-    return g.clamp(g.div(g.sub(f, r_hat), g.maximum(g.sub(1.0, r_hat), _TINY)), 0.0, 1.0)
+    return g.clamp(g.div(g.sub(f, r_hat), g.maximum(g.sub(1.0, r_hat), TINY)), 0.0, 1.0)
 
 
 def _legacy(g, ss, rc, p, tn, tw, haziness, lane_m, it):

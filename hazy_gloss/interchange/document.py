@@ -12,10 +12,13 @@ output type, input types and the defaults the reader needs (the package is not r
 """
 from __future__ import annotations
 
+import io
 import math
+import os
 import re
 import xml.etree.ElementTree as ET  # writing
 from dataclasses import dataclass, field
+from xml.parsers import expat  # reading
 
 from .. import constants as K
 
@@ -577,7 +580,6 @@ def to_xml_string(doc):
 
 def write_xml(doc, path):
     """Write ``doc`` to ``path`` atomically (temp file + rename)."""
-    import os
     text = to_xml_string(doc)
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as f:
@@ -623,9 +625,6 @@ def read_xml(path_or_text, *, text=False, progress=None):
     as the surfacematerial + shader node 1.38 made of them (MaterialX upgrades them the same
     way); ``channels`` swizzles and ``fileprefix`` / ``colorspace`` scopes are kept for the
     importer.  expat expands no external entity and refuses entity amplification."""
-    import io
-    import os
-    from xml.parsers import expat
     where = "the document" if text else str(path_or_text)
     if text:
         data = path_or_text.encode("utf-8") if isinstance(path_or_text, str) else path_or_text

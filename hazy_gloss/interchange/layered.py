@@ -40,7 +40,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import constants as K
+from ..core import gulbrandsen_inverse
 from ..core.graph import ramp_table
+from .builder import Builder
 from .document import NODEDEFS, Input, Node, NodeGraph, valid_name
 
 __all__ = ("Socket", "BNode", "Tree", "Writer", "graph_of", "openpbr_alpha", "openpbr_inverse",
@@ -785,8 +787,7 @@ class Writer:
         return V("vector3", node=self.node("ND_normalmap_float", node.name, **{"in": col}, scale=strength))
 
     def tangent_node(self, kind, rotation=0.0, suffix=""):
-        from .materialx import _Builder
-        t = _Builder(self.g).tangent(kind, rotation, suffix)
+        t = Builder(self.g).tangent(kind, rotation, suffix)
         self.taken |= set(self.g.nodes)
         return t
 
@@ -1187,7 +1188,7 @@ class Writer:
 
 
 def _tangent_kind(node):
-    """The tangent a Tangent node gives, in materialx._Builder.tangent's terms."""
+    """The tangent a Tangent node gives, in builder.Builder.tangent's terms."""
     if node is None or node.props.get("direction_type", "RADIAL") == "UV_MAP":
         return "UV_MAP"
     return f"RADIAL_{node.props.get('axis', 'Z')}"
@@ -1302,7 +1303,6 @@ def preview_values(tree):
                    emissiveColor=tuple(c * float(u("Emission Strength")) for c in rgb(u("Emission Color", (1, 1, 1)))))
     elif core.type == _METALLIC:
         if core.props.get("fresnel_type") == "PHYSICAL_CONDUCTOR":
-            from ..core import gulbrandsen_inverse
             r, _ = gulbrandsen_inverse(np.maximum(np.asarray(rgb(u("IOR")), float), 0.0),
                                        np.maximum(np.asarray(rgb(u("Extinction")), float), 0.0))
             out["diffuseColor"] = rgb(np.clip(np.nan_to_num(r), 0.0, 1.0))

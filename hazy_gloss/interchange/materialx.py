@@ -45,14 +45,16 @@ from __future__ import annotations
 
 import json
 import os
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
 from .. import constants as K
 from ..convert import output_specs
 from ..core.parameters import PARAMETERS, normalise
-from . import engines
+from . import engines, layered
+from .builder import Builder
 from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, Document, Input, Node,
-                       NodeGraph, valid_name, write_xml)
+                       NodeGraph, format_value, valid_name, write_xml)
 # the reading side (re-exported: materialx.read is the reader's entry point)
 from .materialx_import import LOBES as _LOBES, ImportedMaterial, _f, _t, lobes_of, read, recognise
 
@@ -125,58 +127,8 @@ def _record(p):
 
 
 # --------------------------------------------------------------------------------------------
-# Graph building helpers
+# Graph building helpers (the node builder: interchange/builder.py)
 # --------------------------------------------------------------------------------------------
-
-
-class _Builder:
-    def __init__(self, graph):
-        self.g = graph
-
-    def node(self, nodedef, name, **inputs):
-        cat, typ, spec = NODEDEFS[nodedef]
-        n = Node(name, cat, typ)
-        for k, v in inputs.items():
-            t = spec[k][0]
-            if isinstance(v, Node):
-                n.set(k, t, node=v)
-            else:
-                n.set(k, t, v)
-        return self.g.add(n)
-
-    # -- tangents ------------------------------------------------------------------------------
-    def tangent(self, kind, rotation, suffix=""):
-        """The tangent a lobe's α_x follows: the UV tangent (index 0) or a radial one around an
-        object axis (cross(axis, P_object) in world space: Blender's radial tangent is taken
-        around the bounding-box centre, this one around the object origin), turned by
-        ``rotation`` turns about the normal (a number, or a node giving turns)."""
-        if kind == "UV_MAP":
-            t = self.g.nodes.get("tangent_uv") or self.node("ND_tangent_vector3", "tangent_uv",
-                                                            space="world", index=0)
-        else:
-            axis = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}[kind[-1]]
-            t = self.g.nodes.get("tangent_radial")
-            if t is None:
-                pos = self.node("ND_position_vector3", "position_object", space="object")
-                cr = self.node("ND_crossproduct_vector3", "radial_cross", in1=axis, in2=pos)
-                tw = self.node("ND_transformvector_vector3", "radial_world", fromspace="object",
-                               tospace="world")
-                tw.set("in", "vector3", node=cr)
-                t = self.node("ND_normalize_vector3", "tangent_radial")
-                t.set("in", "vector3", node=tw)
-        if isinstance(rotation, (int, float)) and rotation == 0:
-            return t
-        normal = self.g.nodes.get("normal_world") or self.node("ND_normal_vector3", "normal_world",
-                                                                space="world")
-        rot = self.node("ND_rotate3d_vector3", f"tangent_rotated{suffix}", axis=normal)
-        rot.set("in", "vector3", node=t)
-        if isinstance(rotation, Node):  # turns from a map: amount = -360 * rotation
-            amount = self.node("ND_multiply_float", f"rotation_degrees{suffix}", in1=rotation,
-                               in2=-360.0)
-            rot.set("amount", "float", node=amount)
-        else:
-            rot.set("amount", "float", -360.0 * float(rotation))
-        return rot
 
 
 def _lobe(b, kind, name, alpha, fresnel, distribution, tangent, scatter_mode="R"):
@@ -266,7 +218,7 @@ def _graph_constant(name, p, notes):
     d = lobes_of(p)
     m = d.mapping
     g = NodeGraph(f"NG_{name}")
-    b = _Builder(g)
+    b = Builder(g)
     if p["distribution"] in _DIST_NOTE:
         notes.append(_DIST_NOTE[p["distribution"]])
     dist = _DIST[p["distribution"]]
@@ -308,7 +260,7 @@ def _graph_maps(name, src, directory, notes):
     if missing:
         raise ValueError(f"{src.name}: the converted maps lack {', '.join(missing)}")
     g = NodeGraph(f"NG_{name}")
-    b = _Builder(g)
+    b = Builder(g)
     nodes = {}
     for mname, spec in specs.items():
         path = os.fspath(src.maps[mname])
@@ -374,7 +326,6 @@ def _add_material(doc, name, label, shader, attrs):
 
 def _layered(doc, src, taken, directory, flavour):
     """A haze layer: the Blender tree as OpenPBR surfaces / pbr BSDFs and mixes (layered.py)."""
-    from . import layered
     notes = list(src.notes)
     if flavour != "eq1":
         notes.append("a haze layer is written as its own network (OpenPBR 1.1.1 surfaces mixed by "
@@ -439,7 +390,6 @@ _OPENPBR_12_WRITTEN = ("base_weight", "base_color", "base_metalness", "specular_
 
 def _openpbr_12_definition():
     """The embedded nodedef (OpenPBR 1.2 subset) and its implementation from released nodes."""
-    import xml.etree.ElementTree as ET
     inputs = {k: OPENPBR_INPUTS[k] for k in _OPENPBR_12_WRITTEN}
     inputs.update(OPENPBR_12_INPUTS)
     nd = ET.Element("nodedef", name=K.OPENPBR_12_NODEDEF, node="open_pbr_surface",
@@ -447,7 +397,6 @@ def _openpbr_12_definition():
                     doc="OpenPBR Surface 1.2 (dev_1.2, unreleased): the subset of inputs "
                         "hazy_gloss writes, with specular_haze and specular_haze_spread. "
                         "Embedded so that the document validates with MaterialX 1.39.")
-    from .document import format_value
     for k, (t, v) in inputs.items():
         e = ET.SubElement(nd, "input", name=k, type=t)
         if isinstance(v, str) and t.startswith("vector"):
@@ -509,7 +458,7 @@ def _openpbr(doc, src, taken, measure):
     rot = p["rotation"] + q["geometry_tangent_rotation"]
     if d.anisotropic:
         g = NodeGraph(f"NG_{name}_tangent")
-        t = _Builder(g).tangent(p["tangent"], rot)
+        t = Builder(g).tangent(p["tangent"], rot)
         g.outputs["out"] = Input("out", "vector3", nodename=t.name)
         doc.graphs[g.name] = g
         taken.add(g.name)

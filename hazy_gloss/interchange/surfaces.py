@@ -36,6 +36,8 @@ import os
 from dataclasses import dataclass, field
 
 from .. import constants as K
+from ..core.mapping import gulbrandsen_ior
+from .brdf import fresnel_conductor_at
 from .document import NODEDEFS, OPENPBR_12_INPUTS
 
 __all__ = ("Link", "TexNode", "SurfaceSpec", "SURFACES", "principled_of", "Upstream",
@@ -907,8 +909,6 @@ def f82_tint_of_conductor(f0, edge):
     F82-tint match the conductor's Fresnel at μ̄ = 1/7 (as engines.f82_tint_fit), per channel,
     and the largest |ΔF| over μ (8 samples) between the two models.  Python floats: it runs
     for every metal of a library."""
-    from ..core.mapping import gulbrandsen_ior
-    from .brdf import fresnel_conductor_at
     tint, err = [], 0.0
     for r, g in zip(f0, edge):
         r = min(max(float(r), 0.0), 0.999)

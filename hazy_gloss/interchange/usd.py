@@ -29,8 +29,8 @@ import json
 import os
 
 from .. import constants as K
-from . import engines
-from .document import NODEDEFS, Document, Input, Node
+from . import engines, layered
+from .document import NODEDEFS, Document, Input, Node, valid_name
 from .materialx import build_document, lobes_of, recognise
 
 __all__ = ("available", "write", "read", "read_document", "USD_MISSING")
@@ -204,7 +204,6 @@ def _layer_extras(stage, path, mat, src, preview):
     """userProperties and the UsdPreviewSurface of a layered material: the user's BSDF at
     haziness 0 (its own values; textures are not in the preview)."""
     from pxr import Sdf, UsdShade
-    from . import layered
     T = Sdf.ValueTypeNames
     prim = mat.GetPrim()
     lay = src.layer.layer or {}
@@ -255,7 +254,6 @@ def write(sources, path, *, preview=True, bind=None):
         prims[name] = prim_path
         out.append((name, prim_path, notes))
     for i, (mesh_name, mat_name) in enumerate((bind or {}).items()):
-        from .document import valid_name
         m = UsdGeom.Mesh.Define(stage, f"/root/{valid_name(mesh_name)}")
         x = 2.0 * i
         m.CreatePointsAttr([(x - .5, -.5, 0), (x + .5, -.5, 0), (x + .5, .5, 0), (x - .5, .5, 0)])

@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import haze_intensity
+from ..core.lobes import describe
+from ..core.parameters import PARAMETERS, is_anisotropic, normalise
 
 __all__ = ("Canvas", "haze_plot", "brdf_at", "brdf_slice", "brdf_plot", "srgb_to_linear",
            "mapping_for", "COLOURS")
@@ -368,8 +370,6 @@ def brdf_plot(mapping, kind, *, theta_i=0.0, size=(192, 192), log=True, decades=
 def mapping_for(params):
     """The HazeMapping api-style perceptual parameters render with (core.lobes.describe: the
     add-on's roughness floor, haziness cap and Cycles' limits), without bpy."""
-    from ..core.lobes import describe
-    from ..core.parameters import PARAMETERS, is_anisotropic, normalise
     p = normalise({k: v for k, v in params.items() if k in PARAMETERS})
     return describe(p["kind"], p["distribution"], core_reflectivity=p["core_reflectivity"],
                     edge_tint=p["edge_tint"], roughness=p["roughness"], anisotropy=p["anisotropy"],

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+import layout_graph
+
 ROOT = Path(__file__).resolve().parents[2]
 PKG = ROOT / "hazy_gloss"
 BLENDER_MODULES = {"bpy", "mathutils", "bmesh", "bpy_extras", "addon_utils", "bl_operators",
@@ -92,6 +94,15 @@ def test_no_import_cycles_at_module_level():
     real = [c for c in cycles if not all(x == c[0] or x.startswith(c[0] + ".") or
                                           c[0].startswith(x + ".") for x in c)]
     assert not real, real
+
+
+def test_no_import_cycles_outside_blender():
+    """The bpy-free modules import each other without a cycle, function-level imports included
+    (tests/pure/layout_graph.py reads every import statement)."""
+    g = layout_graph.graph(layout_graph.imports())
+    free = {m: {d for d in deps if not d.startswith("hazy_gloss.blender")}
+            for m, deps in g.items() if not m.startswith("hazy_gloss.blender")}
+    assert not layout_graph.cycles(free)
 
 
 def test_no_symlinks():
