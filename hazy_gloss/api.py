@@ -172,10 +172,11 @@ def update_material_links(mat, **changes):
 
 
 def _update(mat, changes):
-    out = _material.update_material(mat, **changes)
+    from .blender import edit as _edit
+    out = _edit.update_material(mat, **changes)
     if out[0] is None and _material.layer.is_layered(mat):
         out = (Notes(mat, _material.layer.notes(mat)), out[1])
-    replaced = _material.REPLACED.get(mat.session_uid)
+    replaced = _edit.REPLACED.get(mat.session_uid)
     if replaced:
         import warnings
         warnings.warn(f"{mat.name}: replaced node-editor edits the haze parameters cannot "
@@ -247,8 +248,8 @@ def last_error(mat):
     raised in property setters, so a script setting ``mat.hazy_gloss_settings.roughness = 2``
     learns of the refusal here, or raises with :func:`strict_settings`."""
     _material.check_material(mat, "last_error")
-    from .blender import properties as _props
-    return _props.error_for(mat)
+    from .blender import messages as _messages
+    return _messages.error_for(mat)
 
 
 def strict_settings():

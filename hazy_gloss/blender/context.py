@@ -4,7 +4,6 @@ properties, so none of them imports another)."""
 import bpy
 
 from .. import constants as K
-from ..core.parameters import HAZE_PARAMETERS, PARAMETERS
 from . import material
 
 #: Where user presets live (AddPresetBase and the presets menu).
@@ -53,23 +52,3 @@ def maps_problem(mat):
                 f"(Convert Maps) to change it")
     return None
 
-
-_PLAIN = (
-    ("haziness >= 1", "Haziness must stay below 1 (1 would break energy conservation)"),
-    ("offer", None),  # distribution / kind mismatch: the core's message is already plain
-)
-
-
-#: Parameter names a message may start with: kept as the user typed them (not capitalised).
-_KEYWORDS = frozenset(HAZE_PARAMETERS) | frozenset(PARAMETERS)
-
-
-def plain_message(exc):
-    text = str(exc)
-    for key, plain in _PLAIN:
-        if key in text and plain:
-            return plain
-    first = text.split(" ", 1)[0].rstrip(":,")
-    if first in _KEYWORDS:
-        return text  # it starts with a keyword (haze_extent, smoothness): as the user typed it
-    return text[:1].upper() + text[1:]

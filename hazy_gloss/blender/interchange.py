@@ -46,7 +46,9 @@ from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import engines, layered, materialx, usd
 from . import compat, layer_group, material, stamp, surface_build
-from .context import plain_message, target_material
+from .context import target_material
+from .messages import plain_message
+from .reports import report
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
 IMPORT_STAMP = "hazy_gloss_import"
@@ -1028,11 +1030,6 @@ def _selected_materials(context, selection):
     return mats
 
 
-def _say(op, level, text):
-    from .operators import _report
-    _report(op, level, text)
-
-
 class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
     """Write hazy materials to a MaterialX document: each one an exact Eq. 1 graph (a mix of two
     microfacet lobes sharing one Fresnel) from the standard library"""
@@ -1053,18 +1050,18 @@ class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
         try:
             rep = export_materialx(mats, self.filepath, self.flavour, validate=self.validate)
         except (ValueError, OSError) as exc:
-            _say(self, "ERROR", plain_message(exc))
+            report(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
-        _say(self, "INFO", f"Wrote {len(rep.materials)} hazy material"
-             f"{'s' if len(rep.materials) != 1 else ''} to {bpy.path.basename(rep.path)}")
+        report(self, "INFO", f"Wrote {len(rep.materials)} hazy material"
+               f"{'s' if len(rep.materials) != 1 else ''} to {bpy.path.basename(rep.path)}")
         if rep.validated is None and self.validate:
-            _say(self, "WARNING", "Not validated: the materialx package is not installed "
-                 "(pip install materialx); the file itself does not need it")
+            report(self, "WARNING", "Not validated: the materialx package is not installed "
+                   "(pip install materialx); the file itself does not need it")
         elif rep.validated is False:
-            _say(self, "ERROR", f"MaterialX validation failed: {rep.validation}")
+            report(self, "ERROR", f"MaterialX validation failed: {rep.validation}")
         notes = rep.notes + list(getattr(rep, "skipped", []))
         if notes:
-            _say(self, "WARNING", "; ".join(notes[:6]))
+            report(self, "WARNING", "; ".join(notes[:6]))
         return {"FINISHED"}
 
 
@@ -1084,18 +1081,18 @@ class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
 
     def execute(self, context):
         if not usd.available():
-            _say(self, "ERROR", usd.USD_MISSING)
+            report(self, "ERROR", usd.USD_MISSING)
             return {"CANCELLED"}
         mats = _selected_materials(context, self.selection)
         try:
             path, done, skipped = export_usd(mats, self.filepath, preview=self.preview)
         except (ValueError, OSError, RuntimeError) as exc:
-            _say(self, "ERROR", plain_message(exc))
+            report(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
-        _say(self, "INFO", f"Wrote {len(done)} hazy material{'s' if len(done) != 1 else ''} "
-             f"to {bpy.path.basename(path)}")
+        report(self, "INFO", f"Wrote {len(done)} hazy material{'s' if len(done) != 1 else ''} "
+               f"to {bpy.path.basename(path)}")
         if skipped:
-            _say(self, "WARNING", "; ".join(skipped[:6]))
+            report(self, "WARNING", "; ".join(skipped[:6]))
         return {"FINISHED"}
 
 
@@ -1123,18 +1120,18 @@ class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
                 notes += add_export_fallback(mat)
             except ValueError as exc:
                 if not self.all_materials:
-                    _say(self, "ERROR", plain_message(exc))
+                    report(self, "ERROR", plain_message(exc))
                     return {"CANCELLED"}
                 notes.append(plain_message(exc))
                 continue
             done.append(mat.name)
         if not done:
-            _say(self, "ERROR", "No hazy material to give an export fallback")
+            report(self, "ERROR", "No hazy material to give an export fallback")
             return {"CANCELLED"}
-        _say(self, "INFO", (f"“{done[0]}”" if len(done) == 1 else f"{len(done)} materials")
-             + ": glTF and USD export now get the core lobe")
+        report(self, "INFO", (f"“{done[0]}”" if len(done) == 1 else f"{len(done)} materials")
+               + ": glTF and USD export now get the core lobe")
         if notes:
-            _say(self, "WARNING", "; ".join(sorted(set(notes))))
+            report(self, "WARNING", "; ".join(sorted(set(notes))))
         return {"FINISHED"}
 
 
@@ -1150,9 +1147,9 @@ class HAZY_GLOSS_OT_remove_export_fallback(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None or not remove_export_fallback(mat):
-            _say(self, "ERROR", "No export fallback to remove")
+            report(self, "ERROR", "No export fallback to remove")
             return {"CANCELLED"}
-        _say(self, "INFO", f"“{mat.name}”: export fallback removed")
+        report(self, "INFO", f"“{mat.name}”: export fallback removed")
         return {"FINISHED"}
 
 

@@ -9,8 +9,8 @@ from bpy_extras.io_utils import ImportHelper
 
 from .. import api
 from ..interchange import usd
-from .context import plain_message
-from .interchange import _say
+from .messages import plain_message
+from .reports import report
 
 
 class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
@@ -26,27 +26,27 @@ class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
 
     def execute(self, context):
         if os.path.splitext(self.filepath)[1].lower() in (".usd", ".usda", ".usdc") and not usd.available():
-            _say(self, "ERROR", usd.USD_MISSING)
+            report(self, "ERROR", usd.USD_MISSING)
             return {"CANCELLED"}
         wm = context.window_manager
         wm.progress_begin(0, 100)
         try:
             res = api.import_materialx(self.filepath, progress=lambda f, msg: wm.progress_update(int(100 * f)))
         except (ValueError, OSError, RuntimeError) as exc:
-            _say(self, "ERROR", plain_message(exc))
+            report(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
         finally:
             wm.progress_end()
         exact = sum(1 for im in res.report if im.material is not None and im.exact)
-        _say(self, "INFO", f"Imported {len(res)} material{'s' if len(res) != 1 else ''} "
-             f"({exact} exact) of {len(res.report)} found")
+        report(self, "INFO", f"Imported {len(res)} material{'s' if len(res) != 1 else ''} "
+               f"({exact} exact) of {len(res.report)} found")
         said = 0
         for im in res.report:
             if (im.notes or im.material is None) and said < 20:
-                _say(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not imported"))
+                report(self, "WARNING", f"{im.name}: " + ("; ".join(im.notes) or "not imported"))
                 said += 1
         if said < sum(1 for im in res.report if im.notes or im.material is None):
-            _say(self, "WARNING", "more notes in each material's hazy_gloss_import property")
+            report(self, "WARNING", "more notes in each material's hazy_gloss_import property")
         return {"FINISHED"} if res else {"CANCELLED"}
 
 

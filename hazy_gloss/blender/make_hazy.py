@@ -18,7 +18,8 @@ from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
 from . import layer, material
-from .context import edit_problem, maps_problem, plain_message
+from .context import edit_problem, maps_problem
+from .messages import plain_message
 
 
 def _is_live(mat):

@@ -25,7 +25,7 @@ from .. import constants as K
 from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.lobes import describe
-from ..core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise, normalise_haze
+from ..core.parameters import DEFAULTS, is_anisotropic, normalise
 from . import compat, layer, stamp
 from .nodes.builder import TreeBuilder, socket_value
 from .nodes import groups
@@ -817,11 +817,6 @@ def apply(mat, p, *, force_rebuild=False):
     return d.mapping, dropped
 
 
-#: material session_uid -> the node-editor edits (as "node: input") the last update_material
-#: could not read back and replaced (properties.edit_material tells the user).
-REPLACED = {}
-
-
 def create_material(name, **params):
     """A new hazy material (see hazy_gloss.api.create_material)."""
     p = normalise(params)
@@ -834,56 +829,7 @@ def create_material(name, **params):
     return mat
 
 
-def update_material(mat, **changes):
-    """Change some perceptual parameters of a hazy material.  Returns (HazeMapping, group
-    inputs whose links had to be dropped because the new configuration has no such input)."""
-    check_material(mat, "update_material")
-    REPLACED.pop(mat.session_uid, None)
-    if mat.library is not None:
-        raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
-    if layer.is_layered(mat):
-        if layer.is_baked(mat):
-            raise ValueError(f"the haze of {mat.name!r} comes from converted maps: convert the "
-                             f"maps again to change it (or Remove Haze, then Make Hazy for "
-                             f"haze set here)")
-        normalise_haze(changes)  # unknown names first (did you mean ...)
-        problem = stamp.layer_problem(mat, layer.layer_state(mat)["problems"], fixing=changes)
-        if problem is not None:  # only setting the damaged haze values repairs the stamp
-            raise stamp.StampError(problem)
-        h = normalise_haze(changes, layer.haze_of(mat))
-        layer.apply(mat, h)
-        from . import sync
-        sync.refresh_derived(mat)  # the export fallback and the EEVEE output follow
-        return None, []
-    unknown = {k: v for k, v in changes.items() if k not in PARAMETERS}
-    if unknown:
-        normalise(unknown)  # raises: unknown names, with "did you mean"
-    values, problems = stamp.read_material(mat)
-    if values is None:
-        raise ValueError(f"material {mat.name!r} is not a hazy material (use Make Hazy or "
-                         f"api.create_material)")
-    damaged = set(PARAMETERS) if "*" in problems else set(problems)
-    if damaged - set(changes):  # a change that sets every damaged value repairs the stamp
-        raise stamp.StampError(stamp.material_problem(
-            mat, {k: v for k, v in problems.items() if k == "*" or k not in changes}))
-    merged = dict(DEFAULTS)
-    merged.update(values)
-    replaced = []
-    if not problems:  # node-editor edits: read back where they can be, else replaced (said)
-        read_back, replaced = adopt_edits(mat, normalise(dict(merged), explicit=()))
-        merged.update(read_back)
-    REPLACED[mat.session_uid] = [str(e) for e in replaced]
-    merged.update(changes)
-    p = normalise(merged, explicit=changes)
-    if not p["shader_mapping"]:
-        textured = UserLinks(mat.node_tree).textured_inputs if mat.node_tree else []
-        if textured:
-            raise ValueError(f"Textures are connected to {', '.join(textured)}: constant mapping "
-                             f"cannot use them. Keep in-shader mapping, or disconnect them first")
-    return apply(mat, p)
-
-
-__all__ = ("create_material", "update_material", "read_parameters", "read_parameters_lenient",
+__all__ = ("create_material", "read_parameters", "read_parameters_lenient",
            "check_material", "node_edits", "adopt_edits", "adopt_node_edits", "is_hazy",
            "map_parameters",
            "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",

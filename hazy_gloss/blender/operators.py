@@ -13,7 +13,7 @@
 
 Every operator takes an optional ``material`` name (scripts, tests); by default it acts on the
 material shown in the Properties editor / Shader Editor, else the active object's material.
-Reports are also appended to :data:`last_reports` (tests, scripts).  The operators have no
+Reports are also appended to :data:`reports.last_reports` (tests, scripts).  The operators have no
 context poll (Blender polls cannot see the ``material`` property); they check in execute() and
 report in plain words.
 """
@@ -24,21 +24,13 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 from .. import constants as K
 from ..core.parameters import HAZE_PARAMETERS, PARAMETERS
 from ..utils import looks, presets
-from . import layer, material, plots, preferences, properties, stamp
-from .context import PRESET_SUBDIR, plain_message, target_material
+from . import edit, layer, material, plots, preferences, properties, stamp
+from .context import PRESET_SUBDIR, target_material
 from .looks import create_look
+from .messages import plain_message
+from .reports import finish, report
 from .make_hazy import (CORE_NODES, add_haziness_map, import_two_lobe_mix, make_hazy, remove_haze,
                         upgrade_layers)
-
-#: (level, message) of every report, newest last (kept short).
-last_reports = []
-
-
-def _report(op, level, message):
-    op.report({level}, message)
-    last_reports.append((level, message))
-    del last_reports[:-50]
-
 
 _MATERIAL_PROP = dict(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"},
                       description="Act on this material (default: the active one)")
@@ -47,16 +39,6 @@ _MATERIAL_PROP = dict(name="Material", default="", options={"HIDDEN", "SKIP_SAVE
 # --------------------------------------------------------------------------------------------
 # Operators
 # --------------------------------------------------------------------------------------------
-
-
-def _finish(op, status, msg, notes):
-    if status == "ERROR":
-        _report(op, "ERROR", msg)
-        return {"CANCELLED"}
-    _report(op, "INFO", msg)
-    if notes:
-        _report(op, "WARNING", "; ".join(n[:1].upper() + n[1:] for n in notes))
-    return {"FINISHED"} if status == "FINISHED" else {"CANCELLED"}
 
 
 class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
@@ -80,16 +62,16 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            _report(self, "ERROR", f"No material named “{self.material}”" if self.material
-                    else "No active material")
+            report(self, "ERROR", f"No material named “{self.material}”" if self.material
+                   else "No active material")
             return {"CANCELLED"}
         node = self.node or None
         active = getattr(context, "active_node", None)
         if node is None and active is not None and getattr(active, "id_data", None) == mat.node_tree \
                 and active.bl_idname in CORE_NODES and not material.is_ours(active):
             node = active.name
-        return _finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent,
-                                        node=node))
+        return finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent,
+                                       node=node))
 
 
 class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):
@@ -104,9 +86,9 @@ class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            _report(self, "ERROR", "No material")
+            report(self, "ERROR", "No material")
             return {"CANCELLED"}
-        return _finish(self, *remove_haze(mat))
+        return finish(self, *remove_haze(mat))
 
 
 class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
@@ -123,12 +105,12 @@ class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
         if self.material:
             mat = bpy.data.materials.get(self.material)
             if mat is None:
-                _report(self, "ERROR", f"No material named “{self.material}”")
+                report(self, "ERROR", f"No material named “{self.material}”")
                 return {"CANCELLED"}
             mats = [mat]
         else:
             mats = list(bpy.data.materials)
-        return _finish(self, *upgrade_layers(mats))
+        return finish(self, *upgrade_layers(mats))
 
 
 class HAZY_GLOSS_OT_add_haziness_map(bpy.types.Operator):
@@ -147,9 +129,9 @@ class HAZY_GLOSS_OT_add_haziness_map(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            _report(self, "ERROR", "No material")
+            report(self, "ERROR", "No material")
             return {"CANCELLED"}
-        return _finish(self, *add_haziness_map(mat, size=self.size, param=self.target))
+        return finish(self, *add_haziness_map(mat, size=self.size, param=self.target))
 
 
 class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
@@ -165,9 +147,9 @@ class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            _report(self, "ERROR", "No material")
+            report(self, "ERROR", "No material")
             return {"CANCELLED"}
-        return _finish(self, *import_two_lobe_mix(mat))
+        return finish(self, *import_two_lobe_mix(mat))
 
 
 _KIND_ITEMS = [("DEFAULT", "Default", "The kind set in the add-on preferences")] + [
@@ -205,12 +187,12 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
             try:
                 mat = create_look(self.preset, self.name if self.name != "Hazy Gloss" else None)
             except ValueError as exc:
-                _report(self, "ERROR", plain_message(exc))
+                report(self, "ERROR", plain_message(exc))
                 return {"CANCELLED"}
             obj = getattr(context, "object", None)
             if self.assign and obj is not None and obj.library is None:
                 assign_to_object(obj, mat)
-            _report(self, "INFO", f"New “{mat.name}”: a Principled BSDF with a haze layer")
+            report(self, "INFO", f"New “{mat.name}”: a Principled BSDF with a haze layer")
             return {"FINISHED"}
         if self.preset != "NONE":
             p = presets.parameters(self.preset)
@@ -226,7 +208,7 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
         try:
             mat = material.create_material(self.name or "Hazy Gloss", **p)
         except ValueError as exc:
-            _report(self, "ERROR", plain_message(exc))
+            report(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
         obj = getattr(context, "object", None)
         where = ""
@@ -235,7 +217,7 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
                 getattr(data, "library", None) is None:
             if assign_to_object(obj, mat):
                 where = f" on “{obj.name}”"
-        _report(self, "INFO", f"New hazy {p['kind'].lower()} “{mat.name}”{where}")
+        report(self, "INFO", f"New hazy {p['kind'].lower()} “{mat.name}”{where}")
         return {"FINISHED"}
 
 
@@ -260,13 +242,13 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None or not material.is_hazy(mat):
-            _report(self, "ERROR", "The material is not hazy: use Make Hazy or New Hazy "
-                    "Material first")
+            report(self, "ERROR", "The material is not hazy: use Make Hazy or New Hazy "
+                   "Material first")
             return {"CANCELLED"}
         if self.preset in looks.LOOKS:
             if not layer.is_layered(mat):
-                _report(self, "ERROR", f"A look's haze goes on a haze layer: use Make Hazy on "
-                        f"“{mat.name}” first, or New Hazy Material with the look")
+                report(self, "ERROR", f"A look's haze goes on a haze layer: use Make Hazy on "
+                       f"“{mat.name}” first, or New Hazy Material with the look")
                 return {"CANCELLED"}
             p = dict(looks.LOOKS[self.preset].haze)
             p = dict(layer.HAZE, **{k: v for k, v in p.items()})  # every haze parameter set
@@ -282,14 +264,14 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
             defaults = material.tree_defaults(mat)
             for k in damaged:
                 p.setdefault(k, defaults[k])
-        _, msg = properties.edit_material(mat, **p)
+        _, msg = edit.edit_material(mat, **p)
         if msg:
-            _report(self, "ERROR", msg)
+            report(self, "ERROR", msg)
             return {"CANCELLED"}
         pre = looks.LOOKS.get(self.preset) or presets.PRESETS[self.preset]
-        _report(self, "INFO", f"Applied “{pre.name}” to “{mat.name}”")
+        report(self, "INFO", f"Applied “{pre.name}” to “{mat.name}”")
         if getattr(pre, "notes", ""):
-            _report(self, "INFO", pre.notes)
+            report(self, "INFO", pre.notes)
         return {"FINISHED"}
 
 
@@ -333,26 +315,26 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None or not material.is_hazy(mat):
-            _report(self, "ERROR", "The material is not hazy")
+            report(self, "ERROR", "The material is not hazy")
             return {"CANCELLED"}
         if layer.is_layered(mat):
-            _report(self, "ERROR", f"“{mat.name}” is a haze layer on its own BSDF: its parts' "
-                    f"values are in the panel (plots are drawn for hazy materials)")
+            report(self, "ERROR", f"“{mat.name}” is a haze layer on its own BSDF: its parts' "
+                   f"values are in the panel (plots are drawn for hazy materials)")
             return {"CANCELLED"}
         problem = properties.stamp_problem(mat)
         if problem is not None:
-            _report(self, "ERROR", problem)
+            report(self, "ERROR", problem)
             return {"CANCELLED"}
         names = []
         try:
             plotted = plots.compute_plots(mat, preferences.get(context), size=self.size)
         except ValueError as exc:
-            _report(self, "ERROR", plain_message(exc))
+            report(self, "ERROR", plain_message(exc))
             return {"CANCELLED"}
         for which, rgba in plotted.items():
             img = plots.plot_image(which, rgba)
             names.append(img.name)
-        _report(self, "INFO", "Plots written to " + ", ".join(f"“{n}”" for n in names))
+        report(self, "INFO", "Plots written to " + ", ".join(f"“{n}”" for n in names))
         return {"FINISHED"}
 
 

@@ -21,8 +21,9 @@ import numpy as np
 
 from .. import constants as K
 from ..core.parameters import is_anisotropic
-from . import eevee_layer, layer, material, plots, preferences, properties, stamp
-from .context import edit_problem, maps_problem, plain_message, target_material
+from . import eevee_layer, layer, material, messages, plots, preferences, properties, stamp
+from .context import edit_problem, maps_problem, target_material
+from .messages import plain_message
 from .menus import draw_recomposite_operators
 
 # --------------------------------------------------------------------------------------------
@@ -213,7 +214,7 @@ def draw_material(layout, context, mat, idname):
         box.alert = True
         box.label(text=damaged, icon="ERROR")
         box.label(text="Apply a preset (Presets below) to reset the parameters", icon="PRESET")
-    err = properties.error_for(mat)
+    err = messages.error_for(mat)
     if err and problem is None and err != damaged:
         box = col.box()
         box.alert = True
@@ -372,7 +373,7 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         box = col.box()
         box.alert = True
         box.label(text=problem, icon="LIBRARY_DATA_DIRECT")
-    err = properties.error_for(mat)
+    err = messages.error_for(mat)
     if err and problem is None:
         box = col.box()
         box.alert = True

@@ -4,9 +4,9 @@
 The stamp ``mat["hazy_gloss"]`` written by :mod:`hazy_gloss.api` is the only storage of the
 parameters (it travels with the .blend and is all a render farm needs).  Every parameter
 property here is a *view* on that stamp: its getter reads the stamp, its setter calls
-``api.update_material`` (through :func:`edit_material`).  So nothing has to be synced: after the
-add-on is disabled and enabled again, after undo, after loading a file written by a script or
-another machine, the panel shows what the stamp says.
+``api.update_material`` (through ``edit.edit_material``).  So nothing has to be synced: after
+the add-on is disabled and enabled again, after undo, after loading a file written by a script
+or another machine, the panel shows what the stamp says.
 
 Why not ``Material.hazy_gloss``: in Blender 4.5 a registered property shares its storage with
 the custom property of the same name, so ``Material.hazy_gloss`` would overwrite the stamp
@@ -17,7 +17,7 @@ A few properties are plain stored UI state: the haze-extent link toggle and what
 remembers (the edge tint while the kind is not a conductor, the smoothness weight while the
 smooth mapping is off).
 
-Edits go through :func:`edit_material`, which
+Edits go through ``edit.edit_material``, which
 - refuses linked-library and override materials with a clear message (no crash),
 - ignores re-entrant calls for the same material (a setter triggered while that material is
   being rebuilt, e.g. by a handler or driver of the user's),
@@ -25,7 +25,7 @@ Edits go through :func:`edit_material`, which
   and the links from the hazy BSDF output into other nodes (a Mix Shader, say) survive the
   rebuild, and nodes the user moved stay where they were,
 - records a plain-language message per material when a change is refused
-  (:data:`last_error`, shown by the panel).
+  (``messages.last_error``, shown by the panel).
 """
 import math
 
@@ -34,8 +34,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from .. import constants as K
 from ..core.parameters import HAZE_DEFAULTS, normalise
-from . import eevee_layer, material
-from .context import edit_problem, plain_message
+from . import edit, eevee_layer, material, messages
+from .messages import plain_message
 
 PROPERTY_NAME = "hazy_gloss_settings"
 GROUP_NODE = material.GROUP_NODE
@@ -66,10 +66,6 @@ _KIND_IDS = [i[0] for i in KIND_ITEMS]
 _DIST_IDS = [i[0] for i in DISTRIBUTION_ITEMS]
 _TANGENT_IDS = [i[0] for i in TANGENT_ITEMS]
 
-#: material session_uid -> plain-language message of the last refused change (the panel shows
-#: it).  session_uid, not the name: a file loaded later may reuse the name.
-last_error = {}
-_busy = set()
 
 
 # --------------------------------------------------------------------------------------------
@@ -79,11 +75,6 @@ _busy = set()
 
 def settings(mat):
     return getattr(mat, PROPERTY_NAME)
-
-
-def error_for(mat):
-    """The message of the last refused change of ``mat`` (or None)."""
-    return last_error.get(mat.session_uid) if mat is not None else None
 
 
 def has_hazy_nodes(mat):
@@ -108,42 +99,6 @@ def stamp_problem(mat):
     return problem
 
 
-def edit_material(mat, **changes):
-    """Apply perceptual ``changes`` to the hazy material ``mat`` and rebuild its nodes.
-
-    Returns ``(mapping, message)``: the HazeMapping and None, or None and the plain-language
-    reason when the change was refused (also stored in :data:`last_error`).  A re-entrant call
-    for a material that is being rebuilt is ignored (returns (None, None))."""
-    key = mat.as_pointer()
-    if key in _busy:
-        return None, None
-    problem = edit_problem(mat)
-    if problem is not None:
-        last_error[mat.session_uid] = problem
-        return None, problem
-    _busy.add(key)
-    try:
-        m, dropped = material.update_material(mat, **changes)
-    except (ValueError, TypeError) as exc:
-        msg = plain_message(exc)
-        last_error[mat.session_uid] = msg
-        return None, msg
-    finally:
-        _busy.discard(key)
-    said = []  # one line (the panel shows last_error as one label)
-    if dropped:
-        said.append("Disconnected (no such input any more): " + ", ".join(dropped))
-    replaced = material.REPLACED.get(mat.session_uid)
-    if replaced:
-        said.append(f"Replaced node-editor edits these parameters cannot represent: "
-                    f"{', '.join(replaced)} (Ctrl+Z brings them back)")
-    if said:
-        last_error[mat.session_uid] = "; ".join(said)
-    else:
-        last_error.pop(mat.session_uid, None)
-    return m, None
-
-
 # --------------------------------------------------------------------------------------------
 # Property getters and setters (views on the stamp)
 # --------------------------------------------------------------------------------------------
@@ -155,10 +110,10 @@ _strict = []
 
 def _set(pg, **changes):
     """A setter: Blender prints and swallows exceptions raised in a property setter, so a
-    refused change is recorded (:data:`last_error`, api.last_error) and collected by an open
+    refused change is recorded (``messages.last_error``, api.last_error) and collected by an open
     :func:`strict_settings` block, which raises when it closes."""
     mat = pg.id_data
-    _, msg = edit_material(mat, **changes)
+    _, msg = edit.edit_material(mat, **changes)
     if msg:
         print(f"Hazy Gloss: {mat.name}: {msg}")
         for errors in _strict:
@@ -357,10 +312,10 @@ def _set_eevee(self, value):
             eevee_layer.remove_eevee_output(mat)
         else:
             eevee_layer.add_eevee_output(mat, mode=("auto", "always")[value - 1])
-        last_error.pop(mat.session_uid, None)
+        messages.clear_error(mat)
     except ValueError as exc:
-        last_error[mat.session_uid] = plain_message(exc)
-        print(f"Hazy Gloss: {mat.name}: {last_error[mat.session_uid]}")
+        messages.set_error(mat, plain_message(exc))
+        print(f"Hazy Gloss: {mat.name}: {messages.error_for(mat)}")
 
 
 _NO_ANIM = set()  # rebuilding node trees per frame is not what anyone wants (and farms
@@ -492,5 +447,5 @@ def attach():
 def detach():
     if hasattr(bpy.types.Material, PROPERTY_NAME):
         delattr(bpy.types.Material, PROPERTY_NAME)
-    last_error.clear()
-    _busy.clear()
+    messages.last_error.clear()
+    edit.forget_busy()

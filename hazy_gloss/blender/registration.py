@@ -4,7 +4,7 @@
 (the Material property, the plot previews, menu entries, the asset library) is added here, after
 the classes, and removed first."""
 from . import (composite_ops, convert_ops, interchange, interchange_ops, menus, operators, panels,
-               plots, preferences, properties, sync)
+               plots, preferences, properties, reports, sync)
 
 # Order matters: properties before the operators and panels that use them.
 _MODULES = (preferences, properties, operators, convert_ops, composite_ops, interchange,
@@ -32,4 +32,4 @@ def unregister():
     properties.detach()
     for mod in reversed(_MODULES):
         mod.unregister()
-    operators.last_reports.clear()
+    reports.last_reports.clear()

@@ -13,8 +13,8 @@ import bpy
 from bpy.app.handlers import persistent
 
 from .. import constants as K
-from . import layer, legacy_layer, material, properties, stamp
-from .context import plain_message
+from . import layer, legacy_layer, material, messages, stamp
+from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
 _busy = False
@@ -39,11 +39,11 @@ def sync(mat, *, force=False):
     state = layer.layer_state(mat) or {}
     problem = stamp.layer_problem(mat, state.get("problems", []))
     if problem is not None:  # upgrading would take the damaged values for the user's
-        properties.last_error[mat.session_uid] = problem
+        messages.last_error[mat.session_uid] = problem
         return False
     core = legacy_layer.find_core(mat.node_tree, state.get("core"))
     if core is None:
-        properties.last_error[mat.session_uid] = (
+        messages.last_error[mat.session_uid] = (
             "The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
         return False
     key = mat.session_uid
@@ -55,7 +55,7 @@ def sync(mat, *, force=False):
     try:
         layer.upgrade(mat)
     except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
-        properties.last_error[key] = plain_message(exc)
+        messages.last_error[key] = plain_message(exc)
         return False
     _fingerprints.pop(key, None)
     refresh_derived(mat)
@@ -99,7 +99,7 @@ def refresh_derived(mat):
         if eevee_layer.requested_mode(mat) is not None:
             eevee_layer.sync_eevee_output(mat)
     except ValueError as exc:
-        properties.last_error[mat.session_uid] = plain_message(exc)
+        messages.last_error[mat.session_uid] = plain_message(exc)
     refresh_fallback(mat)
 
 
@@ -110,7 +110,7 @@ def refresh_fallback(mat):
     try:
         interchange.refresh_stamped_fallback(mat)
     except ValueError as exc:  # (a depsgraph handler: the panel shows it)
-        properties.last_error[mat.session_uid] = plain_message(exc)
+        messages.last_error[mat.session_uid] = plain_message(exc)
 
 
 @persistent
@@ -131,7 +131,7 @@ def on_depsgraph_update(scene, depsgraph):
             try:
                 sync(mat)
             except Exception as exc:  # noqa: BLE001 (a handler must not raise on every update)
-                properties.last_error[mat.session_uid] = (
+                messages.last_error[mat.session_uid] = (
                     f"Hazy Gloss could not update the haze layer of “{mat.name}”: "
                     f"{plain_message(exc)}")
     finally:

@@ -257,8 +257,8 @@ class Fuzz:
         mod = lambda n: importlib.import_module(f"{pkg}.{n}")  # noqa: E731
         self.api = mod("api")
         self.panels = mod("blender.panels")
-        self.props = mod("blender.properties")
-        self.ops = mod("blender.operators")
+        self.errors = mod("blender.messages")  # the refused changes the panel shows
+        self.reports = mod("blender.reports")
         self.folder = folder
         self.alarm = alarm
         self.counts = collections.Counter()  # (material type, attack, driver, outcome)
@@ -409,7 +409,7 @@ class Fuzz:
 
     def d_setter(self, mat):
         mat.hazy_gloss_settings.haziness = 0.25
-        err = self.props.error_for(mat)
+        err = self.errors.error_for(mat)
         if err:
             return ("refused" if "\n" not in err.strip() else "multi-line"), err
         return "ok", ""
@@ -419,9 +419,9 @@ class Fuzz:
         return "ok", ""
 
     def _op(self, name, mat, **kw):
-        del self.ops.last_reports[:]
+        del self.reports.last_reports[:]
         res = getattr(bpy.ops.hazy_gloss, name)(material=mat.name, **kw)
-        reports = list(self.ops.last_reports)
+        reports = list(self.reports.last_reports)
         if "FINISHED" in res:
             return "ok", ""
         msg = reports[-1][1] if reports else ""

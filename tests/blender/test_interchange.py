@@ -144,7 +144,7 @@ def test_map_driven_material_exports_image_nodes_with_raw_colour_space(api, hg, 
 
 
 def test_operator_exports_and_says_when_materialx_is_missing(api, hg, tmp_path, monkeypatch):
-    ops = importlib.import_module(hg.__name__ + ".blender.operators")
+    reports = importlib.import_module(hg.__name__ + ".blender.reports")
     mx_mod = importlib.import_module(hg.__name__ + ".interchange.materialx")
     api.create_material("m", **CONDUCTOR)
     path = str(tmp_path / "op.mtlx")
@@ -154,22 +154,22 @@ def test_operator_exports_and_says_when_materialx_is_missing(api, hg, tmp_path, 
     def missing(_path):
         return None, "the materialx package is not installed"
     monkeypatch.setattr(mx_mod, "validate", missing)
-    ops.last_reports.clear()
+    reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.export_materialx(filepath=str(tmp_path / "op2.mtlx")) == {"FINISHED"}
     assert os.path.isfile(tmp_path / "op2.mtlx")  # the XML itself needs no package
     assert any(lvl == "WARNING" and "materialx package is not installed" in msg
-               for lvl, msg in ops.last_reports)
+               for lvl, msg in reports.last_reports)
 
 
 def test_usd_operator_says_when_pxr_is_missing(api, hg, tmp_path, monkeypatch):
-    ops = importlib.import_module(hg.__name__ + ".blender.operators")
+    reports = importlib.import_module(hg.__name__ + ".blender.reports")
     usd_mod = importlib.import_module(hg.__name__ + ".interchange.usd")
     api.create_material("m", **CONDUCTOR)
     monkeypatch.setattr(usd_mod, "available", lambda: False)
-    ops.last_reports.clear()
+    reports.last_reports.clear()
     with pytest.raises(RuntimeError, match="usd-core"):  # bpy.ops raises on an ERROR report
         bpy.ops.hazy_gloss.export_usd(filepath=str(tmp_path / "x.usda"))
-    assert any(lvl == "ERROR" and "usd-core" in msg for lvl, msg in ops.last_reports)
+    assert any(lvl == "ERROR" and "usd-core" in msg for lvl, msg in reports.last_reports)
     assert not os.path.exists(tmp_path / "x.usda")
 
 

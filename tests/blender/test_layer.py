@@ -25,7 +25,7 @@ def env(hg, clean_file):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), make=mod("blender.make_hazy"),
                            material=mod("blender.material"), exr=mod("exr"), core=mod("core"),
-                           lobes=mod("core.lobes"), ops=mod("blender.operators"), hg=hg)
+                           lobes=mod("core.lobes"), reports=mod("blender.reports"), hg=hg)
 
 
 # --------------------------------------------------------------------------------------------
@@ -717,9 +717,9 @@ def test_picks_the_bsdf_and_names_the_others(env):
     tree.links.new(b.outputs[0], mix.inputs[1])
     tree.links.new(glossy.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
-    warn = " ".join(m for level, m in env.ops.last_reports if level == "WARNING")
+    warn = " ".join(m for level, m in env.reports.last_reports if level == "WARNING")
     assert "not hazed" in warn and "Glossy BSDF" in warn
     assert env.layer.layer_node(mat).name == "Principled BSDF"
     env.api.remove_haze(mat)

@@ -24,7 +24,7 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), exr=mod("exr"),
-                           ops=mod("blender.operators"), hg=hg)
+                           reports=mod("blender.reports"), hg=hg)
 
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
@@ -162,7 +162,7 @@ def test_add_haziness_map(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)
     n0 = len(mat.node_tree.nodes)
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.add_haziness_map(material=mat.name, size=64) == {"FINISHED"}
     node = env.layer.layer_node(mat)
     sock = node.inputs["Haziness"]
@@ -232,7 +232,7 @@ def test_legacy_layers_render_the_same_after_the_upgrade(env, legacy_file):
         assert env.layer.is_legacy(mat)
         before[name] = [render(env, mat, *v)["combined"] for v in VIEWS]
         assert env.layer.is_legacy(mat)  # opening and rendering change nothing
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.upgrade_layers() == {"FINISHED"}
     worst = {}
     for name in names:
@@ -267,9 +267,9 @@ def test_make_hazy_on_a_hazy_material_updates_it(env):
     env.api.make_hazy(mat, haziness=0.6, coat_haziness=0.2)  # a pipeline re-run
     p = env.api.read_parameters(mat)
     assert p["haziness"] == pytest.approx(0.6) and p["coat_haziness"] == pytest.approx(0.2)
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.make_hazy(material=mat.name, haziness=0.1) == {"FINISHED"}
-    assert "Updated" in env.ops.last_reports[0][1]
+    assert "Updated" in env.reports.last_reports[0][1]
 
 
 def test_eevee_output_refuses_linked_data(env, tmp_path):

@@ -11,7 +11,7 @@ F2 on the group) and then moves a slider in the panel.  What each group of tests
   nodes hold exactly what a fresh material of the read-back parameters holds (float32).
 - Replaced and said: an edit the parameters cannot represent (the two lobes given different
   IORs: Eq. 1 has one Fresnel term; a haziness of 1) is listed by ``panels.node_edit_notes``
-  before the change, in ``properties.last_error`` (one line) after a panel change, and by a
+  before the change, in ``messages.last_error`` (one line) after a panel change, and by a
   UserWarning of ``api.update_material`` naming the node and the input.
 - Kept: name, label, frame, width, collapse, colour and the location of a single moved node
   survive a change that sets values and a change that rebuilds the tree (isotropic ->
@@ -36,7 +36,8 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), material=mod("blender.material"),
-                           props=mod("blender.properties"), panels=mod("blender.panels"),
+                           edit=mod("blender.edit"), messages=mod("blender.messages"),
+                           panels=mod("blender.panels"),
                            sync=mod("blender.sync"), K=mod("constants"), hg=hg)
 
 
@@ -95,10 +96,10 @@ def assert_holds_its_parameters(env, mat):
 
 
 def panel_change(env, mat, **changes):
-    """What a sidebar slider does (properties.edit_material); returns last_error's line."""
-    m, msg = env.props.edit_material(mat, **changes)
+    """What a sidebar slider does (edit.edit_material); returns last_error's line."""
+    m, msg = env.edit.edit_material(mat, **changes)
     assert msg is None and m is not None
-    return env.props.error_for(mat)
+    return env.messages.error_for(mat)
 
 
 # --------------------------------------------------------------------------------------------

@@ -44,7 +44,8 @@ V5 = bpy.app.version >= (5, 0, 0)
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), props=mod("blender.properties"),
+    return SimpleNamespace(api=mod("api"), messages=mod("blender.messages"),
+                           reports=mod("blender.reports"), edit=mod("blender.edit"),
                            ops=mod("blender.operators"), panels=mod("blender.panels"),
                            material=mod("blender.material"), make=mod("blender.make_hazy"),
                            bplots=mod("blender.plots"),
@@ -439,20 +440,20 @@ def test_property_switches_remember(env):
 
 
 def test_refused_change_leaves_material_and_says_why(env):
-    api, props = env.api, env.props
+    api, messages = env.api, env.messages
     mat = api.create_material("D", kind="DIELECTRIC", core_reflectivity=0.04, haziness=0.05)
     before = tree_signature(mat), dict(mat["hazy_gloss"].to_dict())
     settings(mat).distribution = "BECKMANN"
     assert (tree_signature(mat), dict(mat["hazy_gloss"].to_dict())) == before
-    assert "offer" in props.error_for(mat)
+    assert "offer" in messages.error_for(mat)
     settings(mat).haziness = 0.08  # a valid change clears the message
-    assert props.error_for(mat) is None
+    assert messages.error_for(mat) is None
 
 
 def test_reentrant_setter_is_ignored(env, monkeypatch):
     """A property written while its material is being rebuilt (e.g. by a handler) must not
     recurse or rebuild twice."""
-    api, props = env.api, env.props
+    api, edit = env.api, env.edit
     mat = api.create_material("R", haziness=0.2)
     calls = []
     real_apply = env.material.apply
@@ -466,7 +467,7 @@ def test_reentrant_setter_is_ignored(env, monkeypatch):
     settings(mat).haziness = 0.5
     assert calls == [pytest.approx(0.5)]
     assert api.read_parameters(mat)["haziness"] == pytest.approx(0.5)
-    assert not props._busy
+    assert not edit._busy
 
 
 def test_copies_keep_their_own_nodes_and_slots(env):
@@ -494,7 +495,7 @@ def test_copies_keep_their_own_nodes_and_slots(env):
 
 
 def test_linked_library_material_refuses_cleanly(env, tmp_path):
-    api, props, ops = env.api, env.props, env.ops
+    api = env.api
     mat = api.create_material("Lib Hazy", haziness=0.4)
     plain, _ = principled_material("Lib Plain")
     lib = str(tmp_path / "lib.blend")
@@ -507,7 +508,7 @@ def test_linked_library_material_refuses_cleanly(env, tmp_path):
     before = tree_signature(linked), linked["hazy_gloss"].to_dict()
     settings(linked).haziness = 0.9  # Python may write to linked data; the setter refuses
     assert (tree_signature(linked), linked["hazy_gloss"].to_dict()) == before
-    assert "linked from the library file" in props.error_for(linked)
+    assert "linked from the library file" in env.messages.error_for(linked)
     assert settings(linked).haziness == pytest.approx(0.4)
     for op, name in ((bpy.ops.hazy_gloss.make_hazy, "Lib Plain"),
                      (bpy.ops.hazy_gloss.import_two_lobe_mix, "Lib Plain")):
@@ -561,7 +562,7 @@ def test_slider_change_latency(env):
         wall, cpu = np.array(wall[6:]) * 1e3, np.array(cpu[6:]) * 1e3
         results[label] = dict(median_ms=float(np.median(wall)), p90_ms=float(np.percentile(wall, 90)),
                               cpu_median_ms=float(np.median(cpu)))
-        assert env.props.error_for(mat) is None, env.props.error_for(mat)
+        assert env.messages.error_for(mat) is None, env.messages.error_for(mat)
     # the textures survived 60 updates
     core = env.layer.layer_node(tex_mat)
     assert core.inputs["Base Color"].is_linked and core.inputs["Roughness"].is_linked
@@ -655,15 +656,15 @@ def test_make_hazy_glossy_anisotropy_off_peak(env, anisotropy, tangent):
 
 
 def test_make_hazy_reports_and_refuses(env):
-    ops = env.ops
+    reports = env.reports
     mat, bsdf = principled_material("Coated")
     bsdf.inputs["Coat Weight"].default_value = 0.5
     bsdf.inputs["Metallic"].default_value = 0.3
-    ops.last_reports.clear()
+    reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
-    info = " ".join(m for level, m in ops.last_reports).lower()
+    info = " ".join(m for level, m in reports.last_reports).lower()
     assert "layer" in info and "principled bsdf" in info
-    assert not any(level == "WARNING" for level, _ in ops.last_reports)  # coat, metallic 0.3 kept
+    assert not any(level == "WARNING" for level, _ in reports.last_reports)  # coat, metallic 0.3 kept
     settings(mat).haziness = 0.5
     assert bsdf.inputs["Coat Weight"].default_value == 0.5
     assert env.api.read_parameters(mat)["kind"] == "MIXED"
@@ -757,9 +758,9 @@ def test_import_two_lobe_mix_recovers_parameters(env, kind, swap):
     mat, truth = two_lobe_material(env, kind, swap=swap)
     views = [((30.0, 0.0), (0.0, 0.0)), ((0.0, 0.0), (0.0, 0.0))]
     before = [render(mat, light, view) for light, view in views]
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.import_two_lobe_mix(material=mat.name) == {"FINISHED"}
-    assert not any("not exactly" in m for _, m in env.ops.last_reports), env.ops.last_reports
+    assert not any("not exactly" in m for _, m in env.reports.last_reports), env.reports.last_reports
     p = api.read_parameters(mat)
     assert p["kind"] == ("CONDUCTOR" if kind == "METALLIC" else "LEGACY")
     # node sockets are float32: the recovered values match to float32 precision
@@ -778,9 +779,9 @@ def test_import_two_lobe_mix_recovers_parameters(env, kind, swap):
 
 def test_import_two_lobe_mix_reports_inexact(env):
     mat, _ = two_lobe_material(env, "METALLIC", distort=True)
-    env.ops.last_reports.clear()
+    env.reports.last_reports.clear()
     assert bpy.ops.hazy_gloss.import_two_lobe_mix(material=mat.name) == {"FINISHED"}
-    text = " ".join(m for level, m in env.ops.last_reports if level == "WARNING")
+    text = " ".join(m for level, m in env.reports.last_reports if level == "WARNING")
     assert "different Fresnel" in text
     plain, _ = principled_material("Not a mix")
     with pytest.raises(RuntimeError, match="no Mix Shader of two"):
@@ -958,7 +959,7 @@ def test_panels_draw_a_haze_layer(env, case):
     before = tree_signature(mat)
     settings(mat).roughness = 0.7
     assert tree_signature(mat) == before
-    assert "belongs to its bsdf node" in (env.props.error_for(mat) or "").lower()
+    assert "belongs to its bsdf node" in (env.messages.error_for(mat) or "").lower()
 
 
 def test_panels_poll_and_non_hazy(env):
@@ -1264,7 +1265,7 @@ def test_undo_and_reload_do_not_crash(env, tmp_path):
     draw_panel(panels.HAZY_GLOSS_PT_material, fake_context(mat, bpy.data.objects["Obj"]))
     settings(mat).haziness = 0.6
     assert api.read_parameters(mat)["haziness"] == pytest.approx(0.6)
-    assert not env.props._busy
+    assert not env.edit._busy
 
 
 def test_operator_conventions(env):
