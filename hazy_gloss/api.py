@@ -324,16 +324,16 @@ def add_export_fallback(mat):
     look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes.
     A material with a haze layer gets the user's own BSDF at haziness 0 (its values and links,
     the metallic map included); the notes say when Blender's USD preview takes another node."""
-    from .blender import interchange as _ix
+    from .blender import fallback as _fallback
     _material.check_material(mat, "add_export_fallback")
-    return _ix.add_export_fallback(mat)
+    return _fallback.add_export_fallback(mat)
 
 
 def remove_export_fallback(mat):
     """Undo :func:`add_export_fallback`; returns True when something was removed."""
-    from .blender import interchange as _ix
+    from .blender import fallback as _fallback
     _material.check_material(mat, "remove_export_fallback")
-    return _ix.remove_export_fallback(mat)
+    return _fallback.remove_export_fallback(mat)
 
 
 def engine_parameters(mat, engines=None, *, measure=True):

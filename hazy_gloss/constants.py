@@ -147,8 +147,9 @@ UNITY_HAZE_BEZIER_W = 10.0
 UNITY_MAX_DIELECTRIC_F0 = 0.25
 #: Filament clear coat: fixed IOR 1.5, F0 = 0.04 (Schlick).
 FILAMENT_CLEARCOAT_F0 = 0.04
-#: Role names of the export fallback's nodes (blender/interchange.py add_export_fallback).
+#: Role names of the export fallback's nodes (blender/fallback.py add_export_fallback).
 FALLBACK_ROLE = "Export fallback"
 FALLBACK_OUTPUT_ROLE = "Export output"
 RENDER_OUTPUT_ROLE = "Render output"
-EEVEE_OUTPUT_ROLE = "layer eevee output"  # blender/eevee_layer.py's EEVEE-only Material Output
+EEVEE_ROLE = "layer eevee "  # the role of every node blender/eevee_layer.py builds starts so
+EEVEE_OUTPUT_ROLE = EEVEE_ROLE + "output"  # blender/eevee_layer.py's EEVEE-only Material Output

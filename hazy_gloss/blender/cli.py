@@ -6,6 +6,8 @@ import os
 
 import bpy
 
+from . import material
+
 
 def open_blend(path):
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
@@ -25,7 +27,6 @@ def save_blend(path, keep=()):
 
 def hazy_parameters():
     """{material name: perceptual parameters} of the open file's hazy materials."""
-    from . import material
     out = {}
     for m in bpy.data.materials:
         p = material.read_parameters(m)

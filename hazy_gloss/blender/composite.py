@@ -21,7 +21,7 @@ from ..core.graph import Graph
 from ..recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                            LAYERS, PROPERTY, compositor_graph, exr_layers)
 from ..exr import exr_header_check, read_exr
-from . import compat, material
+from . import compat, fallback, material
 from . import stamp as _stamps
 from .nodes.builder import TreeBuilder
 from .nodes.emit import combine_compositor, emit
@@ -190,8 +190,7 @@ def convert_material(mat):
     _schlick_distribution(p["distribution"])
     restore_material(mat)
     notes = []
-    from .interchange import remove_export_fallback
-    if remove_export_fallback(mat):  # its outputs would hide the recomposite tree from Cycles
+    if fallback.remove_export_fallback(mat):  # its outputs would hide the recomposite tree from Cycles
         notes.append("the glTF/USD export fallback was removed (add it again after leaving "
                      "recomposite mode)")
     tree = mat.node_tree

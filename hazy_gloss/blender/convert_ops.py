@@ -14,6 +14,7 @@ from .. import convert as core
 from ..convert import ConversionError
 from . import compat
 from .convert import convert_maps_steps, wire_material
+from .convert_pbr import convert_library_steps, convert_set_steps
 
 # --------------------------------------------------------------------------------------------
 # Operator
@@ -402,7 +403,6 @@ class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
             self.report({"WARNING"}, f"the .blend is not saved: maps go to {directory}")
         out_dir = bpy.path.abspath(directory)
         obj = getattr(context, "object", None)
-        from .convert_pbr import convert_library_steps, convert_set_steps
         prog = core.Progress()
         if self.batch:
             if not folder or not os.path.isdir(folder):

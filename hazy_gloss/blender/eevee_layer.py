@@ -38,12 +38,12 @@ Every node made here carries the role ``"layer eevee ..."`` (constants.ROLE).
 from __future__ import annotations
 
 from .. import constants as K
-from . import layer
+from . import fallback, layer
+from .context import edit_problem
 from .nodes import ownership
 
-ROLE = "layer eevee "
+ROLE = K.EEVEE_ROLE
 OUTPUT_ROLE = K.EEVEE_OUTPUT_ROLE
-assert OUTPUT_ROLE.startswith(ROLE)
 MODE_KEY = "hazy_gloss_eevee_mode"
 STAMP_KEY = "eevee"  # in the material's stamp (constants.STAMP): {"mode": ...}
 MODES = ("auto", "always")
@@ -61,10 +61,7 @@ def has_eevee_output(mat):
 
 def remove_nodes(mat):
     """Remove every node built here (the request stays); returns whether there were any."""
-    nodes = eevee_nodes(mat.node_tree)
-    for n in nodes.values():
-        mat.node_tree.nodes.remove(n)
-    return bool(nodes)
+    return ownership.remove_roles(mat.node_tree, ROLE)
 
 
 def requested_mode(mat):
@@ -101,14 +98,12 @@ def _refuse_linked(mat):
     """Linked and overridden materials are read-only here, as for every other entry point."""
     if mat is not None and (mat.library is not None or
                             getattr(mat, "override_library", None) is not None):
-        from .context import edit_problem
         raise ValueError(edit_problem(mat))
 
 
 def _refresh_fallback(mat):
     """An export fallback's EEVEE render output gives way to ours and comes back without it."""
-    from . import interchange
-    interchange.refresh_stamped_fallback(mat)
+    fallback.refresh_stamped_fallback(mat)
 
 
 def _layer_node(mat):

@@ -27,10 +27,11 @@ import re
 import numpy as np
 
 from .. import constants as K
-from ..core import layer_graph
+from ..core import body_colour, gulbrandsen_inverse, layer_graph, thin_film
 from ..core.graph import evaluate as evaluate_graph
 from ..core.parameters import HAZE_DEFAULTS
 from . import compat, layer_group, legacy_layer, stamp
+from .nodes import ownership
 from .nodes.builder import socket_value
 
 LAYER_VERSION = 2
@@ -431,8 +432,8 @@ def remove(mat):
 
 
 def _remove_eevee_nodes(mat):
-    from . import eevee_layer
-    eevee_layer.remove_nodes(mat)
+    """The EEVEE-only output (blender/eevee_layer.py) goes with the layer."""
+    ownership.remove_roles(mat.node_tree, K.EEVEE_ROLE)
 
 
 def _restore_node(tree, core, restore):
@@ -575,7 +576,8 @@ def swap_group(node, ng):
 
 def upgrade(mat):
     """A legacy layer (loose nodes) becomes today's layer node, with its haze values.  Returns
-    the layer node."""
+    the layer node.  A request for the EEVEE-only output is kept; the caller rebuilds what is
+    built from a layer (sync.refresh_derived: that output, the export fallback)."""
     haze = legacy_layer.haze_of(mat)
     tree = mat.node_tree
     state = legacy_layer.layer_state(mat) or {}
@@ -587,8 +589,9 @@ def upgrade(mat):
     node = wrap(mat, core, {k: v for k, v in haze.items() if v != TEXTURE},
                 keep_body_colour=bool(haze.get("keep_body_colour")))
     if eevee:
-        from . import eevee_layer
-        eevee_layer.add_eevee_output(mat, mode=eevee)
+        d = _stamp(mat)
+        d["eevee"] = {"mode": eevee}
+        mat[K.STAMP] = d
     return node
 
 
@@ -710,7 +713,6 @@ def read(mat):
         p["base_color"] = val("Base Color", (0.8,) * 3)
         p["transmission"] = val("Transmission Weight")
     elif kind == "METALLIC":
-        from ..core import gulbrandsen_inverse
         p["kind"] = "CONDUCTOR"
         if settings.get("fresnel_type") == "PHYSICAL_CONDUCTOR":
             r, g = gulbrandsen_inverse(np.maximum(np.asarray(val("IOR", (1.0,) * 3), float), 0.0),
@@ -895,7 +897,6 @@ def film_peak_change(node, vals=None, linked=None):
     metal: the layer raises the metal's F0 (Base Color) as without a film (Eq. 5), and the
     film's interference on a conductor is not linear in F0 (core.thin_film: Cycles'
     normal-incidence reflectance).  A dielectric's film is in the layer's node math (exact)."""
-    from ..core import thin_film
     if vals is None:
         vals, linked = values(node)
     inp = node.inputs
@@ -932,7 +933,6 @@ def _body_note(node, vals, linked):
     """What Keep Body Colour cannot keep for the node's values (a base that would need a
     colour above 1): core.body_colour's measure of it, for the panel (the shader computes the
     compensation itself)."""
-    from ..core import body_colour
     if {"Base Color", "Roughness", "IOR", "Specular Tint", "Specular IOR Level"} & set(linked):
         return None
     inp = node.inputs

@@ -17,8 +17,9 @@ from .. import constants as K
 from ..core import bsdf_interfaces, layer_graph, node_body_colour
 from ..core.multiscatter import cycles_version
 from . import stamp
-from .nodes.builder import TreeBuilder
+from .nodes.builder import TreeBuilder, socket_value
 from .nodes.emit import emit
+from .nodes.groups import group_users, restore_group_users
 
 #: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
 GROUP_VERSION = 2  # 2: transmission and thin films keep the IOR (the tint raises F0)
@@ -527,7 +528,6 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
                     if hasattr(value, "node"):
                         ng.links.new(value, sock)
                     elif value is not None and hasattr(sock, "default_value"):
-                        from .nodes.builder import socket_value
                         sock.default_value = socket_value(sock, value)
                 elif sock.name in gin.outputs:
                     ng.links.new(gin.outputs[sock.name], sock)
@@ -577,10 +577,9 @@ def _rebuild_interface(ng, kind, template, smooth, baked=False):
         _interface(tmp, kind, template, smooth, baked)
         if _interface_items(ng.interface) == _interface_items(tmp.interface):
             return
-        from .nodes.groups import _restore_users, _users
-        found = _users(ng)
+        found = group_users(ng)
         ng.interface.clear()
         _interface(ng, kind, template, smooth, baked)
-        _restore_users(found)
+        restore_group_users(found)
     finally:
         bpy.data.node_groups.remove(tmp)

@@ -131,7 +131,8 @@ def _plain(v):
     return float(v)
 
 
-def _resolve(tree, ref):
+def resolve_link(tree, ref):
+    """The output socket a stamped link reference (node name, socket identifier) names, or None."""
     node = tree.nodes.get(ref[0])
     if node is None:
         return None
@@ -150,7 +151,7 @@ class Input:
         self.value = _plain(sock.default_value)
         self.link = _source(sock)
         if base is not None:
-            self.link = _resolve(node.id_data, base["link"]) if "link" in base else None
+            self.link = resolve_link(node.id_data, base["link"]) if "link" in base else None
             if "value" in base:
                 self.value = _plain(base["value"])
 
@@ -232,7 +233,7 @@ def _restore(core, name, base):
     if sock is None or base is None:
         return
     if "link" in base:
-        src = _resolve(tree, base["link"])
+        src = resolve_link(tree, base["link"])
         if src is not None:
             _new_link(tree, src, sock)
             return

@@ -17,7 +17,7 @@ from .. import constants as K
 from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
-from . import layer, material
+from . import fallback, layer, material, sync
 from .context import edit_problem, maps_problem
 from .messages import plain_message
 
@@ -240,6 +240,7 @@ def _update_layer(mat, given, node):
         layer.apply(mat, h)
     except ValueError as exc:
         return "ERROR", plain_message(exc), []
+    sync.refresh_derived(mat)  # the EEVEE-only output and the export fallback follow
     return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness {h['haziness']:g})",
             layer.notes(mat))
 
@@ -261,8 +262,7 @@ def remove_haze(mat):
     if not state.get("legacy") and layer.original_node(mat) is None:
         notes.append("the BSDF kept beside the layer node is gone: the layer node stays, as "
                      "an ordinary node group")
-    from . import interchange
-    if interchange.remove_export_fallback(mat):  # the user's output active again, as before
+    if fallback.remove_export_fallback(mat):  # the user's output active again, as before
         notes.append("the export fallback was removed too (the material is no longer hazy)")
     core = (layer.find_core(mat.node_tree, state.get("core")) if state.get("legacy")
             else layer.original_node(mat))
@@ -491,6 +491,7 @@ def upgrade_layers(materials):
         except ValueError as exc:
             notes.append(f"“{mat.name}”: {plain_message(exc)}")
             continue
+        sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
         done.append(mat.name)
     if not done and not notes:
         return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []
@@ -509,6 +510,7 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
         return "ERROR", problem, []
     if layer.is_legacy(mat):
         layer.upgrade(mat)
+        sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
     node = layer.layer_node(mat)
     if node is None:
         return "ERROR", f"“{mat.name}” has no haze layer node: Make Hazy first", []

@@ -23,6 +23,7 @@ from .. import constants as K
 from ..core.parameters import is_anisotropic
 from . import eevee_layer, layer, material, messages, plots, preferences, properties, stamp
 from .context import edit_problem, maps_problem, target_material
+from .layer_group import haze_params
 from .messages import plain_message
 from .menus import draw_recomposite_operators
 
@@ -428,7 +429,6 @@ def draw_layer(layout, context, mat, idname, hg, problem):
 
 def layer_group_params(node):
     """The haze parameters the layer node's group has, in panel order."""
-    from .layer_group import haze_params
     st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
     return haze_params(st.get("bsdf", "PRINCIPLED"), bool(st.get("smooth")))
 

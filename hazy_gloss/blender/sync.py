@@ -13,7 +13,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from .. import constants as K
-from . import layer, legacy_layer, material, messages, stamp
+from . import eevee_layer, fallback, layer, legacy_layer, material, messages, stamp
 from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
@@ -75,8 +75,7 @@ def _todays_layer(mat):
 def _follow_fallback(mat, force):
     """A layer's export fallback (a copy of the user's BSDF for glTF / USD, not rendered)
     follows edits of the layer node's inputs.  Returns whether it was refreshed."""
-    from . import interchange
-    if interchange.FALLBACK_STAMP not in mat:
+    if fallback.FALLBACK_STAMP not in mat:
         return False
     node = layer.layer_node(mat)
     if node is None:
@@ -92,9 +91,8 @@ def _follow_fallback(mat, force):
 
 def refresh_derived(mat):
     """What is built from a layer follows it after every layer.apply: the export fallback
-    (blender/interchange.py, the user's BSDF at haziness 0) and the EEVEE-only output
+    (blender/fallback.py, the user's BSDF at haziness 0) and the EEVEE-only output
     (blender/eevee_layer.py, when one was asked for).  Problems go to the panel, never up."""
-    from . import eevee_layer
     try:
         if eevee_layer.requested_mode(mat) is not None:
             eevee_layer.sync_eevee_output(mat)
@@ -106,9 +104,8 @@ def refresh_derived(mat):
 def refresh_fallback(mat):
     """The export fallback (if any) after the layer or its EEVEE output changed: its render
     output for EEVEE gives way to the EEVEE-only output, and comes back without it."""
-    from . import interchange
     try:
-        interchange.refresh_stamped_fallback(mat)
+        fallback.refresh_stamped_fallback(mat)
     except ValueError as exc:  # (a depsgraph handler: the panel shows it)
         messages.last_error[mat.session_uid] = plain_message(exc)
 

@@ -40,6 +40,11 @@ def ix(hg):
     return importlib.import_module(hg.__name__ + ".blender.interchange")
 
 
+@pytest.fixture
+def fallback(hg):
+    return importlib.import_module(hg.__name__ + ".blender.fallback")
+
+
 def _stdlib():
     lib = mx.createDocument()
     mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), lib)
@@ -285,7 +290,7 @@ def test_without_fallback_the_exporters_lose_the_core(api, tmp_path):
     assert _usd_previews(usda)["copper"] is None
 
 
-def test_fallback_is_idempotent_and_removable(api, ix):
+def test_fallback_is_idempotent_and_removable(api, ix, fallback):
     mats = _make(api)
     for m in mats.values():
         before = _tree_signature(m)
@@ -295,15 +300,15 @@ def test_fallback_is_idempotent_and_removable(api, ix):
         once = _tree_signature(m)
         api.add_export_fallback(m)
         assert _tree_signature(m) == once
-        assert ix.has_export_fallback(m)
+        assert fallback.has_export_fallback(m)
         assert api.remove_export_fallback(m)
         assert _tree_signature(m) == before
         assert [n.name for n in m.node_tree.nodes
                 if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output] == [active]
-        assert not ix.has_export_fallback(m)
+        assert not fallback.has_export_fallback(m)
 
 
-def test_fallback_survives_a_rebuild_when_added_again(api, ix):
+def test_fallback_survives_a_rebuild_when_added_again(api, ix, fallback):
     m = api.create_material("m", **CONDUCTOR)
     api.add_export_fallback(m)
     api.update_material(m, anisotropy=0.4)  # iso -> aniso: the hazy nodes are rebuilt
@@ -311,7 +316,7 @@ def test_fallback_survives_a_rebuild_when_added_again(api, ix):
                 and not ix.material.is_ours(n)).inputs["Surface"]
     assert surf.is_linked  # the renderers' output still gets the hazy BSDF
     api.add_export_fallback(m)
-    assert ix.has_export_fallback(m)
+    assert fallback.has_export_fallback(m)
     fb = ix.material.ours(m.node_tree)["Export fallback"]
     assert fb.inputs["Anisotropic"].default_value == pytest.approx(0.4)
 
@@ -354,12 +359,12 @@ def test_fallback_does_not_change_renders(api, engine):
     assert np.array_equal(before, after), float(np.abs(before - after).max())
 
 
-def test_recomposite_mode_takes_the_fallback_out(api, ix, hg):
+def test_recomposite_mode_takes_the_fallback_out(api, ix, fallback, hg):
     composite = importlib.import_module(hg.__name__ + ".blender.composite")
     m = api.create_material("m", **CONDUCTOR)
     api.add_export_fallback(m)
     notes = composite.convert_material(m)
-    assert not ix.has_export_fallback(m)
+    assert not fallback.has_export_fallback(m)
     assert any("export fallback was removed" in n for n in notes)
     with pytest.raises(ValueError, match="recomposite"):
         api.add_export_fallback(m)
@@ -412,14 +417,14 @@ def test_fallback_of_in_shader_materials(api, tmp_path):
         assert np.allclose(us[name]["diffuseColor"], colour, atol=1e-6), name
 
 
-def test_operator_adds_the_fallback_to_every_hazy_material(api, ix):
+def test_operator_adds_the_fallback_to_every_hazy_material(api, ix, fallback):
     mats = _make(api)
     bpy.data.materials.new("plain")  # not hazy: left alone
     assert bpy.ops.hazy_gloss.add_export_fallback(all_materials=True) == {"FINISHED"}
-    assert all(ix.has_export_fallback(m) for m in mats.values())
-    assert not ix.has_export_fallback(bpy.data.materials["plain"])
+    assert all(fallback.has_export_fallback(m) for m in mats.values())
+    assert not fallback.has_export_fallback(bpy.data.materials["plain"])
     assert bpy.ops.hazy_gloss.remove_export_fallback(material="copper") == {"FINISHED"}
-    assert not ix.has_export_fallback(mats["copper"])
+    assert not fallback.has_export_fallback(mats["copper"])
 
 
 def test_export_takes_one_material_and_a_path_object(api, tmp_path):

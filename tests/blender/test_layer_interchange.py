@@ -37,7 +37,7 @@ def env(hg, clean_file):
         return importlib.import_module(f"{hg.__name__}.{name}")
     from types import SimpleNamespace
     return SimpleNamespace(api=mod("api"), ix=mod("blender.interchange"), layer=mod("blender.layer"),
-                           doc=mod("interchange.document"), graph=mod("core.graph"),
+                           fallback=mod("blender.fallback"), doc=mod("interchange.document"), graph=mod("core.graph"),
                            exr=mod("exr"), hg=hg)
 
 
@@ -833,7 +833,7 @@ def test_haze_updates_keep_the_fallback_outputs(env, tmp_path):
         env.api.add_export_fallback(mat)
         assert _tree_signature(mat) == sig
     env.api.remove_haze(mat)  # takes the fallback with it: the tree is the user's again
-    assert not env.ix.has_export_fallback(mat)
+    assert not env.fallback.has_export_fallback(mat)
     outs = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
     assert len(outs) == 1 and outs[0].is_active_output and _feeds(outs[0].inputs["Surface"]) == b
     assert not env.ix.material.ours(mat.node_tree)

@@ -24,7 +24,8 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), exr=mod("exr"),
-                           reports=mod("blender.reports"), hg=hg)
+                           reports=mod("blender.reports"), material=mod("blender.material"),
+                           E=mod("blender.eevee_layer"), hg=hg)
 
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
@@ -254,6 +255,36 @@ def test_legacy_layer_upgrades_on_its_first_edit(env, legacy_file):
     env.api.update_material(mat, haziness=0.25)
     assert not env.layer.is_legacy(mat)
     assert env.layer.layer_node(mat).inputs["Haziness"].default_value == pytest.approx(0.25)
+
+
+def test_upgrade_keeps_a_requested_eevee_output(env, legacy_file):
+    """A legacy layer whose stamp asks for the EEVEE-only output has it on the layer node after
+    the upgrade, by the operator or by an edit (layer.upgrade keeps the request; the action
+    rebuilds what is built from the layer)."""
+    for name, upgrade in (
+            ("legacy car paint", lambda m: bpy.ops.hazy_gloss.upgrade_layers(material=m.name)),
+            ("legacy Glossy", lambda m: env.api.update_material(m, haziness=0.25))):
+        mat = bpy.data.materials[name]
+        d = mat["hazy_gloss"].to_dict()
+        d["eevee"] = {"mode": "always"}
+        mat["hazy_gloss"] = d
+        upgrade(mat)
+        assert not env.layer.is_legacy(mat), name
+        assert env.E.requested_mode(mat) == "always" and env.E.has_eevee_output(mat), name
+
+
+def test_export_fallback_of_a_legacy_layer_has_the_users_links(env, legacy_file):
+    """A legacy layer (not upgraded) gets an export fallback too: the copy of its BSDF with the
+    user's own values and links of the inputs the layer owns, read from its stamp (here the
+    metallic map and the IOR)."""
+    mat = bpy.data.materials["legacy metallic map"]
+    assert env.layer.is_legacy(mat)
+    env.api.add_export_fallback(mat)
+    assert env.layer.is_legacy(mat)
+    fb = env.material.ours(mat.node_tree)["Export fallback"]
+    link = fb.inputs["Metallic"].links[0]
+    assert (link.from_node.name, link.from_socket.identifier) == ("Image Texture", "Color")
+    assert fb.inputs["IOR"].default_value == pytest.approx(1.6)
 
 
 # --------------------------------------------------------------------------------------------

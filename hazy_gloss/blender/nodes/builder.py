@@ -111,3 +111,17 @@ def socket_value(socket, value):
     if socket.type == "INT":
         return int(value)
     return float(value)
+
+
+def default_value_of(sock):
+    """An input's own value as floats (a tuple for a vector or colour); None for a socket
+    without a number (a shader, a string)."""
+    v = getattr(sock, "default_value", None)
+    if v is None or isinstance(v, str):
+        return None
+    if hasattr(v, "__len__"):
+        return tuple(float(x) for x in v)
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None

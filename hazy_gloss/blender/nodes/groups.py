@@ -125,7 +125,7 @@ def _interface_items(iface):
 _SOCKET_ATTRS = ("default_value", "min_value", "max_value", "description", "hide_value")
 
 
-def _users(ng):
+def group_users(ng):
     """Group nodes using ``ng`` in materials and node groups, with their links and unlinked
     input values by socket name (to restore them after the interface is made anew)."""
     trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
@@ -144,7 +144,7 @@ def _users(ng):
     return found
 
 
-def _restore_users(found):
+def restore_group_users(found):
     for tree, name, ins, outs, vals in found:
         node = tree.nodes.get(name)
         if node is None:
@@ -181,10 +181,10 @@ def _rebuild_interface(ng, kind, anisotropic, smooth):
                     if hasattr(want, attr) and hasattr(have, attr):
                         setattr(have, attr, getattr(want, attr))
             return
-        found = _users(ng)
+        found = group_users(ng)
         ng.interface.clear()
         _interface(ng, kind, anisotropic, smooth)
-        _restore_users(found)
+        restore_group_users(found)
     finally:
         bpy.data.node_groups.remove(tmp)
 

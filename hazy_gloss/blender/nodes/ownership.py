@@ -37,6 +37,15 @@ def ours(tree):
     return found
 
 
+def remove_roles(tree, prefix):
+    """Remove the add-on's nodes whose role starts with ``prefix``; returns whether there were
+    any."""
+    found = [n for r, n in ours(tree).items() if r.startswith(prefix)]
+    for n in found:
+        tree.nodes.remove(n)
+    return bool(found)
+
+
 def output_node(tree, create=True):
     outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
     for n in outs:
