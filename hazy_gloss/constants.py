@@ -91,6 +91,13 @@ MAX_EXR_PARTS = 4096
 MAX_EXR_CHANNELS = 4096  # per part
 MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP image has 2048)
 EXR_MAGIC = 20000630  # the first 4 bytes of an OpenEXR file (little-endian int)
+#: Texels per file byte beyond which an EXR data window is not believed: a loose bound (a
+#: constant 32768-wide HTJ2K image packs ~4000 texels into a byte) that stops tiny files whose
+#: header would make Blender allocate gigabytes.
+MAX_EXR_TEXELS_PER_BYTE = 1 << 16
+#: Deflate (zlib) expands at most 1032:1: the bound on what a PNG's image data or a ZIP EXR
+#: chunk can hold (the PNG check also allows 4096 bytes of slack).
+MAX_DEFLATE_RATIO = 1100
 #: Texture conversion in strips (hazy_gloss/imagestream.py): texels per strip (memory per map
 #: in flight), and the zlib levels of its writers (measured on a 1K β map: EXR ZIP level 4 within
 #: 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 % smaller than Blender's,

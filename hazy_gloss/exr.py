@@ -35,7 +35,12 @@ __all__ = ("ExrError", "ExrPart", "read_exr", "exr_header_check", "MAX_DECODED_B
 
 class ExrError(ValueError):
     """A malformed or unsupported OpenEXR file (a ``ValueError``); ``str()`` is one line,
-    ``"<path>: <defect>"``."""
+    ``"<path>: <defect>"``.  ``kind`` says what :func:`exr_header_check` found: "truncated"
+    (something lies beyond the end of the file: cut off, or a corrupt length or offset),
+    "corrupt", or "unsupported" (a valid file Blender cannot load: deep data, another
+    version); ``detail`` is the defect without the path."""
+    kind = "corrupt"
+    detail = None
 
 
 _MAGIC = K.EXR_MAGIC
@@ -47,7 +52,7 @@ _COMPRESSION = {0: ("NONE", 1), 1: ("RLE", 1), 2: ("ZIPS", 1), 3: ("ZIP", 16), 4
                 9: ("DWAB", 256), 10: ("HTJ2K256", 256), 11: ("HTJ2K32", 32)}
 #: Codecs read_exr decodes -> the largest ratio decoded/stored one chunk can have: deflate
 #: expands at most 1032:1, OpenEXR's RLE 64:1 (2 bytes -> 128), NONE stores raw bytes.
-_DECODED_RATIO = {0: 1, 1: 64, 2: 1100, 3: 1100}
+_DECODED_RATIO = {0: 1, 1: 64, 2: K.MAX_DEFLATE_RATIO, 3: K.MAX_DEFLATE_RATIO}
 _PIXEL_TYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
 _PIXEL_TYPE_NAMES = {0: "UINT", 1: "HALF", 2: "FLOAT"}
 _PART_TYPES = ("scanlineimage", "tiledimage", "deepscanline", "deeptile")
@@ -84,13 +89,18 @@ class _Reader:
     def __init__(self, buf, path):
         self.buf, self.path, self.n = buf, path, len(buf)
 
-    def error(self, what):
-        return ExrError(f"{self.path}: {what}")
+    def error(self, what, kind="corrupt", prefix=""):
+        exc = ExrError(f"{self.path}: {prefix}{what}")
+        exc.kind, exc.detail = kind, what
+        return exc
+
+    def cut(self, what, sure=False):
+        """Something lies beyond the end of the file (``sure``: nothing but a cut explains it)."""
+        return self.error(what, "truncated", "truncated: " if sure else "truncated or corrupt: ")
 
     def need(self, pos, size, what):
         if pos < 0 or size < 0 or pos + size > self.n:
-            raise self.error(f"truncated or corrupt: {what} needs bytes {pos}..{pos + size} "
-                             f"but the file has {self.n}")
+            raise self.cut(f"{what} needs bytes {pos}..{pos + size} but the file has {self.n}")
 
     def unpack(self, fmt, pos, what):
         self.need(pos, struct.calcsize(fmt), what)
@@ -102,8 +112,7 @@ class _Reader:
         nul = self.buf.find(b"\0", pos, stop)
         if nul < 0:
             if stop >= (self.n if end is None else end):
-                raise self.error(f"truncated or corrupt: {what} at byte {pos} has no "
-                                 "terminating NUL")
+                raise self.cut(f"{what} at byte {pos} has no terminating NUL")
             raise self.error(f"{what} at byte {pos} is longer than {limit} bytes")
         return bytes(self.buf[pos:nul]).decode("latin-1"), nul + 1
 
@@ -219,6 +228,9 @@ class _Part:
                 raise rd.error(f"part {index} has an invalid pixelAspectRatio {par}")
         x0, y0, x1, y1 = self.window
         self.width, self.height = x1 - x0 + 1, y1 - y0 + 1
+        if self.width * self.height > K.MAX_EXR_TEXELS_PER_BYTE * rd.n:
+            raise rd.error(f"part {index}: data window {self.width}x{self.height} in {rd.n} "
+                           "bytes")
         if self.width * self.height > K.MAX_IMAGE_PIXELS:
             raise rd.error(f"part {index}: {self.width} x {self.height} pixels exceeds the "
                            f"limit of {K.MAX_IMAGE_PIXELS}")
@@ -237,7 +249,8 @@ class _Part:
         if not multipart and (self.type == "tiledimage") != bool(version & _TILED):
             raise rd.error(f"the version flags and the part type {self.type!r} disagree")
         if self.type.startswith("deep"):
-            raise rd.error("deep EXR data is not supported")
+            raise rd.error(f"part {index} holds deep data, which Blender does not load",
+                           "unsupported")
         self.comp_name, self.lines = _COMPRESSION.get(self.comp, (f"#{self.comp}", None))
         if self.type == "tiledimage":
             self._tiles(rd, attrs)
@@ -297,7 +310,7 @@ def _parse(rd, keep=False):
     if magic != _MAGIC:
         raise rd.error("not an OpenEXR file (bad magic number)")
     if version & 0xFF != 2:
-        raise rd.error(f"unsupported OpenEXR version {version & 0xFF}")
+        raise rd.error(f"unsupported OpenEXR version {version & 0xFF}", "unsupported")
     if version & ~0x1EFF:
         raise rd.error(f"unknown OpenEXR version flags {version:#x}")
     multipart = bool(version & _MULTIPART)
@@ -326,8 +339,8 @@ def _parse(rd, keep=False):
     for part in parts:
         n = part.chunks
         if n * 8 > rd.n - pos:
-            raise rd.error(f"truncated: the offset table of part {part.index} ({n} entries) "
-                           f"needs {n * 8} bytes at byte {pos}, the file has {rd.n}")
+            raise rd.cut(f"the offset table of part {part.index} ({n} entries) needs {n * 8} "
+                         f"bytes at byte {pos}, the file has {rd.n}", sure=True)
         tables.append(np.frombuffer(rd.buf, "<u8", n, pos).copy())  # no view into an mmap
         pos += 8 * n
     table_end = pos
@@ -348,7 +361,9 @@ def _parse(rd, keep=False):
         for i in range(len(offsets)):
             off = int(offsets[i])
             what = f"chunk {i} of part {part.index}"
-            if off < table_end or off > rd.n:
+            if off > rd.n:
+                raise rd.cut(f"{what} is at byte {off}, the file has {rd.n}")
+            if off < table_end:
                 raise rd.error(f"{what}: offset {off} is outside the file's chunk data "
                                f"(bytes {table_end}..{rd.n})")
             if multipart:
@@ -377,8 +392,8 @@ def _parse(rd, keep=False):
                 raw = part.line_bytes(y, last) if sampled else row * (last - y + 1)
                 data = off + head + 8
             if size < 0 or size > rd.n - data:
-                raise rd.error(f"truncated or corrupt: {what} claims {size} bytes at byte "
-                               f"{data}, the file has {rd.n}")
+                raise rd.cut(f"{what} claims {size} bytes at byte {data}: it needs "
+                             f"{data + size} bytes, the file has {rd.n}")
             # a chunk is stored raw when compression would not make it smaller
             if size > raw or (size == 0 and raw > 0):
                 raise rd.error(f"{what} holds {size} bytes for {raw} bytes of pixels")
@@ -405,11 +420,12 @@ def exr_header_check(path):
     Checks the magic number and version flags; every header attribute (name and type
     NUL-terminated within 255 bytes, size >= 0 and within the file, no duplicates, the types and
     sizes of the standard attributes); each part's channel list, compression, data/display
-    window (non-empty, at most :data:`~hazy_gloss.constants.MAX_IMAGE_PIXELS`), type, tile
+    window (non-empty, at most :data:`~hazy_gloss.constants.MAX_IMAGE_PIXELS` and at most
+    :data:`~hazy_gloss.constants.MAX_EXR_TEXELS_PER_BYTE` per byte of the file), type, tile
     description and chunkCount; the offset table fits the file; every chunk's part number,
     scanline or tile coordinates and size match its header, lie within the file (so a cut-off
     last chunk is caught) and do not overlap.  Scanline and tiled parts with any codec are
-    checked; deep data is refused.
+    checked; deep data is refused (Blender does not load deep images).
 
     Returns a tuple of :class:`ExrPart`.  Raises :class:`ExrError` (a ``ValueError``, one
     line naming the file and the defect); ``OSError`` if the file cannot be opened.  Cost: the

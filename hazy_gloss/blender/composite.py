@@ -20,7 +20,8 @@ from ..core import node_math
 from ..core.graph import Graph
 from ..recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                            LAYERS, PROPERTY, compositor_graph, exr_layers)
-from ..exr import exr_header_check, read_exr
+from ..exr import read_exr
+from ..imagecheck import check_image_file
 from . import compat, fallback, material
 from . import stamp as _stamps
 from .nodes.builder import TreeBuilder
@@ -541,7 +542,8 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
     does not render).  ``original``: the original layer's name (default: from the setup, or the
     one layer of the file that is not ours).
     ``haziness`` / ``core_reflectivity``: new values (factors set to 1); None keeps.
-    Returns the group node."""
+    Returns the group node.  A damaged ``source`` raises ImageFileError (a ValueError,
+    hazy_gloss.imagecheck) before Blender loads it."""
     tree = compat.compositor_tree(scene)
     for n in [n for n in tree.nodes if n.name.startswith(RC_PREFIX + " ")]:
         tree.nodes.remove(n)
@@ -555,7 +557,7 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
 
     image = None
     if source is not None:
-        exr_header_check(bpy.path.abspath(str(source)))  # a damaged EXR can crash Blender's loader
+        check_image_file(bpy.path.abspath(str(source)))  # a damaged EXR can crash Blender's loader
         image = bpy.data.images.load(bpy.path.abspath(str(source)), check_existing=True)
         image.reload()
         if original is None:

@@ -10,7 +10,7 @@ this module does what needs Blender:
   unsaved ones included) read in place, whole, as measured in Blender 4.5 / 5.x
   (``Image.pixels`` of an 8-bit image holds the file's encoded values whatever its colour
   space; float images are already scene-linear).  Every file is checked
-  (:func:`_check_readable`: exists, an image format, not cut off) before it is read: Blender
+  (:func:`check_readable`: exists, an image format, not cut off) before it is read: Blender
   5.0.1 segfaults on a truncated EXR;
 - writing float OpenEXR (default, lossless ZIP) or 16-bit PNG strip by strip, **all or
   nothing** (:class:`_Transaction`): every target is checked before anything is written, every
@@ -26,7 +26,6 @@ The operator is ``convert_ops.HAZY_GLOSS_OT_convert_maps``.
 """
 from __future__ import annotations
 
-import array
 import glob
 import hashlib
 import os
@@ -34,7 +33,6 @@ import re
 import shutil
 import signal
 import stat
-import struct
 import sys
 import tempfile
 import threading
@@ -48,6 +46,7 @@ from .. import constants as K
 from .. import convert as core
 from .. import imagestream as stream
 from ..convert import ConversionError
+from ..imagecheck import FORMAT_NAMES, ImageFileError, check_image_file
 from ..core.graph import Graph
 from . import compat, material
 from .nodes.builder import TreeBuilder
@@ -65,298 +64,22 @@ _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 # Checking files before Blender reads them
 # --------------------------------------------------------------------------------------------
 
-#: Leading bytes of the formats Blender reads (TGA has none: recognised by its extension).
-_MAGIC = (
-    (b"\x76\x2f\x31\x01", "OpenEXR"), (b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"),
-    (b"II*\x00", "TIFF"), (b"MM\x00*", "TIFF"), (b"II+\x00", "TIFF"), (b"MM\x00+", "TIFF"),
-    (b"#?", "Radiance HDR"), (b"BM", "BMP"), (b"SDPX", "DPX"), (b"XPDS", "DPX"),
-    (b"\x80\x2a\x5f\xd7", "Cineon"), (b"\xd7\x5f\x2a\x80", "Cineon"),
-    (b"\x00\x00\x00\x0cjP  \r\n\x87\n", "JPEG 2000"), (b"\xff\x4f\xff\x51", "JPEG 2000"),
-    (b"\x01\xda", "Iris"), (b"8BPS", "PSD"), (b"DDS ", "DDS"),
-)
-_FORMATS_READ = "PNG, JPEG, OpenEXR, TIFF, Radiance HDR, TGA, BMP, WebP, DPX, Cineon, JPEG 2000"
-#: Scanlines per chunk of each OpenEXR compression (NONE, RLE, ZIPS, ZIP, PIZ, PXR24, B44,
-#: B44A, DWAA, DWAB, HTJ2K256, HTJ2K32).
-_EXR_LINES = (1, 1, 1, 16, 32, 16, 32, 32, 32, 256, 256, 32)
-_EXR_HEADER_MAX = 16 << 20  # header bytes read at most (previews included)
-_EXR_MAX_CHUNKS = 1 << 24
-#: Texels per file byte beyond which a data window is not believed: a loose bound (a constant
-#: 32768-wide HTJ2K image packs ~4000 texels into a byte) that only stops tiny files whose
-#: header would make Blender allocate gigabytes.
-_EXR_MAX_TEXELS_PER_BYTE = 1 << 16
 
-
-class _Unreadable(Exception):
-    """Why a file cannot be handed to Blender (the end of a one-line message)."""
-
-
-def _check_readable(path, label):
-    """Cheap checks before ``bpy.data.images.load``: the file exists and is a non-empty regular
-    file, it starts like an image format Blender reads, and an OpenEXR, PNG or JPEG file is not
-    cut off (EXR: header, offset table and every chunk inside the file; PNG: the chunks up to
-    IEND; JPEG: the segments, then an end-of-image marker after the image data).
-    Raises ConversionError (one line naming ``label`` and ``path``); returns the format name."""
-    # TODO(issue 14): delegate to the shared bpy-free header checker (hazy_gloss.imagecheck / exr)
+def check_readable(path, label):
+    """The one check before Blender reads a file (:func:`hazy_gloss.imagecheck.check_image_file`:
+    a non-empty regular file, an image format Blender reads, an OpenEXR, PNG or JPEG not cut
+    off or damaged, no header claiming more than the file can hold): Blender 5.0.1 segfaults on
+    a truncated EXR.  Raises ConversionError (one line naming ``label`` and ``path``); returns
+    the format's name ("OpenEXR", "PNG", "JPEG", …)."""
     try:
-        st = os.stat(path)
+        info = check_image_file(path)
+    except ImageFileError as exc:
+        raise ConversionError(f"{label}: {exc}") from None
     except FileNotFoundError:
         raise ConversionError(f"{label}: file not found: {path}") from None
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
         raise ConversionError(f"{label}: cannot read {path}: {_reason(exc)}") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise ConversionError(f"{label}: {path} is a folder, not an image file")
-    if not stat.S_ISREG(st.st_mode):
-        raise ConversionError(f"{label}: {path} is not a regular file")
-    if st.st_size == 0:
-        raise ConversionError(f"{label}: file is empty: {path}")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(16)
-            fmt = next((name for magic, name in _MAGIC if head.startswith(magic)), None)
-            if fmt is None and head[:4] == b"RIFF" and head[8:12] == b"WEBP":
-                fmt = "WebP"
-            if fmt is None and os.path.splitext(path)[1].lower() in (".tga", ".tpic") and \
-                    len(head) >= 3 and head[1] in (0, 1) and head[2] in (1, 2, 3, 9, 10, 11):
-                fmt = "TGA"
-            if fmt is None and any(m.startswith(head) for m, _ in _MAGIC):
-                raise _Unreadable(f"is truncated (only {len(head)} bytes)")
-            if fmt is None:
-                raise _Unreadable(f"is not an image file Blender reads ({_FORMATS_READ}); "
-                                  f"it starts with {head[:8]!r}")
-            if fmt == "OpenEXR":
-                _check_exr(f, st.st_size)
-            elif fmt == "PNG":
-                _check_png(f, st.st_size)
-            elif fmt == "JPEG":
-                _check_jpeg(f, st.st_size)
-    except _Unreadable as exc:
-        raise ConversionError(f"{label}: {path} {exc}") from None
-    except OSError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {_reason(exc)}") from None
-    return fmt
-
-
-def _check_png(f, size):
-    """Walk the chunks (length, type, data, CRC) from the signature to IEND; the image data must
-    be able to hold the size IHDR claims (deflate packs at most ~1032 bytes into one)."""
-    pos, first, idat, raw = 8, True, 0, 0
-    while True:
-        if pos + 12 > size:
-            raise _Unreadable(f"is a truncated PNG (no IEND chunk: the file ends at byte {size})")
-        f.seek(pos)
-        length, ctype = struct.unpack(">I4s", f.read(8))
-        if length >= 1 << 31 or not ctype.isalpha():
-            raise _Unreadable(f"is a corrupt PNG (bad chunk at byte {pos})")
-        end = pos + 12 + length
-        if end > size:
-            raise _Unreadable(f"is a truncated PNG (chunk {ctype.decode()} at byte {pos} needs "
-                              f"{end} bytes, the file has {size})")
-        if first:
-            if ctype != b"IHDR" or length != 13:
-                raise _Unreadable("is a corrupt PNG (no IHDR chunk first)")
-            w, h, depth, colour = struct.unpack(">IIBB", f.read(10))
-            channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(colour)
-            if not (0 < w < 1 << 31 and 0 < h < 1 << 31) or channels is None or \
-                    depth not in (1, 2, 4, 8, 16):
-                raise _Unreadable(f"is a corrupt PNG (size {w}x{h}, colour type {colour}, "
-                                  f"depth {depth})")
-            raw = h * (1 + -(-w * channels * depth // 8))
-            first = False
-        if ctype == b"IEND":
-            if not idat:
-                raise _Unreadable("is a corrupt PNG (no image data)")
-            if raw > 1100 * idat + 4096:
-                raise _Unreadable(f"is a truncated or corrupt PNG ({idat} bytes of image data "
-                                  f"cannot hold {w}x{h})")
-            return
-        if ctype == b"IDAT":
-            idat += length
-        pos = end
-
-
-def _check_jpeg(f, size):
-    """Walk the marker segments to the first scan, then find the end-of-image marker after it
-    (Blender fills a cut-off JPEG with grey without an error)."""
-    pos = 2
-    while True:
-        f.seek(pos)
-        head = f.read(4)
-        if len(head) < 2 or head[0] != 0xFF:
-            raise _Unreadable(f"is a truncated or corrupt JPEG (no marker at byte {pos})")
-        m = head[1]
-        if m == 0xFF:  # fill byte
-            pos += 1
-            continue
-        if m == 0x01 or 0xD0 <= m <= 0xD8:  # standalone markers
-            pos += 2
-            continue
-        if m == 0xD9:
-            raise _Unreadable("is a corrupt JPEG (it ends before its image data)")
-        if len(head) < 4:
-            raise _Unreadable("is a truncated JPEG (a marker segment is cut off)")
-        length, = struct.unpack(">H", head[2:4])
-        if length < 2 or pos + 2 + length > size:
-            raise _Unreadable(f"is a truncated JPEG (segment at byte {pos} needs "
-                              f"{pos + 2 + length} bytes, the file has {size})")
-        pos += 2 + length
-        if m == 0xDA:  # start of scan: entropy-coded data (0xFF is always escaped) follows
-            break
-    f.seek(pos)
-    prev = b""
-    while True:
-        block = f.read(1 << 20)
-        if not block:
-            raise _Unreadable("is a truncated JPEG (no end-of-image marker after its image data)")
-        if b"\xff\xd9" in prev[-1:] + block:
-            return
-        prev = block
-
-
-def _exr_header(buf, pos, long_names):
-    """Parse one header from ``pos``: ({name: (type, value bytes)}, position after it)."""
-    attrs = {}
-    limit = 256 if long_names else 32
-
-    def cstring(at):
-        end = buf.find(b"\x00", at, at + limit)
-        if end < 0:
-            raise _Unreadable("is a truncated or corrupt OpenEXR file (header)")
-        return buf[at:end], end + 1
-
-    while True:
-        if pos >= len(buf):
-            raise _Unreadable("is a truncated OpenEXR file (header incomplete)")
-        if buf[pos] == 0:
-            return attrs, pos + 1
-        name, pos = cstring(pos)
-        atype, pos = cstring(pos)
-        if pos + 4 > len(buf):
-            raise _Unreadable("is a truncated OpenEXR file (header incomplete)")
-        n, = struct.unpack_from("<i", buf, pos)
-        pos += 4
-        if n < 0 or pos + n > len(buf):
-            raise _Unreadable(f"is a truncated or corrupt OpenEXR file (attribute "
-                              f"{name.decode('latin-1')!r} of {n} bytes)")
-        attrs[name] = (atype, buf[pos:pos + n])
-        pos += n
-
-
-def _exr_chunks(attrs, tiled, size=None):
-    """Chunk count of one part (None: cannot tell, e.g. an unknown compression)."""
-    if b"chunkCount" in attrs:
-        t, v = attrs[b"chunkCount"]
-        return struct.unpack("<i", v)[0] if len(v) == 4 else -1
-    t, v = attrs.get(b"dataWindow", (b"", b""))
-    if t != b"box2i" or len(v) != 16:
-        raise _Unreadable("is a corrupt OpenEXR file (no data window)")
-    x0, y0, x1, y1 = struct.unpack("<4i", v)
-    w, h = x1 - x0 + 1, y1 - y0 + 1
-    if w < 1 or h < 1:
-        raise _Unreadable(f"is a corrupt OpenEXR file (data window {w}x{h})")
-    if size is not None and w * h > _EXR_MAX_TEXELS_PER_BYTE * size:
-        raise _Unreadable(f"is a truncated or corrupt OpenEXR file (data window {w}x{h} in "
-                          f"{size} bytes)")
-    t, v = attrs.get(b"channels", (b"", b""))
-    if t != b"chlist" or not v or v[0] == 0:
-        raise _Unreadable("is a corrupt OpenEXR file (no channels)")
-    t, v = attrs.get(b"compression", (b"", b""))
-    if t != b"compression" or len(v) != 1:
-        raise _Unreadable("is a corrupt OpenEXR file (no compression)")
-    if not tiled:
-        if v[0] >= len(_EXR_LINES):
-            return None
-        return -(-h // _EXR_LINES[v[0]])
-    t, v = attrs.get(b"tiles", (b"", b""))
-    if t != b"tiledesc" or len(v) != 9:
-        raise _Unreadable("is a corrupt OpenEXR file (no tile description)")
-    xs, ys, mode = struct.unpack("<IIB", v)
-    level_mode, round_up = mode & 0x0F, mode >> 4 == 1
-    if xs < 1 or ys < 1 or level_mode > 2:
-        raise _Unreadable("is a corrupt OpenEXR file (tile description)")
-
-    def n_levels(n):
-        lg = n.bit_length() - 1  # floor(log2 n)
-        return lg + (1 if round_up and n != 1 << lg else 0) + 1
-
-    def level(n, lv):
-        s = n >> lv
-        if round_up and s << lv < n:
-            s += 1
-        return max(s, 1)
-
-    if level_mode == 0:
-        return -(-w // xs) * -(-h // ys)
-    if level_mode == 1:
-        return sum(-(-level(w, lv) // xs) * -(-level(h, lv) // ys)
-                   for lv in range(n_levels(max(w, h))))
-    return (sum(-(-level(w, lv) // xs) for lv in range(n_levels(w)))
-            * sum(-(-level(h, lv) // ys) for lv in range(n_levels(h))))
-
-
-def _check_exr(f, size):
-    """The header(s), the offset table(s), and that every chunk lies inside the file."""
-    f.seek(0)
-    buf = f.read(min(size, _EXR_HEADER_MAX))
-    if len(buf) < 9:
-        raise _Unreadable("is a truncated OpenEXR file (no header)")
-    version, = struct.unpack_from("<I", buf, 4)
-    if version & 0xFF != 2:
-        raise _Unreadable(f"is an OpenEXR file of unsupported version {version & 0xFF}")
-    tiled, long_names = bool(version & 0x200), bool(version & 0x400)
-    deep, multi = bool(version & 0x800), bool(version & 0x1000)
-    pos, parts = 8, []
-    while True:
-        if multi and parts and pos < len(buf) and buf[pos] == 0:
-            pos += 1  # the empty header that ends a multi-part file's headers
-            break
-        attrs, pos = _exr_header(buf, pos, long_names)
-        parts.append(attrs)
-        if not multi:
-            break
-        if len(parts) > 4096:
-            raise _Unreadable("is a corrupt OpenEXR file (too many parts)")
-    counts = []
-    for attrs in parts:
-        ptype = attrs.get(b"type", (b"", b""))[1].rstrip(b"\x00")
-        part_tiled = ptype in (b"tiledimage", b"deeptile") if multi else tiled
-        part_deep = ptype.startswith(b"deep") or (deep and not multi)
-        if (multi or part_deep) and b"chunkCount" not in attrs:
-            raise _Unreadable("is a corrupt OpenEXR file (no chunk count)")
-        n = _exr_chunks(attrs, part_tiled, size)
-        if n is None:
-            return  # an unknown compression: only the header could be checked
-        if n < 1 or n > _EXR_MAX_CHUNKS:
-            raise _Unreadable(f"is a corrupt OpenEXR file ({n} chunks)")
-        counts.append((n, part_tiled, part_deep))
-    total = sum(n for n, _, _ in counts)
-    table_end = pos + 8 * total
-    if table_end > size:
-        raise _Unreadable(f"is a truncated OpenEXR file (offset table needs {table_end} bytes, "
-                          f"the file has {size})")
-    f.seek(pos)
-    offsets = array.array("Q")
-    offsets.frombytes(f.read(8 * total))
-    if sys.byteorder == "big":
-        offsets.byteswap()
-    i = 0
-    for part, (n, part_tiled, part_deep) in enumerate(counts):
-        head = (4 if multi else 0) + (16 if part_tiled else 4)
-        for k in range(n):
-            off = offsets[i]
-            i += 1
-            if off < table_end or off + head + 4 > size:
-                raise _Unreadable(f"is a truncated OpenEXR file (chunk {k + 1} of {n} at byte "
-                                  f"{off}, the file has {size} bytes)")
-            if part_deep:
-                continue
-            f.seek(off)
-            chunk = f.read(head + 4)
-            if multi and struct.unpack_from("<i", chunk, 0)[0] != part:
-                raise _Unreadable(f"is a corrupt OpenEXR file (chunk {k + 1} of part {part})")
-            length, = struct.unpack_from("<i", chunk, head)
-            if length < 0 or off + head + 4 + length > size:
-                raise _Unreadable(f"is a truncated OpenEXR file (chunk {k + 1} of {n} needs "
-                                  f"{off + head + 4 + length} bytes, the file has {size})")
+    return FORMAT_NAMES[info.format]
 
 
 class _BlenderMessages:
@@ -568,10 +291,10 @@ class _Source:
     def check(self):
         """Check every file of this input before anything is read or written."""
         if self.path:
-            _check_readable(self.path, self.label)
+            check_readable(self.path, self.label)
         elif self.tiles:
             for n, p in self.tiles.items():
-                _check_readable(p, f"{self.label} tile {n}")
+                check_readable(p, f"{self.label} tile {n}")
         elif self.image is not None:
             _check_datablock_file(self.image, self.label)
 
@@ -612,7 +335,7 @@ class _Source:
                 raise ConversionError(f"{self.label}: UDIM tile {tile} is missing")
         label = self.label if self.tiles is None else f"{self.label} tile {tile}"
         if path is not None and oiio is not None:
-            _check_readable(path, label)
+            check_readable(path, label)
             try:
                 reader = stream.OiioStrips(oiio, path, label)
             except stream.StripError:
@@ -684,7 +407,7 @@ _UNIT_RANGE = ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "haz
 def _check_datablock_file(img, label):
     """A datablock Blender has not loaded yet (or will reload) reads its file: check it first."""
     if img.packed_file is None and img.source == "FILE" and img.filepath and not img.has_data:
-        _check_readable(_abspath(img.filepath, img.library), label)
+        check_readable(_abspath(img.filepath, img.library), label)
 
 
 def _pixels(img, label):
@@ -726,9 +449,9 @@ def _decode_colour(values, img, label, warnings):
 
 
 def _load(path, label):
-    """A private datablock of a file that passed :func:`_check_readable` (the one place files
+    """A private datablock of a file that passed :func:`check_readable` (the one place files
     are handed to Blender)."""
-    _check_readable(path, label)
+    check_readable(path, label)
     try:
         return bpy.data.images.load(path, check_existing=False)
     except RuntimeError as exc:
@@ -781,7 +504,7 @@ def _read_datablock(img, role, label, warnings):
         img.filepath and os.path.isfile(_abspath(img.filepath, img.library))))
     if reloadable:
         if img.packed_file is None:
-            _check_readable(_abspath(img.filepath, img.library), label)
+            check_readable(_abspath(img.filepath, img.library), label)
         tmp = img.copy()
         try:
             tmp.colorspace_settings.name = "Non-Color"
@@ -1026,7 +749,7 @@ class _MapFile:
         except OSError as exc:
             raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
         try:
-            self.writer.verify(lambda p: _check_readable(p, "read back"))
+            self.writer.verify(lambda p: check_readable(p, "read back"))
         except (stream.StripError, ConversionError) as exc:
             raise ConversionError(f"could not write {self.final} (disk full?): {exc}") from None
         except OSError as exc:
@@ -1650,10 +1373,10 @@ def _load_image(path, label, check_existing=True):
         if not tiles:
             raise ConversionError(f"{label}: no UDIM tile matches {path}")
         for n, p in sorted(tiles.items()):
-            _check_readable(p, f"{label} tile {n}")
+            check_readable(p, f"{label} tile {n}")
         first = tiles[min(tiles)]
     else:
-        _check_readable(path, label)
+        check_readable(path, label)
     try:
         img = bpy.data.images.load(first, check_existing=check_existing)
     except RuntimeError as exc:

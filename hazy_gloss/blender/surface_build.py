@@ -7,6 +7,7 @@ import os
 
 import bpy
 
+from ..imagecheck import ImageFileError, check_image_file
 from ..interchange import materialx_import, surfaces
 from . import compat
 
@@ -41,9 +42,30 @@ def _set_value(sock, value):
         sock.default_value = type(dv)(v)
 
 
+def _damage(path):
+    """Why Blender must not load ``path`` (hazy_gloss.imagecheck: damaged, not an image), or
+    None when it passes the check; a missing file is None too (the caller tells)."""
+    try:
+        check_image_file(path)
+    except FileNotFoundError:
+        return None
+    except (ImageFileError, OSError) as exc:
+        return str(exc)
+    return None
+
+
+def _placeholder(name, path):
+    """An image that points at ``path`` without loading it (it loads when a good file is there)."""
+    img = bpy.data.images.new(name, 1, 1)
+    img.source = "FILE"
+    img.filepath = path
+    return img
+
+
 def _image(info, notes):
-    """The Image datablock of a file (loaded once per file and colour space); a missing file
-    gets an image that points at the path (it loads when the file appears)."""
+    """The Image datablock of a file (loaded once per file and colour space); a missing file,
+    or one the image check refuses (Blender's loaders are not safe on damaged files), gets an
+    image that points at the path (it loads when a good file appears), and a note."""
     path = info["path"]
     cs = info.get("colorspace") or "sRGB"
     for img in bpy.data.images:
@@ -51,15 +73,17 @@ def _image(info, notes):
             return img
     udim = bool(info.get("udim"))
     name = os.path.basename(path)
-    if not udim and os.path.isfile(path):
-        img = bpy.data.images.load(path, check_existing=False)
-    elif udim:
+    damage = None if udim or not os.path.isfile(path) else _damage(path)
+    if udim:
         img = _udim_image(path, name, notes)
-    else:
-        img = bpy.data.images.new(name, 1, 1)
-        img.source = "FILE"
-        img.filepath = path
+    elif not os.path.isfile(path):
+        img = _placeholder(name, path)
         notes.append(f"texture {path} not found: the Image Texture points at it")
+    elif damage is not None:
+        img = _placeholder(name, path)
+        notes.append(f"texture not loaded: {damage}: the Image Texture points at it")
+    else:
+        img = bpy.data.images.load(path, check_existing=False)
     img["hazy_gloss_import_path"] = path
     try:
         img.colorspace_settings.name = cs
@@ -70,14 +94,22 @@ def _image(info, notes):
 
 def _udim_image(path, name, notes):
     """A tiled image of the files a ``<UDIM>`` path names (each existing tile added, as
-    Blender's USD importer does)."""
+    Blender's USD importer does; a tile the image check refuses is left out, with a note)."""
     import re
     folder, pattern = os.path.split(path)
     rx = re.compile("^" + re.escape(pattern).replace(re.escape("<UDIM>"), r"(1\d{3})") + "$")
-    tiles = sorted(int(m.group(1)) for f in (os.listdir(folder) if os.path.isdir(folder) else ())
+    found = sorted(int(m.group(1)) for f in (os.listdir(folder) if os.path.isdir(folder) else ())
                    for m in [rx.match(f)] if m)
+    tiles = []
+    for t in found:
+        damage = _damage(path.replace("<UDIM>", str(t)))
+        if damage is None:
+            tiles.append(t)
+        else:
+            notes.append(f"tile {t} not loaded: {damage}")
     if not tiles:
-        notes.append(f"no tile of {path} found: the Image Texture points at it")
+        notes.append(f"no {'readable ' if found else ''}tile of {path} found: the Image "
+                     "Texture points at it")
     first = tiles[0] if tiles else 1001
     img = bpy.data.images.load(path.replace("<UDIM>", str(first)), check_existing=False) if tiles \
         else bpy.data.images.new(name, 1, 1)
@@ -89,6 +121,8 @@ def _udim_image(path, name, notes):
         img.tiles.new(tile_number=t)
     if tiles:
         img.reload()
+        for tile in [t for t in img.tiles if t.number not in tiles]:  # Blender finds them too
+            img.tiles.remove(tile)
     return img
 
 

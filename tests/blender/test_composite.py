@@ -389,6 +389,28 @@ def test_exr_reader_codecs(mods, tmp_path):
     os.remove(path)
 
 
+def test_damaged_source_is_refused_before_blender_loads_it(mods, tmp_path):
+    """A saved render cut off (interrupted while it was written): build_compositor raises one
+    line naming the file before bpy.data.images.load sees it (it crashed bpy 5.0.1)."""
+    _, comp = mods
+    ic = importlib.import_module(comp.__name__.rpartition(".blender")[0] + ".imagecheck")
+    scenes.setup_render(samples=1, resolution=(23, 37), bounces=0)
+    img = bpy.data.images.new("HG ramp", 23, 37, float_buffer=True)
+    img.pixels.foreach_set(np.random.default_rng(4).random(23 * 37 * 4, dtype=np.float32))
+    s = bpy.context.scene.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "IMAGE"
+    s.file_format, s.color_depth, s.exr_codec = "OPEN_EXR", "32", "ZIP"
+    whole = tmp_path / "whole.exr"
+    img.save_render(str(whole), scene=bpy.context.scene)
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.exr"
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(ic.ImageFileError, match=r"cut\.exr is a truncated OpenEXR file"):
+        comp.build_compositor(bpy.context.scene, source=str(cut), original="ViewLayer")
+    assert not [i for i in bpy.data.images if i.filepath and "cut.exr" in i.filepath]
+
+
 def test_recomposite_entry_points(hg):
     """The operators are reachable from Render > Hazy Gloss Recomposite (so F3 finds them) and a
     View Layer properties panel; both go away when the add-on is disabled."""

@@ -409,7 +409,7 @@ def test_errors_are_one_line(api, core, tmp_path, case):
     elif case == "empty":
         (tmp_path / "empty.png").write_bytes(b"")
         paths["haziness"] = str(tmp_path / "empty.png")
-        pattern = "haziness.*file is empty"
+        pattern = r"haziness \(empty.png\): .*empty.png is empty \(0 bytes\)"
     elif case == "corrupt":
         (tmp_path / "bad.png").write_bytes(b"this is not an image" * 4)
         paths["haziness"] = str(tmp_path / "bad.png")

@@ -138,16 +138,16 @@ def test_every_cut_of_a_file_is_refused_and_whole_files_pass(bconv, tmp_path, fm
         data = Path(p).read_bytes()
     whole = tmp_path / f"whole.{fmt}"
     whole.write_bytes(data)
-    assert bconv._check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG",
+    assert bconv.check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG",
                                                       "jpg": "JPEG"}[fmt]
     (tmp_path / f"trailing.{fmt}").write_bytes(data + b"\0" * 4096)  # data after the end: fine
-    assert bconv._check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
+    assert bconv.check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
     cut = tmp_path / f"cut.{fmt}"
     accepted = []
     for n in sorted(set(range(1, len(data), max(1, len(data) // 400))) | {len(data) - 1}):
         cut.write_bytes(data[:n])
         try:
-            bconv._check_readable(str(cut), "x")
+            bconv.check_readable(str(cut), "x")
             accepted.append(n)
         except bconv.ConversionError as exc:
             one_line(exc)
@@ -162,7 +162,7 @@ def test_every_blender_exr_codec_passes_the_check(bconv, tmp_path):
     for codec in codecs:
         p = tmp_path / f"{codec}.exr"
         p.write_bytes(_exr_bytes(tmp_path, n=300, codec=codec))  # > 256 lines: several chunks
-        assert bconv._check_readable(str(p), codec) == "OpenEXR"
+        assert bconv.check_readable(str(p), codec) == "OpenEXR"
 
 
 def _attr(name, typ, data):
@@ -176,7 +176,7 @@ def _attr(name, typ, data):
     (5, 300, 16, 16, 0x11, 44), (5, 300, 7, 5, 0x12, 492), (5, 300, 7, 5, 0x00, 60)])
 def test_tiled_exr_chunk_counts(bconv, tmp_path, w, h, xs, ys, mode, chunks):
     """A tiled EXR (one level, mipmaps, ripmaps; rounding down/up): built here with the chunk
-    count OpenEXR gives; whole passes, cut fails."""
+    count OpenEXR gives and each chunk's tile and level coordinates; whole passes, cut fails."""
     win = struct.pack("<4i", 0, 0, w - 1, h - 1)
     head = (b"\x76\x2f\x31\x01" + struct.pack("<I", 2 | 0x200)
             + _attr("channels", "chlist", b"R\0" + struct.pack("<iB3xii", 2, 0, 1, 1) + b"\0")
@@ -186,20 +186,38 @@ def test_tiled_exr_chunk_counts(bconv, tmp_path, w, h, xs, ys, mode, chunks):
             + _attr("screenWindowCenter", "v2f", struct.pack("<2f", 0, 0))
             + _attr("screenWindowWidth", "float", struct.pack("<f", 1))
             + _attr("tiles", "tiledesc", struct.pack("<IIB", xs, ys, mode)) + b"\0")
+    # the tiles in the order OpenEXR lists them: level by level (ripmaps: x fastest), each
+    # level's tiles row by row; level sizes halve, rounded down (mode bit 4 clear) or up
+    up = mode >> 4
+
+    def size(n, lv):
+        return max(1, -(-n // (1 << lv)) if up else n // (1 << lv))
+
+    def count(n):
+        lv = 0
+        while size(n, lv) > 1:
+            lv += 1
+        return lv + 1
+
+    levels = {0: [(0, 0)], 1: [(lv, lv) for lv in range(count(max(w, h)))],
+              2: [(lx, ly) for ly in range(count(h)) for lx in range(count(w))]}[mode & 0x0F]
+    tiles = [(tx, ty, lx, ly) for lx, ly in levels for ty in range(-(-size(h, ly) // ys))
+             for tx in range(-(-size(w, lx) // xs))]
+    assert len(tiles) == chunks  # the count the OpenEXR library gives
     body, offsets, pos = [], [], len(head) + 8 * chunks
-    for i in range(chunks):
-        c = struct.pack("<4ii", i, 0, 0, 0, 6) + b"\0" * 6
+    for tile in tiles:
+        c = struct.pack("<4ii", *tile, 1) + b"\0"  # one byte of ZIP data
         offsets.append(pos)
         body.append(c)
         pos += len(c)
     data = head + struct.pack(f"<{chunks}Q", *offsets) + b"".join(body)
     p = tmp_path / "tiled.exr"
     p.write_bytes(data)
-    assert bconv._check_readable(str(p), "x") == "OpenEXR"
+    assert bconv.check_readable(str(p), "x") == "OpenEXR"
     for n in (len(head) + 8 * chunks - 1, len(data) - 1):
         p.write_bytes(data[:n])
         with pytest.raises(bconv.ConversionError, match="truncated OpenEXR"):
-            bconv._check_readable(str(p), "x")
+            bconv.check_readable(str(p), "x")
 
 
 def test_headers_claiming_huge_images_are_refused(bconv, tmp_path):
@@ -214,13 +232,13 @@ def test_headers_claiming_huge_images_are_refused(bconv, tmp_path):
            + chunk(b"IDAT", zlib.compress(b"\0" * 240001)) + chunk(b"IEND", b""))
     (tmp_path / "big.png").write_bytes(png)
     with pytest.raises(bconv.ConversionError, match="cannot hold 40000x40000"):
-        bconv._check_readable(str(tmp_path / "big.png"), "x")
+        bconv.check_readable(str(tmp_path / "big.png"), "x")
     data = bytearray(_exr_bytes(tmp_path))
     at = data.index(b"dataWindow\0box2i\0") + len(b"dataWindow\0box2i\0") + 4
     data[at:at + 16] = struct.pack("<4i", 0, 0, (1 << 30) - 1, 31)
     (tmp_path / "wide.exr").write_bytes(bytes(data))
     with pytest.raises(bconv.ConversionError, match="data window 1073741824x32"):
-        bconv._check_readable(str(tmp_path / "wide.exr"), "x")
+        bconv.check_readable(str(tmp_path / "wide.exr"), "x")
 
 
 @pytest.mark.parametrize("case", ["png_no_iend", "not_image", "folder", "nul"])
@@ -806,7 +824,7 @@ def test_file_check_fuzz(bconv, tmp_path):
         p.write_bytes(bytes(data))
         t = time.perf_counter()
         try:
-            bconv._check_readable(str(p), "fuzz")
+            bconv.check_readable(str(p), "fuzz")
             outcomes["ok"] += 1
         except bconv.ConversionError as exc:
             one_line(exc)

@@ -184,10 +184,13 @@ def _passes_exr(path, api):
 def setup(doc, tmp, api):
     """Fresh file (saved in ``tmp``, so "//" paths resolve there) with what ``doc``'s blocks
     name.  Returns extra names for the block's namespace."""
-    bpy.ops.wm.read_homefile(use_empty=True)
+    # README's snippet is pasted into a new file: File > New > General, the factory startup (a
+    # cube with its "Material"); the other docs' blocks get an empty file and what they name.
+    readme = doc == "README.md"
+    bpy.ops.wm.read_homefile(use_empty=not readme, use_factory_startup=readme)
     extra = {}
-    if doc == "README.md":
-        pass  # a new file: the snippet makes what it uses
+    if readme:
+        pass  # the snippet makes what it uses
     elif doc == "getting-started.md":
         mesh = bpy.data.meshes.new("Docs Mesh")
         obj = bpy.data.objects.new("Docs Object", mesh)

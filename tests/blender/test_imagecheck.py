@@ -122,3 +122,42 @@ def test_blender_loads_the_fuzz_writer_files(ic, tmp_path):
     png.write_bytes(F.encode_png(px, idat_parts=3))
     got = _load(png)[::-1]  # Blender's row 0 is the bottom row; PNG's the top
     assert np.allclose(got * 255, px, atol=1e-3)
+
+
+def test_check_accepts_blender_jpeg_and_refuses_it_cut(ic, tmp_path):
+    scenes.setup_render(samples=1, resolution=(37, 23), bounces=0)
+    _settings("JPEG", "8", mode="RGB")
+    path = str(tmp_path / "img.jpg")
+    _image().save_render(path, scene=bpy.context.scene)
+    assert ic.check_image_file(path) == ("JPEG", 37, 23)
+    _assert_refused_when_cut(ic, path, tmp_path)
+
+
+def test_every_format_blender_writes_is_told_by_its_contents(ic, tmp_path):
+    """Each file format Blender writes (named ``.img``, so only the contents can tell; TGA,
+    which has no magic number, ``.tga``) is recognised as that format: the format table
+    against real files."""
+    scenes.setup_render(samples=1, resolution=(37, 23), bounces=0)
+    img = _image()
+    s = bpy.context.scene.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "IMAGE"
+    seen = {}
+    for fmt in ("BMP", "IRIS", "PNG", "JPEG", "JPEG2000", "TARGA", "TARGA_RAW", "CINEON", "DPX",
+                "OPEN_EXR", "HDR", "TIFF", "WEBP"):
+        if fmt not in s.bl_rna.properties["file_format"].enum_items:
+            continue
+        s.file_format = fmt
+        s.color_mode = "RGB"
+        want = "TARGA" if fmt.startswith("TARGA") else fmt
+        path = tmp_path / (f"{fmt}.tga" if want == "TARGA" else f"{fmt}.img")
+        try:
+            img.save_render(str(path), scene=bpy.context.scene)
+        except RuntimeError:  # e.g. JPEG 2000 where this build's writer fails
+            continue
+        got = ic.check_image_file(str(path))
+        assert got.format == want and want in ic.FORMAT_NAMES, (fmt, got)
+        if want in ("PNG", "JPEG", "OPEN_EXR"):
+            assert got[1:] == (37, 23), (fmt, got)
+        seen[fmt] = got.format
+    assert {"PNG", "JPEG", "OPEN_EXR", "TIFF", "BMP", "TARGA", "HDR"} <= set(seen), seen

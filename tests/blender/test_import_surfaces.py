@@ -10,6 +10,7 @@ BSDFs for OpenPBR's haze blend) or are the original materials; none comes from t
 import importlib
 import math
 import os
+import re
 from pathlib import Path
 
 import bpy
@@ -285,3 +286,52 @@ def test_udim_textures_become_tiled_images(api, tmp_path):
     img = _source(_principled(m).inputs["Base Color"]).image
     assert img.source == "TILED" and "<UDIM>" in img.filepath
     assert sorted(t.number for t in img.tiles) == [1001, 1002]
+
+
+def _save_png(path, colour, size=8):
+    img = bpy.data.images.new("hg_png", size, size)
+    img.pixels.foreach_set(np.tile(np.array(colour, np.float32), size * size))
+    img.filepath_raw = str(path)
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def test_damaged_texture_files_get_a_placeholder_and_a_note(api, tmp_path):
+    """A texture cut off by a failed copy, a web page saved as .png, a UDIM set with one cut-off
+    tile: each is refused by the image check before Blender's loader sees it (Blender loads a
+    cut-off PNG as 0x0 and a cut-off EXR crashed 5.0.1), and is handled like a missing file:
+    an Image that points at the path without loading it, and a note naming the defect; the
+    good tile of the set is loaded."""
+    _save_png(tmp_path / "good.png", (0.2, 0.5, 0.8, 1.0), size=64)
+    data = (tmp_path / "good.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(data[:len(data) // 2])
+    (tmp_path / "page.png").write_text("<html><body>404 Not Found</body></html>")
+    _save_png(tmp_path / "paint.1001.png", (0.9, 0.1, 0.1, 1.0))
+    tile = data[:len(data) - 20]  # IEND and the end of the image data lost
+    (tmp_path / "paint.1002.png").write_bytes(tile)
+    cases = {"Cut": ("cut.png", r"texture not loaded: .*cut\.png is a truncated PNG \(.*: the "
+                                r"Image Texture points at it"),
+             "Page": ("page.png", r"texture not loaded: .*page\.png is not an image file "
+                                  r"Blender reads"),
+             "Tiles": ("paint.&lt;UDIM&gt;.png", r"tile 1002 not loaded: .*paint\.1002\.png is "
+                                                 r"a truncated PNG")}
+    for name, (file, pattern) in cases.items():
+        doc = tmp_path / f"{name}.mtlx"
+        doc.write_text(
+            '<?xml version="1.0"?><materialx version="1.39"><image name="paint" type="color3">'
+            f'<input name="file" type="filename" value="{file}" colorspace="srgb_texture" />'
+            '</image><standard_surface name="s" type="surfaceshader"><input name="base_color" '
+            'type="color3" nodename="paint" /></standard_surface><surfacematerial '
+            f'name="{name}" type="material"><input name="surfaceshader" type="surfaceshader" '
+            'nodename="s" /></surfacematerial></materialx>')
+        res = api.import_materialx(doc)
+        (m,) = res
+        notes = res.report[0].notes
+        assert any(re.search(pattern, n) for n in notes), (name, notes)
+        img = _source(_principled(m).inputs["Base Color"]).image
+        if name == "Tiles":
+            assert img.source == "TILED" and [t.number for t in img.tiles] == [1001]
+        else:  # made by images.new(name, 1, 1), not images.load: 1 where load leaves 1024
+            assert img.source == "FILE" and img.generated_width == 1, name
+            assert Path(bpy.path.abspath(img.filepath)) == tmp_path / file

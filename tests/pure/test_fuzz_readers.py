@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Fuzz every file reader the add-on owns: hazy_gloss.exr.read_exr, exr_header_check (through
-hazy_gloss.imagecheck.check_image_file), recomposite.passes_from_exr and imagecheck.check_png.
+hazy_gloss.imagecheck.check_image_file), recomposite.passes_from_exr and check_image_file's PNG
+check.
 
 Valid files come from the pure-python writer in fuzz_files.py (NONE / RLE / ZIPS / ZIP, single
 and multi-part, HALF / FLOAT / UINT; tests/blender/test_composite.py checks that Blender loads
@@ -194,7 +195,7 @@ def test_truncated_file_raises_exr_error(workdir, comp):
         with pytest.raises(exr.ExrError, match=r"cut\.exr: ") as info:
             exr.read_exr(path)
         assert "\n" not in str(info.value)
-        with pytest.raises(imagecheck.ImageFileError, match=r"cut\.exr: "):
+        with pytest.raises(imagecheck.ImageFileError, match=r"cut\.exr is a truncated OpenEXR "):
             imagecheck.check_image_file(path)
 
 
@@ -213,12 +214,26 @@ def test_check_image_file_formats(workdir):
     assert imagecheck.check_image_file(_write(workdir / "a.exr", data)) == ("OPEN_EXR", 32, 32)
     parts = exr.exr_header_check(str(workdir / "a.exr"))
     assert parts[0].compression == "ZIP" and parts[0].chunks == 2
-    for name, content, pattern in (("e.exr", b"", "empty"),
-                                   ("j.exr", b"\xff\xd8\xff", "not an OpenEXR"),
-                                   ("p.png", b"GIF89a", "not a PNG")):
+    # the format is told by the contents, as Blender does (not by the name)
+    for name, content, pattern in (("e.exr", b"", r"e\.exr is empty"),
+                                   ("j.exr", b"\xff\xd8\xff", r"j\.exr is a truncated JPEG"),
+                                   ("p.png", b"GIF89a", r"p\.png is not an image file Blender "
+                                                       r"reads \(PNG, JPEG, OpenEXR"),
+                                   ("x.jpg", b"\xff\xd8\xff", r"x\.jpg is a truncated JPEG"),
+                                   ("s.png", b"\x89PNG", r"s\.png is a truncated PNG file")):
         with pytest.raises(imagecheck.ImageFileError, match=pattern):
             imagecheck.check_image_file(_write(workdir / name, content))
-    assert imagecheck.check_image_file(_write(workdir / "x.jpg", b"\xff\xd8\xff")) == (None, None, None)
+    # formats without a structural check: their leading bytes only
+    assert imagecheck.check_image_file(_write(workdir / "t.tif", b"II*\x00" + bytes(60))) == \
+        ("TIFF", None, None)
+    assert imagecheck.check_image_file(_write(workdir / "w.webp", b"RIFF\x10\0\0\0WEBPVP8 ")) \
+        == ("WEBP", None, None)
+    tga = bytes([0, 0, 2]) + bytes(15)  # no magic number: told by the extension and the header
+    assert imagecheck.check_image_file(_write(workdir / "a.tga", tga)).format == "TARGA"
+    with pytest.raises(imagecheck.ImageFileError, match="not an image file"):
+        imagecheck.check_image_file(_write(workdir / "a.bin", tga))
+    with pytest.raises(imagecheck.ImageFileError, match="is a folder, not an image file"):
+        imagecheck.check_image_file(str(workdir))
     with pytest.raises(OSError):
         imagecheck.check_image_file(str(workdir / "missing.exr"))
 
@@ -260,6 +275,6 @@ def test_first_half_of_zip_exr_is_refused_by_check(workdir):
     """The file that segfaults bpy 5.0.1 (issue 14 item 1): the first half of a 32x32 ZIP EXR."""
     data, _ = _base()
     path = _write(workdir / "trunc.exr", data[:len(data) // 2])
-    with pytest.raises(imagecheck.ImageFileError, match="trunc.exr: truncated"):
+    with pytest.raises(imagecheck.ImageFileError, match="trunc.exr is a truncated OpenEXR file"):
         imagecheck.check_image_file(path)
     assert struct.unpack_from("<i", data, 0)[0] == 20000630

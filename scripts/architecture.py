@@ -1,0 +1,182 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Draw docs/architecture.md's diagram from the code: the import graph of the package.
+
+    python scripts/architecture.py [--check]
+
+reads every import statement of ``hazy_gloss`` with tests/pure/layout_graph.py (ast, nothing
+imported, no bpy needed), groups the modules by folder (core/, interchange/, utils/, the
+top-level bpy-free modules, the entry points) and, under blender/, by role (:data:`ROLES`, the
+one table of them), collapses the imports to edges between groups, and writes a Mermaid
+flowchart between the markers of docs/architecture.md (the text around them is hand-written and
+left alone).  A solid arrow: some module-level import; dashed: function-level imports only.
+Imports from the entry points and blender/ into the bpy-free part are drawn as one arrow to its
+box (they may import any of it); the arrows inside it are drawn group by group.
+
+``--check``: write nothing, exit 1 with a one-line reason when the file differs from what would
+be written (tests/pure/test_docs_generated.py runs it).  A module of blender/ missing from
+:data:`ROLES` goes in an "other" group, named in the diagram and on stderr: add it to the table.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "pure"))
+
+import layout_graph  # noqa: E402
+
+DOC = ROOT / "docs" / "architecture.md"
+BEGIN = "<!-- architecture diagram: begin (scripts/architecture.py) -->"
+END = "<!-- architecture diagram: end -->"
+PKG = layout_graph.PACKAGE
+
+#: The roles of the modules of hazy_gloss/blender (names relative to it).  blender/nodes/ is a
+#: role by its folder.  A module not listed here is drawn in "other".
+ROLES = {
+    "base": ("Blender versions", ("", "compat")),
+    "model": ("hazy materials in Blender: build, read, update", (
+        "stamp", "material", "layer", "layer_group", "legacy_layer", "surface_build",
+        "convert", "composite")),
+    "actions": ("what the operators and the API do", (
+        "make_hazy", "sync", "convert_pbr", "interchange", "looks", "eevee_layer", "cli")),
+    "ui": ("operators, panels, menus, properties, registration", (
+        "operators", "composite_ops", "convert_ops", "interchange_ops", "panels", "menus",
+        "properties", "preferences", "plots", "context", "registration")),
+}
+
+#: The groups of the bpy-free part, by folder; the entry points (the package, the facade, the
+#: command line) are a group of their own.  A new folder gets a group of its own.
+ENTRY = ("", "api", "__main__")
+FREE_FOLDERS = {"core": "the haze mapping, lobes, node math, multiscatter, thin film",
+                "interchange": "MaterialX, USD, other engines",
+                "utils": "presets, looks, plots"}
+
+#: Drawing order and subgraphs.
+LAYERS = (("entry", "entry points"), ("blender", "blender/: everything that imports bpy"),
+          ("free", "bpy-free"))
+
+
+def group_of(module, packages=()):
+    """(layer, group id, group label) of a module of the package (``packages``: the names of
+    the package's packages, whose ``__init__`` belongs to their folder)."""
+    rel = module[len(PKG) + 1:] if module != PKG else ""
+    if rel in ENTRY:
+        return "entry", "entry", "hazy_gloss: __init__, api (the facade), __main__ (CLI)"
+    parts = rel.split(".")
+    if parts[0] == "blender":
+        inner = ".".join(parts[1:])
+        if parts[1:2] == ["nodes"]:
+            return "blender", "nodes", "blender/nodes/: node-tree builders and emitters"
+        for role, (what, names) in ROLES.items():
+            if inner in names:
+                return "blender", role, f"blender/ {role}: {what}"
+        return "blender", "other", "blender/ other: not in the role table"
+    if len(parts) == 1 and module not in packages:
+        return "free", "toplevel", "hazy_gloss/*.py: constants, conversion, image files"
+    folder = parts[0]
+    what = FREE_FOLDERS.get(folder, "")
+    return "free", folder, f"{folder}/" + (f": {what}" if what else "")
+
+
+def _short(module, packages):
+    rel = module[len(PKG) + 1:] if module != PKG else ""
+    parts = [p for p in rel.split(".") if p] + (["__init__"] if module in packages else [])
+    if parts[0] == "blender":
+        parts = parts[2:] if parts[1:2] == ["nodes"] else parts[1:]
+    elif len(parts) > 1:
+        parts = parts[1:]
+    return ".".join(parts)
+
+
+def _wrap(names, width=48):
+    lines, line = [], ""
+    for n in names:
+        if line and len(line) + len(n) + 2 > width:
+            lines.append(line + ",")
+            line = n
+        else:
+            line = f"{line}, {n}" if line else n
+    return lines + [line] if line else lines
+
+
+def diagram(root=layout_graph.ROOT):
+    """(Mermaid text, [modules of blender/ missing from ROLES])."""
+    mods = layout_graph.modules(root)
+    found = layout_graph.imports(root)
+    packages = {m for m, path in mods.items() if path.name == "__init__.py"}
+    where = {m: group_of(m, packages) for m in mods}
+    members, labels, layer_of = {}, {}, {}
+    for m in sorted(mods):
+        layer, gid, label = where[m]
+        members.setdefault(gid, []).append(_short(m, packages))
+        labels[gid], layer_of[gid] = label, layer
+    edges = {}  # (from group, to group) -> True when some import is at module level
+    for imp in found:
+        if not imp.internal:
+            continue
+        a, b = where[imp.source][1], where[imp.target][1]
+        if where[imp.source][0] != "free" and where[imp.target][0] == "free":
+            b = "layer_free"  # into the bpy-free part: one arrow to its box
+        if a != b:
+            edges[(a, b)] = edges.get((a, b), False) or not imp.function_level
+    order = ["entry", "ui", "actions", "model", "nodes", "base", "other",
+             "toplevel", "core", "interchange", "utils"]
+    gids = sorted(members, key=lambda g: (order.index(g) if g in order else len(order), g))
+    out = ["```mermaid", "flowchart TB"]
+    for layer, title in LAYERS:
+        inside = [g for g in gids if layer_of[g] == layer]
+        if not inside:
+            continue
+        out.append(f'  subgraph layer_{layer}["{title}"]')
+        for g in inside:
+            text = "<br/>".join([f"<b>{labels[g]}</b>"] + _wrap(sorted(members[g])))
+            out.append(f'    {g}["{text}"]')
+        out.append("  end")
+    rank = gids + ["layer_free"]
+    for (a, b), module_level in sorted(edges.items(), key=lambda e: (rank.index(e[0][0]),
+                                                                      rank.index(e[0][1]))):
+        out.append(f"  {a} {'-->' if module_level else '-.->'} {b}")
+    out.append("```")
+    other = sorted(m for m in mods if where[m][1] == "other")
+    return "\n".join(out), other
+
+
+def render(text, block):
+    """``text`` with ``block`` between the markers (ValueError when they are missing)."""
+    i, j = text.find(BEGIN), text.find(END)
+    if i < 0 or j < i:
+        raise ValueError(f"{DOC.relative_to(ROOT)} has no '{BEGIN}' ... '{END}' markers")
+    return text[:i + len(BEGIN)] + "\n" + block + "\n" + text[j:]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--check", action="store_true",
+                    help="exit 1 when docs/architecture.md differs from what would be written")
+    args = ap.parse_args(argv)
+    block, other = diagram()
+    if other:
+        print(f"architecture.py: not in ROLES (drawn as 'other'): {', '.join(other)}",
+              file=sys.stderr)
+    try:
+        old = DOC.read_text(encoding="utf-8")
+        new = render(old, block)
+    except (OSError, ValueError) as exc:
+        print(f"architecture.py: {exc}", file=sys.stderr)
+        return 1
+    if args.check:
+        if new != old:
+            print(f"{DOC.relative_to(ROOT)} is out of date with the import graph: run "
+                  "python scripts/architecture.py", file=sys.stderr)
+            return 1
+        return 0
+    if new != old:
+        DOC.write_text(new, encoding="utf-8")
+        print(f"wrote {DOC.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
