@@ -194,6 +194,28 @@ def layer_rows(api):
             ([f"haziness {label}" for label, _, _ in body], plastic)]
 
 
+def glass_rows(api):
+    """Haze on transmissive Principled materials (docs/user-guide.md): refraction keeps the
+    artist's IOR, the reflection gains its halo and the transmitted light loses what it gains."""
+    import bpy as _bpy
+
+    def glass(name, ior, tint, roughness, h):
+        mat = _bpy.data.materials.new(name)
+        if _bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True
+        b = mat.node_tree.nodes["Principled BSDF"]
+        for key, v in (("Transmission Weight", 1.0), ("IOR", ior), ("Roughness", roughness),
+                       ("Base Color", tint + (1.0,))):
+            b.inputs[key].default_value = v
+        api.make_hazy(mat, haziness=h, haze_extent=6.0)
+        return mat
+    hs = (0.0, 0.1, 0.3, 0.6, 0.9)
+    clear = [glass(f"Glass {h}", 1.52, (1.0, 1.0, 1.0), 0.03, h) for h in hs]
+    honey = [glass(f"Honey {h}", 1.504, (0.83, 0.57, 0.04), 0.08, h) for h in hs]
+    return [([f"glass, haziness {h:g}" for h in hs], clear),
+            ([f"honey, haziness {h:g}" for h in hs], honey)]
+
+
 def sweep_rows(api, which):
     """Parameter sweeps for the docs (paper Figures 4 and 8)."""
     from hazy_gloss.blender.nodes.builder import TreeBuilder
@@ -242,7 +264,8 @@ def render(out_path, samples=48, scale=1.0, rows="gallery"):
     scene = bpy.context.scene
     studio(scene)
     spheres = (gallery_rows(api) if rows == "gallery" else looks_rows(api) if rows == "looks"
-               else layer_rows(api) if rows == "layer" else sweep_rows(api, rows))
+               else layer_rows(api) if rows == "layer" else glass_rows(api) if rows == "glass"
+               else sweep_rows(api, rows))
     width = max(5.2, max(len(mats) for _, mats in spheres) + 0.2)  # scene units, 1 per sphere
     sphere_rows(scene, spheres, ortho_scale=width)
     scene.render.engine = "CYCLES"
@@ -271,7 +294,7 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(REPO, "out", "gallery.png"))
     ap.add_argument("--samples", type=int, default=48)
     ap.add_argument("--scale", type=float, default=1.0)
-    ap.add_argument("--rows", choices=("gallery", "looks", "layer", "haziness", "extent"),
+    ap.add_argument("--rows", choices=("gallery", "looks", "layer", "glass", "haziness", "extent"),
                     default="gallery",
                     help="the gallery, or a parameter sweep for the docs")
     args = ap.parse_args(argv)
