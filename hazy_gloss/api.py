@@ -304,11 +304,8 @@ def import_materialx(path, *, progress=None):
     Returns the list of new materials with ``.report`` (one entry per material found:
     ``exact``, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``)."""
     from .blender import interchange as _ix
-    return _ix.import_materialx(path, progress=progress, apply_haze=_imported_haze)
-
-
-def _imported_haze(mat, node, haze):
-    make_hazy(mat, node=node, **haze)
+    from .blender import make_hazy as _make
+    return _ix.import_materialx(path, progress=progress, apply_haze=_make.apply_imported_haze)
 
 
 def export_usd(materials=None, path="", *, preview=True):

@@ -35,12 +35,12 @@ PKG = layout_graph.PACKAGE
 #: The roles of the modules of hazy_gloss/blender (names relative to it).  blender/nodes/ is a
 #: role by its folder.  A module not listed here is drawn in "other".
 ROLES = {
-    "base": ("Blender versions", ("", "compat")),
+    "base": ("Blender versions, stamps, messages and reports", ("", "compat", "stamp", "messages", "reports")),
     "model": ("hazy materials in Blender: build, read, update", (
-        "stamp", "material", "layer", "layer_group", "legacy_layer", "surface_build",
-        "convert", "composite")),
+        "material", "layer", "layer_group", "legacy_layer", "surface_build",
+        "convert", "composite", "fallback")),
     "actions": ("what the operators and the API do", (
-        "make_hazy", "sync", "convert_pbr", "interchange", "looks", "eevee_layer", "cli")),
+        "make_hazy", "edit", "sync", "convert_pbr", "interchange", "looks", "eevee_layer", "cli")),
     "ui": ("operators, panels, menus, properties, registration", (
         "operators", "composite_ops", "convert_ops", "interchange_ops", "panels", "menus",
         "properties", "preferences", "plots", "context", "registration")),

@@ -9,7 +9,7 @@ it can read back and is rebuilt.
 """
 from ..core.parameters import DEFAULTS, PARAMETERS, normalise, normalise_haze
 from . import layer, material, messages, stamp, sync
-from .context import edit_problem
+from .material import edit_problem
 from .messages import plain_message
 
 #: material session_uid -> the node-editor edits (as "node: input") the last update_material

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from .. import constants as K
 from . import fallback, layer
-from .context import edit_problem
+from .material import edit_problem
 from .nodes import ownership
 
 ROLE = K.EEVEE_ROLE

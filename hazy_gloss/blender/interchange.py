@@ -3,8 +3,8 @@
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
 ``materialx.Source`` objects, creates materials from what is imported (library surfaces through
-blender/surface_build.py), and holds the operators (File > Export, the material context menu;
-File > Import is blender/interchange_ops.py, over api.import_materialx).  A material with a haze
+blender/surface_build.py), the
+operators (File > Import / Export, the material context menu) are blender/interchange_ops.py.  A material with a haze
 layer (Make Hazy) becomes a snapshot of its node tree (:func:`tree_snapshot`), which
 interchange/layered.py writes node by node (docs/interchange.md §5).  The export fallback for
 Blender's own glTF and USD exporters is blender/fallback.py.
@@ -12,18 +12,14 @@ Blender's own glTF and USD exporters is blender/fallback.py.
 import os
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, StringProperty
-from bpy_extras.io_utils import ExportHelper
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import layered, materialx, usd
 from . import compat, fallback, layer, layer_group, material, stamp, surface_build
 from .convert import wire_material
-from .context import target_material
 from .messages import plain_message
 from .nodes.builder import default_value_of
-from .reports import report
 
 IMPORT_STAMP = "hazy_gloss_import"
 _OUTPUT = "ShaderNodeOutputMaterial"
@@ -419,184 +415,3 @@ def import_materialx(path, progress=None, apply_haze=None):
         im.material = mat
         mats.append(mat)
     return ImportResult(mats, found)
-
-
-# --------------------------------------------------------------------------------------------
-# Operators (thin: the work is above)
-# --------------------------------------------------------------------------------------------
-
-_SELECTION = [("ALL", "All Hazy Materials", "Every hazy material in the file"),
-              ("SELECTED", "Selected Objects", "Hazy materials of the selected objects"),
-              ("ACTIVE", "Active Material", "The active object's active material")]
-_FLAVOURS = [("eq1", "Eq. 1 (MaterialX 1.39 pbr)", "Exact: a mix of two lobes with one Fresnel, "
-              "standard library nodes only"),
-             ("openpbr_1.2", "OpenPBR 1.2 (unreleased)", "open_pbr_surface 1.2 with specular_haze: "
-              "approximate (its error is reported); the 1.2 nodedef is embedded")]
-
-
-def _selected_materials(context, selection):
-    if selection == "ALL":
-        return None
-    if selection == "ACTIVE":
-        m = target_material(context)
-        return [m] if m is not None else []
-    mats = []
-    for obj in getattr(context, "selected_objects", []) or []:
-        for slot in getattr(obj, "material_slots", []):
-            if slot.material is not None and slot.material not in mats:
-                mats.append(slot.material)
-    return mats
-
-
-class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
-    """Write hazy materials to a MaterialX document: each one an exact Eq. 1 graph (a mix of two
-    microfacet lobes sharing one Fresnel) from the standard library"""
-
-    bl_idname = "hazy_gloss.export_materialx"
-    bl_label = "Export Hazy Gloss MaterialX"
-    bl_options = {"REGISTER"}
-
-    filename_ext = ".mtlx"
-    filter_glob: StringProperty(default="*.mtlx", options={"HIDDEN"})
-    selection: EnumProperty(name="Materials", items=_SELECTION, default="ALL")
-    flavour: EnumProperty(name="Flavour", items=_FLAVOURS, default="eq1")
-    validate: BoolProperty(name="Validate", default=True,
-                           description="Validate with the materialx package when it is installed")
-
-    def execute(self, context):
-        mats = _selected_materials(context, self.selection)
-        try:
-            rep = export_materialx(mats, self.filepath, self.flavour, validate=self.validate)
-        except (ValueError, OSError) as exc:
-            report(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        report(self, "INFO", f"Wrote {len(rep.materials)} hazy material"
-               f"{'s' if len(rep.materials) != 1 else ''} to {bpy.path.basename(rep.path)}")
-        if rep.validated is None and self.validate:
-            report(self, "WARNING", "Not validated: the materialx package is not installed "
-                   "(pip install materialx); the file itself does not need it")
-        elif rep.validated is False:
-            report(self, "ERROR", f"MaterialX validation failed: {rep.validation}")
-        notes = rep.notes + list(getattr(rep, "skipped", []))
-        if notes:
-            report(self, "WARNING", "; ".join(notes[:6]))
-        return {"FINISHED"}
-
-
-class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
-    """Write hazy materials to USD as MaterialX networks (UsdShade), with a UsdPreviewSurface of
-    the core lobe (needs the pxr module: pip install usd-core)"""
-
-    bl_idname = "hazy_gloss.export_usd"
-    bl_label = "Export Hazy Gloss USD"
-    bl_options = {"REGISTER"}
-
-    filename_ext = ".usda"
-    filter_glob: StringProperty(default="*.usd;*.usda;*.usdc", options={"HIDDEN"})
-    selection: EnumProperty(name="Materials", items=_SELECTION, default="ALL")
-    preview: BoolProperty(name="Preview Surface", default=True,
-                          description="Add a UsdPreviewSurface of the core lobe")
-
-    def execute(self, context):
-        if not usd.available():
-            report(self, "ERROR", usd.USD_MISSING)
-            return {"CANCELLED"}
-        mats = _selected_materials(context, self.selection)
-        try:
-            path, done, skipped = export_usd(mats, self.filepath, preview=self.preview)
-        except (ValueError, OSError, RuntimeError) as exc:
-            report(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        report(self, "INFO", f"Wrote {len(done)} hazy material{'s' if len(done) != 1 else ''} "
-               f"to {bpy.path.basename(path)}")
-        if skipped:
-            report(self, "WARNING", "; ".join(skipped[:6]))
-        return {"FINISHED"}
-
-
-class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
-    """Make Blender's glTF and USD exporters write the core lobe of this hazy material (its look
-    at haziness 0) instead of nothing or the halo; renders are unchanged"""
-
-    bl_idname = "hazy_gloss.add_export_fallback"
-    bl_label = "Add Export Fallback (glTF / USD)"
-    bl_options = {"REGISTER", "UNDO"}
-
-    material: StringProperty(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"})
-    all_materials: BoolProperty(name="All Hazy Materials", default=False, options={"SKIP_SAVE"},
-                                description="Every hazy material of the file, not only this one")
-
-    def execute(self, context):
-        if self.all_materials:
-            mats = [m for m in bpy.data.materials if material.is_hazy(m) and m.library is None
-                    and K.RECOMPOSITE_STAMP not in m]
-        else:
-            mats = [target_material(context, self.material)]
-        done, notes = [], []
-        for mat in mats:
-            try:
-                notes += fallback.add_export_fallback(mat)
-            except ValueError as exc:
-                if not self.all_materials:
-                    report(self, "ERROR", plain_message(exc))
-                    return {"CANCELLED"}
-                notes.append(plain_message(exc))
-                continue
-            done.append(mat.name)
-        if not done:
-            report(self, "ERROR", "No hazy material to give an export fallback")
-            return {"CANCELLED"}
-        report(self, "INFO", (f"“{done[0]}”" if len(done) == 1 else f"{len(done)} materials")
-               + ": glTF and USD export now get the core lobe")
-        if notes:
-            report(self, "WARNING", "; ".join(sorted(set(notes))))
-        return {"FINISHED"}
-
-
-class HAZY_GLOSS_OT_remove_export_fallback(bpy.types.Operator):
-    """Remove the export fallback nodes and make the previous output active again"""
-
-    bl_idname = "hazy_gloss.remove_export_fallback"
-    bl_label = "Remove Export Fallback"
-    bl_options = {"REGISTER", "UNDO"}
-
-    material: StringProperty(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"})
-
-    def execute(self, context):
-        mat = target_material(context, self.material)
-        if mat is None or not fallback.remove_export_fallback(mat):
-            report(self, "ERROR", "No export fallback to remove")
-            return {"CANCELLED"}
-        report(self, "INFO", f"“{mat.name}”: export fallback removed")
-        return {"FINISHED"}
-
-
-# --------------------------------------------------------------------------------------------
-# Menu entries (appended by menus.add_entries through menus.ENTRIES)
-# --------------------------------------------------------------------------------------------
-
-
-def draw_export_menu(self, context):
-    self.layout.operator("hazy_gloss.export_materialx", text="Hazy Gloss MaterialX (.mtlx)")
-    self.layout.operator("hazy_gloss.export_usd", text="Hazy Gloss USD (.usda)")
-
-
-def draw_import_menu(self, context):
-    self.layout.operator("hazy_gloss.import_materialx", text="Hazy Gloss MaterialX (.mtlx, .usd)")
-
-
-def draw_material_menu(self, context):
-    layout = self.layout
-    layout.separator()
-    layout.operator("hazy_gloss.add_export_fallback")
-    layout.operator("hazy_gloss.add_export_fallback",
-                    text="Add Export Fallback to All Hazy Materials").all_materials = True
-    layout.operator("hazy_gloss.remove_export_fallback")
-    op = layout.operator("hazy_gloss.export_materialx", text="Export Hazy Material (MaterialX)")
-    op.selection = "ACTIVE"
-
-
-classes = (HAZY_GLOSS_OT_export_materialx, HAZY_GLOSS_OT_export_usd,
-           HAZY_GLOSS_OT_add_export_fallback, HAZY_GLOSS_OT_remove_export_fallback)
-
-register, unregister = bpy.utils.register_classes_factory(classes)

@@ -18,7 +18,7 @@ from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
 from . import fallback, layer, material, sync
-from .context import edit_problem, maps_problem
+from .material import edit_problem, maps_problem
 from .messages import plain_message
 
 
@@ -225,6 +225,14 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
     msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
            f"(every input, link and keyframe kept; haziness {h['haziness']:g})")
     return "FINISHED", msg, notes
+
+
+def apply_imported_haze(mat, node, haze):
+    """The haze layer of an imported material (interchange.import_materialx's ``apply_haze``):
+    Make Hazy on its BSDF ``node``; ValueError (one line) when it cannot."""
+    status, msg, _ = make_hazy(mat, node=node, **haze)
+    if status == "ERROR":
+        raise ValueError(msg)
 
 
 def _update_layer(mat, given, node):

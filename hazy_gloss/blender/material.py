@@ -834,3 +834,29 @@ __all__ = ("create_material", "read_parameters", "read_parameters_lenient",
            "map_parameters",
            "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",
            "DEFAULTS")
+
+
+def edit_problem(mat):
+    """Why ``mat`` cannot be edited, in plain words, or None."""
+    if mat is None:
+        return "No material"
+    lib = mat.library
+    if lib is not None:
+        return (f"“{mat.name}” is linked from the library file “{bpy.path.basename(lib.filepath)}” "
+                f"and is read-only here. Edit it in that file, or make it local "
+                f"(Object > Relations > Make Local) to change it in this one")
+    if getattr(mat, "override_library", None) is not None:
+        return (f"“{mat.name}” is a library override; its node tree cannot be rebuilt. "
+                f"Make it local to edit it")
+    if not is_hazy(mat):
+        return f"“{mat.name}” is not a hazy material: use Make Hazy first"
+    return None
+
+
+def maps_problem(mat):
+    """Why a material driven by converted maps cannot be edited from the panel, or None."""
+    if mat is not None and K.MAPS_STAMP in mat:
+        return (f"“{mat.name}” is driven by converted texture maps: convert the maps again "
+                f"(Convert Maps) to change it")
+    return None
+

@@ -21,7 +21,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from .. import constants as K
 from ..core.lobes import check_kind
 from ..utils import looks, presets
-from . import compat, interchange
+from . import compat, interchange_ops
 from .context import PRESET_SUBDIR
 from .nodes.groups import all_configurations, ensure_group, group_label
 
@@ -414,9 +414,9 @@ def draw_render_menu(self, context):
 #: the Shader Editor's Add menu comes from compat.shader_add_menu().
 ENTRIES = (("NODE_MT_node", draw_menu_entry), ("MATERIAL_MT_context_menu", draw_menu_entry),
            ("NODE_MT_node", draw_convert_entry), ("TOPBAR_MT_render", draw_render_menu),
-           ("TOPBAR_MT_file_export", interchange.draw_export_menu),
-           ("TOPBAR_MT_file_import", interchange.draw_import_menu),
-           ("MATERIAL_MT_context_menu", interchange.draw_material_menu))
+           ("TOPBAR_MT_file_export", interchange_ops.draw_export_menu),
+           ("TOPBAR_MT_file_import", interchange_ops.draw_import_menu),
+           ("MATERIAL_MT_context_menu", interchange_ops.draw_material_menu))
 
 
 classes = (HAZY_GLOSS_OT_add_node, *KIND_MENUS, HAZY_GLOSS_MT_add, HAZY_GLOSS_MT_presets,

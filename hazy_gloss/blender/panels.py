@@ -22,7 +22,8 @@ import numpy as np
 from .. import constants as K
 from ..core.parameters import is_anisotropic
 from . import eevee_layer, layer, material, messages, plots, preferences, properties, stamp
-from .context import edit_problem, maps_problem, target_material
+from .context import target_material
+from .material import edit_problem, maps_problem
 from .layer_group import haze_params
 from .messages import plain_message
 from .menus import draw_recomposite_operators

@@ -3,12 +3,12 @@
 ``register, unregister = bpy.utils.register_classes_factory(classes)``; what is not a class
 (the Material property, the plot previews, menu entries, the asset library) is added here, after
 the classes, and removed first."""
-from . import (composite_ops, convert_ops, interchange, interchange_ops, menus, operators, panels,
-               plots, preferences, properties, reports, sync)
+from . import (composite_ops, convert_ops, interchange_ops, menus, operators, panels, plots,
+               preferences, properties, reports, sync)
 
 # Order matters: properties before the operators and panels that use them.
-_MODULES = (preferences, properties, operators, convert_ops, composite_ops, interchange,
-            interchange_ops, panels, menus)
+_MODULES = (preferences, properties, operators, convert_ops, composite_ops, interchange_ops,
+            panels, menus)
 
 
 def register():

@@ -120,3 +120,30 @@ def test_constants_written_once(kind, value, name):
             if k == kind and (v == value if kind != "prefix" else str(v).startswith(value)):
                 hits.append(f"{path.relative_to(ROOT)}:{line}")
     assert not hits, f"{name} written outside constants.py: {hits}"
+
+
+#: blender/'s roles from the top down (scripts/architecture.py's ROLES, and nodes/ by folder):
+#: a module imports modules of its own role or of roles below it.
+BLENDER_RANKS = ("ui", "actions", "model", "nodes", "base")
+
+
+def test_blender_roles_import_downward():
+    """ui -> actions -> model -> nodes -> base (docs/architecture.md), every import counted."""
+    import sys
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import architecture
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    rank = {role: i for i, role in enumerate(BLENDER_RANKS)}
+    assert set(architecture.ROLES) | {"nodes"} == set(BLENDER_RANKS)
+    upward = []
+    for imp in layout_graph.imports():
+        if not (imp.internal and imp.source.startswith("hazy_gloss.blender.")
+                and imp.target.startswith("hazy_gloss.blender.")):
+            continue
+        src, dst = architecture.group_of(imp.source)[1], architecture.group_of(imp.target)[1]
+        assert "other" not in (src, dst), f"{imp.source} or {imp.target} has no role (ROLES)"
+        if rank[src] > rank[dst]:
+            upward.append(f"{imp.source}:{imp.line} ({src}) imports {imp.target} ({dst})")
+    assert not upward, upward
