@@ -98,6 +98,9 @@ MAX_EXR_TEXELS_PER_BYTE = 1 << 16
 #: Deflate (zlib) expands at most 1032:1: the bound on what a PNG's image data or a ZIP EXR
 #: chunk can hold (the PNG check also allows 4096 bytes of slack).
 MAX_DEFLATE_RATIO = 1100
+#: PNG chunks, or JPEG markers before the image data, that a file may have: bounds the check's
+#: time on crafted files (~1 s); a PNG of 8 GB in 8 KB chunks stays below.
+MAX_IMAGE_CHUNKS = 1 << 20
 #: Texture conversion in strips (hazy_gloss/imagestream.py): texels per strip (memory per map
 #: in flight), and the zlib levels of its writers (measured on a 1K β map: EXR ZIP level 4 within
 #: 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 % smaller than Blender's,

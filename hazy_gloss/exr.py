@@ -433,7 +433,9 @@ def exr_header_check(path):
     path = os.fspath(path)
     with open(path, "rb") as fh:
         if os.fstat(fh.fileno()).st_size == 0:
-            raise ExrError(f"{path}: the file is empty")
+            err = ExrError(f"{path}: the file is empty")
+            err.kind, err.detail = "truncated", "the file is empty"
+            raise err
         with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
             parts, _, _ = _parse(_Reader(buf, path))
     return tuple(ExrPart(name=p.name, type=p.type, compression=p.comp_name,

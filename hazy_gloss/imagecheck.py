@@ -96,12 +96,15 @@ def _check_png(buf, path):
         return ImageFileError(f"{path} is a corrupt PNG ({what})")
 
     pos, index, idat = 8, 0, 0
+    limit = K.MAX_IMAGE_CHUNKS
     idat_done = plte = False
     size = palette = raw = None
     while True:
         if pos + 12 > n:
             raise ImageFileError(f"{path} is a truncated PNG (no IEND chunk: the file ends at "
                                  f"byte {n})")
+        if index >= limit:
+            raise corrupt(f"more than {limit} chunks")
         length, ctype = struct.unpack_from(">I4s", buf, pos)
         if not all(65 <= c <= 90 or 97 <= c <= 122 for c in ctype):
             raise corrupt(f"chunk {index} at byte {pos} has an invalid type {ctype!r}")
@@ -114,7 +117,9 @@ def _check_png(buf, path):
                                  f"{end} bytes, the file has {n})")
         if 65 <= ctype[0] <= 90:  # critical
             (crc,) = struct.unpack_from(">I", buf, pos + 8 + length)
-            if zlib.crc32(buf[pos + 4:pos + 8 + length]) != crc:
+            with memoryview(buf) as view:  # a slice of the view, not a copy of the chunk
+                found = zlib.crc32(view[pos + 4:pos + 8 + length])
+            if found != crc:
                 raise corrupt(f"CRC mismatch in chunk {name} at byte {pos}")
         if index == 0:
             if name != "IHDR" or length != 13:
@@ -165,8 +170,12 @@ def _check_jpeg(buf, path):
     """The marker segments up to the first scan (a frame header with the size among them), then
     an end-of-image marker after it (0xFF in the entropy-coded data is always escaped, so the
     first FF D9 after the scan header is the end of the image).  Returns (width, height)."""
-    n, pos, size = len(buf), 2, None
+    n, pos, size, steps = len(buf), 2, None, 0
     while True:
+        steps += 1
+        if steps > K.MAX_IMAGE_CHUNKS:
+            raise ImageFileError(f"{path} is a corrupt JPEG (more than {K.MAX_IMAGE_CHUNKS} "
+                                 "markers before its image data)")
         if pos + 2 > n:
             raise ImageFileError(f"{path} is a truncated JPEG (the file ends at byte {n}, "
                                  "before its image data)")

@@ -21,7 +21,7 @@ from ..core.graph import Graph
 from ..recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                            LAYERS, PROPERTY, compositor_graph, exr_layers)
 from ..exr import read_exr
-from ..imagecheck import check_image_file
+from ..imagecheck import FORMAT_NAMES, check_image_file
 from . import compat, fallback, material
 from . import stamp as _stamps
 from .nodes.builder import TreeBuilder
@@ -557,7 +557,10 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
 
     image = None
     if source is not None:
-        check_image_file(bpy.path.abspath(str(source)))  # a damaged EXR can crash Blender's loader
+        info = check_image_file(bpy.path.abspath(str(source)))  # a damaged EXR can crash Blender's loader
+        if info.format != "OPEN_EXR":
+            raise ValueError(f"{source} is a {FORMAT_NAMES[info.format]} file: the recomposite "
+                             "source must be the multilayer OpenEXR of a render")
         image = bpy.data.images.load(bpy.path.abspath(str(source)), check_existing=True)
         image.reload()
         if original is None:

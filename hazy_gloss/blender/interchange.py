@@ -2,10 +2,9 @@
 """Hazy materials in and out of Blender: MaterialX / USD export and import.
 
 The formats are bpy-free (hazy_gloss/interchange); this module reads Blender materials into
-``materialx.Source`` objects, creates materials from what is imported (library surfaces through
-blender/surface_build.py), the
-operators (File > Import / Export, the material context menu) are blender/interchange_ops.py.  A material with a haze
-layer (Make Hazy) becomes a snapshot of its node tree (:func:`tree_snapshot`), which
+``materialx.Source`` objects and creates materials from what is imported (library surfaces
+through blender/surface_build.py); the operators (File > Import / Export, the material context
+menu) are blender/interchange_ops.py.  A material with a haze layer (Make Hazy) becomes a snapshot of its node tree (:func:`tree_snapshot`), which
 interchange/layered.py writes node by node (docs/interchange.md §5).  The export fallback for
 Blender's own glTF and USD exporters is blender/fallback.py.
 """

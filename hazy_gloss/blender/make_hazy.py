@@ -17,7 +17,7 @@ from .. import constants as K
 from ..core import inverse_haze_mapping
 from ..core.conventions import alpha_from_roughness, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
-from . import fallback, layer, material, sync
+from . import fallback, layer, material, messages, sync
 from .material import edit_problem, maps_problem
 from .messages import plain_message
 
@@ -499,7 +499,11 @@ def upgrade_layers(materials):
         except ValueError as exc:
             notes.append(f"“{mat.name}”: {plain_message(exc)}")
             continue
+        messages.clear_error(mat)
         sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
+        if messages.error_for(mat):
+            notes.append(f"“{mat.name}”: upgraded, but {messages.error_for(mat)[:1].lower()}"
+                         f"{messages.error_for(mat)[1:]}")
         done.append(mat.name)
     if not done and not notes:
         return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []

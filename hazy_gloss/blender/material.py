@@ -833,7 +833,7 @@ __all__ = ("create_material", "read_parameters", "read_parameters_lenient",
            "check_material", "node_edits", "adopt_edits", "adopt_node_edits", "is_hazy",
            "map_parameters",
            "lobes_for", "apply", "is_ours", "ours", "role", "output_node", "GROUP_NODE",
-           "DEFAULTS")
+           "DEFAULTS", "edit_problem", "maps_problem")
 
 
 def edit_problem(mat):

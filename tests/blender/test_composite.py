@@ -430,3 +430,18 @@ def test_recomposite_entry_points(hg):
     ops.draw_recomposite_operators(Layout())
     assert drawn == ["hazy_gloss.setup_recomposite", "hazy_gloss.load_recomposite",
                      "hazy_gloss.clear_recomposite"]
+
+
+def test_a_source_that_is_not_openexr_is_refused(mods, tmp_path):
+    """A PNG of the render passed as the source (a natural slip): refused with one line, before
+    Blender loads it into Image nodes whose layers it does not have (a black composite)."""
+    _, comp = mods
+    img = bpy.data.images.new("HG png source", 8, 8)
+    path = tmp_path / "render.png"
+    img.filepath_raw, img.file_format = str(path), "PNG"
+    img.save()
+    with pytest.raises(ValueError, match=r"render\.png is a PNG file: the recomposite source "
+                                         r"must be the multilayer OpenEXR of a render"):
+        comp.build_compositor(bpy.context.scene, source=str(path), original="ViewLayer")
+    assert not [i for i in bpy.data.images if i.filepath and i.filepath.endswith("render.png")
+                and i.name != "HG png source"]

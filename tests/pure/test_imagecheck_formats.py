@@ -5,6 +5,7 @@ data window.  Every file is built here from the format's specification (ITU T.81
 PNG spec, the OpenEXR file layout), not from the checker's code; the Blender-written files are
 in tests/blender/test_imagecheck.py."""
 import struct
+import time
 import zlib
 
 import numpy as np
@@ -178,3 +179,38 @@ def test_exr_data_window_larger_than_the_file_can_hold(tmp_path):
                        match=rf"w\.exr is a corrupt OpenEXR file \(part 0: data window "
                              rf"1048576x512 in {len(wide)} bytes\)"):
         imagecheck.check_image_file(_write(tmp_path / "w.exr", wide))
+
+
+# -- crafted files: the check's time is bounded --------------------------------------------
+
+
+def _png_chunk(ctype, payload=b""):
+    return (struct.pack(">I", len(payload)) + ctype + payload
+            + struct.pack(">I", zlib.crc32(ctype + payload)))
+
+
+def test_png_with_more_chunks_than_the_limit_is_refused_quickly(tmp_path):
+    """2^20 + 1 empty ancillary chunks (12 MB; no image is stored so): refused by count, in
+    about a second, not walked to the end."""
+    n = 1 << 20
+    png = (b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", 1, 1, 8, 0, 0, 0, 0))
+           + _png_chunk(b"tEXt") * n + _png_chunk(b"IDAT", zlib.compress(b"\x00\x00"))
+           + _png_chunk(b"IEND"))
+    path = _write(tmp_path / "many.png", png)
+    t0 = time.perf_counter()
+    with pytest.raises(imagecheck.ImageFileError, match=r"many\.png is a corrupt PNG \(more than "
+                                                        r"1048576 chunks\)"):
+        imagecheck.check_image_file(path)
+    assert time.perf_counter() - t0 < 10.0
+
+
+def test_jpeg_with_millions_of_fill_bytes_is_refused_quickly(tmp_path):
+    """T.81 B.1.1.2 allows any number of FF fill bytes before a marker: 2^21 of them after SOI
+    are refused by count, not walked byte by byte to the end."""
+    jpeg = b"\xff\xd8" + b"\xff" * (1 << 21) + _jpeg()[2:]
+    path = _write(tmp_path / "fill.jpg", jpeg)
+    t0 = time.perf_counter()
+    with pytest.raises(imagecheck.ImageFileError, match=r"fill\.jpg is a corrupt JPEG \(more "
+                                                        r"than 1048576 markers"):
+        imagecheck.check_image_file(path)
+    assert time.perf_counter() - t0 < 10.0
