@@ -180,7 +180,7 @@ def test_usd_operator_says_when_pxr_is_missing(api, hg, tmp_path, monkeypatch):
 
 def test_menus_list_the_interchange_operators(hg):
     menus = importlib.import_module(hg.__name__ + ".blender.menus")
-    ix = importlib.import_module(hg.__name__ + ".blender.interchange")
+    ix = importlib.import_module(hg.__name__ + ".blender.interchange_ops")
     entries = {(m, f.__name__) for m, f in menus.ENTRIES}
     assert ("TOPBAR_MT_file_export", "draw_export_menu") in entries
     assert ("TOPBAR_MT_file_import", "draw_import_menu") in entries
