@@ -350,38 +350,44 @@ def _run_batch(args, inputs, progress, bar, cli, signals):
     return K.EXIT_SETS_FAILED if report.failed else K.EXIT_OK
 
 
+#: The interchange subcommands: name, help, description, then each argument's
+#: (names, keywords).
+_INTERCHANGE_COMMANDS = (
+    ("export-materialx", "write a .blend's hazy materials to MaterialX (or USD)",
+     "Write the hazy materials of a .blend file to one MaterialX document (each an exact Eq. 1 "
+     "graph of the standard pbr library), or with --usd to USD (UsdShade MaterialX networks, "
+     "needs usd-core).  Runs on the bpy module.",
+     ((("blend",), dict(help="the .blend file")),
+      (("out",), dict(help="output .mtlx (or .usda/.usdc with --usd)")),
+      (("--flavour",), dict(default="eq1", choices=("eq1", "openpbr_1.2"),
+                            help="eq1 (default, exact) or openpbr_1.2 (approximate, unreleased 1.2)")),
+      (("--materials",), dict(default=None, help="comma-separated names (default: all hazy)")),
+      (("--usd",), dict(action="store_true", help="write USD instead of .mtlx")),
+      (("--json",), dict(action="store_true", help="print the report as JSON")))),
+    ("import-materialx", "recognise hazy materials in a MaterialX or USD file",
+     "Read the materials of a .mtlx (or USD, needs usd-core) file: library surfaces (OpenPBR, "
+     "standard_surface, gltf_pbr, UsdPreviewSurface) as Principled BSDF materials, OpenPBR 1.2 "
+     "haze as a haze layer, two-lobe mixes as hazy materials; prints what each becomes and what "
+     "is not exact.  With --blend, creates them in a new .blend (needs bpy).",
+     ((("path",), {}),
+      (("--blend",), dict(default=None, help="save the imported materials to this .blend")),
+      (("--json",), dict(action="store_true")),
+      (("--quiet",), dict(action="store_true",
+                          help="no progress bar (files of 1 MB and more show one on stderr)")))),
+    ("engines", "closest Unity / Unreal / Filament / OpenPBR 1.2 parameters",
+     "For each hazy material of a .mtlx/.usd file or a .blend, the closest parameters of Unity "
+     "HDRP StackLit, Unreal Substrate, Filament and OpenPBR 1.2 with their BRDF error against "
+     "Eq. 1 (max, mean, peak).",
+     ((("path",), dict(help=".mtlx, .usd(a/c) or .blend")),
+      (("--json",), dict(action="store_true")))),
+)
+
+
 def _add_interchange(sub):
-    ex = sub.add_parser(
-        "export-materialx", help="write a .blend's hazy materials to MaterialX (or USD)",
-        description="Write the hazy materials of a .blend file to one MaterialX document (each "
-                    "an exact Eq. 1 graph of the standard pbr library), or with --usd to USD "
-                    "(UsdShade MaterialX networks, needs usd-core).  Runs on the bpy module.")
-    ex.add_argument("blend", help="the .blend file")
-    ex.add_argument("out", help="output .mtlx (or .usda/.usdc with --usd)")
-    ex.add_argument("--flavour", default="eq1", choices=("eq1", "openpbr_1.2"),
-                    help="eq1 (default, exact) or openpbr_1.2 (approximate, unreleased 1.2)")
-    ex.add_argument("--materials", default=None, help="comma-separated names (default: all hazy)")
-    ex.add_argument("--usd", action="store_true", help="write USD instead of .mtlx")
-    ex.add_argument("--json", action="store_true", help="print the report as JSON")
-    im = sub.add_parser(
-        "import-materialx", help="recognise hazy materials in a MaterialX or USD file",
-        description="Read the materials of a .mtlx (or USD, needs usd-core) file: library "
-                    "surfaces (OpenPBR, standard_surface, gltf_pbr, UsdPreviewSurface) as "
-                    "Principled BSDF materials, OpenPBR 1.2 haze as a haze layer, two-lobe "
-                    "mixes as hazy materials; prints what each becomes and what is not exact.  "
-                    "With --blend, creates them in a new .blend (needs bpy).")
-    im.add_argument("path")
-    im.add_argument("--blend", default=None, help="save the imported materials to this .blend")
-    im.add_argument("--json", action="store_true")
-    im.add_argument("--quiet", action="store_true",
-                    help="no progress bar (files of 1 MB and more show one on stderr)")
-    en = sub.add_parser(
-        "engines", help="closest Unity / Unreal / Filament / OpenPBR 1.2 parameters",
-        description="For each hazy material of a .mtlx/.usd file or a .blend, the closest "
-                    "parameters of Unity HDRP StackLit, Unreal Substrate, Filament and OpenPBR "
-                    "1.2 with their BRDF error against Eq. 1 (max, mean, peak).")
-    en.add_argument("path", help=".mtlx, .usd(a/c) or .blend")
-    en.add_argument("--json", action="store_true")
+    for name, help_, description, arguments in _INTERCHANGE_COMMANDS:
+        command = sub.add_parser(name, help=help_, description=description)
+        for names, keywords in arguments:
+            command.add_argument(*names, **keywords)
 
 
 def _fail(prog, msg, code=2):

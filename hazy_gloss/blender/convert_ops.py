@@ -83,12 +83,17 @@ class ConversionJob:
 
 
 class _ModalConversion:
-    """Runs a ConversionJob modally: Blender's progress bar, a status line (step or map, UDIM
-    tile, set, percent, time left), Esc cancels (undone, nothing written).  In background mode
-    (no window, no events) the job runs to its end at once."""
+    """Asks for its options in a dialog, then runs a ConversionJob modally: Blender's progress
+    bar, a status line (step or map, UDIM tile, set, percent, time left), Esc cancels (undone,
+    nothing written).  In background mode (no window, no events) the job runs to its end at
+    once."""
 
     _job = None
     _timer = None
+
+    def invoke(self, context, event):
+        """The options dialog first (OK runs execute)."""
+        return context.window_manager.invoke_props_dialog(self, width=420)
 
     def start(self, context, job, finish):
         self._finish = finish
@@ -244,9 +249,6 @@ class HAZY_GLOSS_OT_convert_maps(_ModalConversion, bpy.types.Operator):
             inputs["haze_extent"] = x
         return inputs
 
-    def invoke(self, context, event):
-        return context.window_manager.invoke_props_dialog(self, width=420)
-
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
@@ -369,9 +371,6 @@ class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
     directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="//hazy_maps/")
     interpolation: EnumProperty(name="Interpolation", default="Linear", items=[
         ("Linear", "Linear", ""), ("Closest", "Closest", ""), ("Cubic", "Cubic", "")])
-
-    def invoke(self, context, event):
-        return context.window_manager.invoke_props_dialog(self, width=420)
 
     def draw(self, context):
         layout = self.layout

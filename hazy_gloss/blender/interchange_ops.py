@@ -77,13 +77,46 @@ def _selected_materials(context, selection):
     return mats
 
 
-class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
+class _MaterialsExport(ExportHelper):
+    """An export of the chosen hazy materials (``selection``): ``write(mats)`` writes them and
+    returns how many it wrote, the file's path and the (level, message) pairs to report after
+    the count."""
+    bl_options = {"REGISTER"}
+    write_errors = (ValueError, OSError)
+
+    def unavailable(self):
+        """Why the export cannot run here (None: it can)."""
+        return None
+
+    def execute(self, context):
+        why = self.unavailable()
+        if why:
+            report(self, "ERROR", why)
+            return {"CANCELLED"}
+        mats = _selected_materials(context, self.selection)
+        try:
+            count, path, reports = self.write(mats)
+        except self.write_errors as exc:
+            report(self, "ERROR", plain_message(exc))
+            return {"CANCELLED"}
+        report(self, "INFO", f"Wrote {count} hazy material{'s' if count != 1 else ''} "
+               f"to {bpy.path.basename(path)}")
+        for level, text in reports:
+            report(self, level, text)
+        return {"FINISHED"}
+
+
+def _notes_report(notes):
+    """The report of what was not exact or skipped: the first six notes, on one line."""
+    return [("WARNING", "; ".join(notes[:6]))] if notes else []
+
+
+class HAZY_GLOSS_OT_export_materialx(_MaterialsExport, bpy.types.Operator):
     """Write hazy materials to a MaterialX document: each one an exact Eq. 1 graph (a mix of two
     microfacet lobes sharing one Fresnel) from the standard library"""
 
     bl_idname = "hazy_gloss.export_materialx"
     bl_label = "Export Hazy Gloss MaterialX"
-    bl_options = {"REGISTER"}
 
     filename_ext = ".mtlx"
     filter_glob: StringProperty(default="*.mtlx", options={"HIDDEN"})
@@ -92,33 +125,25 @@ class HAZY_GLOSS_OT_export_materialx(bpy.types.Operator, ExportHelper):
     validate: BoolProperty(name="Validate", default=True,
                            description="Validate with the materialx package when it is installed")
 
-    def execute(self, context):
-        mats = _selected_materials(context, self.selection)
-        try:
-            rep = interchange.export_materialx(mats, self.filepath, self.flavour, validate=self.validate)
-        except (ValueError, OSError) as exc:
-            report(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        report(self, "INFO", f"Wrote {len(rep.materials)} hazy material"
-               f"{'s' if len(rep.materials) != 1 else ''} to {bpy.path.basename(rep.path)}")
+    def write(self, mats):
+        rep = interchange.export_materialx(mats, self.filepath, self.flavour, validate=self.validate)
+        reports = []
         if rep.validated is None and self.validate:
-            report(self, "WARNING", "Not validated: the materialx package is not installed "
-                   "(pip install materialx); the file itself does not need it")
+            reports.append(("WARNING", "Not validated: the materialx package is not installed "
+                            "(pip install materialx); the file itself does not need it"))
         elif rep.validated is False:
-            report(self, "ERROR", f"MaterialX validation failed: {rep.validation}")
-        notes = rep.notes + list(getattr(rep, "skipped", []))
-        if notes:
-            report(self, "WARNING", "; ".join(notes[:6]))
-        return {"FINISHED"}
+            reports.append(("ERROR", f"MaterialX validation failed: {rep.validation}"))
+        return (len(rep.materials), rep.path,
+                reports + _notes_report(rep.notes + list(getattr(rep, "skipped", []))))
 
 
-class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
+class HAZY_GLOSS_OT_export_usd(_MaterialsExport, bpy.types.Operator):
     """Write hazy materials to USD as MaterialX networks (UsdShade), with a UsdPreviewSurface of
     the core lobe (needs the pxr module: pip install usd-core)"""
 
     bl_idname = "hazy_gloss.export_usd"
     bl_label = "Export Hazy Gloss USD"
-    bl_options = {"REGISTER"}
+    write_errors = (ValueError, OSError, RuntimeError)
 
     filename_ext = ".usda"
     filter_glob: StringProperty(default="*.usd;*.usda;*.usdc", options={"HIDDEN"})
@@ -126,21 +151,12 @@ class HAZY_GLOSS_OT_export_usd(bpy.types.Operator, ExportHelper):
     preview: BoolProperty(name="Preview Surface", default=True,
                           description="Add a UsdPreviewSurface of the core lobe")
 
-    def execute(self, context):
-        if not usd.available():
-            report(self, "ERROR", usd.USD_MISSING)
-            return {"CANCELLED"}
-        mats = _selected_materials(context, self.selection)
-        try:
-            path, done, skipped = interchange.export_usd(mats, self.filepath, preview=self.preview)
-        except (ValueError, OSError, RuntimeError) as exc:
-            report(self, "ERROR", plain_message(exc))
-            return {"CANCELLED"}
-        report(self, "INFO", f"Wrote {len(done)} hazy material{'s' if len(done) != 1 else ''} "
-               f"to {bpy.path.basename(path)}")
-        if skipped:
-            report(self, "WARNING", "; ".join(skipped[:6]))
-        return {"FINISHED"}
+    def unavailable(self):
+        return None if usd.available() else usd.USD_MISSING
+
+    def write(self, mats):
+        path, done, skipped = interchange.export_usd(mats, self.filepath, preview=self.preview)
+        return len(done), path, _notes_report(skipped)
 
 
 class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):

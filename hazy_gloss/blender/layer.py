@@ -32,7 +32,7 @@ from ..core.graph import evaluate as evaluate_graph
 from ..core.parameters import HAZE_DEFAULTS
 from . import compat, layer_group, legacy_layer, stamp
 from .nodes import ownership
-from .nodes.builder import socket_value
+from .nodes.builder import set_if_changed, socket_value
 
 LAYER_VERSION = 2
 STAMP_VERSION = 3  # 3: the layer as one node
@@ -134,30 +134,28 @@ def group_config(node):
     return stamp.group(node.node_tree, K.GROUP_STAMP) or {} if node.node_tree is not None else {}
 
 
-def layer_node(mat):
-    """The layer's group node (by the stamp's name, else by its tag), or None."""
+def _kept_node(mat, state_key, tag, accept=lambda node: True):
+    """The node the layer's record names under ``state_key``, else the first node carrying the
+    ``tag`` key (either only when ``accept``-ed), or None."""
     tree = getattr(mat, "node_tree", None)
     if tree is None:
         return None
-    raw = _raw_state(mat) or {}
-    node = tree.nodes.get(raw.get("node", "")) if raw.get("node") else None
-    if node is not None and node.bl_idname == "ShaderNodeGroup" and node.get(K.LAYER_NODE_KEY) \
-            and layer_group.is_layer_group(node.node_tree):
+    name = (_raw_state(mat) or {}).get(state_key)
+    node = tree.nodes.get(name) if name else None
+    if node is not None and node.get(tag) and accept(node):
         return node
-    return next((n for n in tree.nodes if n.bl_idname == "ShaderNodeGroup"
-                 and n.get(K.LAYER_NODE_KEY) and layer_group.is_layer_group(n.node_tree)), None)
+    return next((n for n in tree.nodes if n.get(tag) and accept(n)), None)
+
+
+def layer_node(mat):
+    """The layer's group node (by the stamp's name, else by its tag), or None."""
+    return _kept_node(mat, "node", K.LAYER_NODE_KEY,
+                      lambda n: n.bl_idname == "ShaderNodeGroup" and layer_group.is_layer_group(n.node_tree))
 
 
 def original_node(mat):
     """The artist's BSDF kept beside the layer node (by the stamp's name, else its tag), or None."""
-    tree = getattr(mat, "node_tree", None)
-    if tree is None:
-        return None
-    raw = _raw_state(mat) or {}
-    node = tree.nodes.get(raw.get("original", "")) if raw.get("original") else None
-    if node is not None and node.get(K.ORIGINAL_NODE_KEY):
-        return node
-    return _tagged(tree, K.ORIGINAL_NODE_KEY)
+    return _kept_node(mat, "original", K.ORIGINAL_NODE_KEY)
 
 
 def find_core(tree, name=None):
@@ -318,9 +316,7 @@ def _take_inputs(tree, src, dst):
         if target is None:
             continue
         if hasattr(sock, "default_value") and hasattr(target, "default_value"):
-            value = socket_value(target, _plain(sock.default_value))
-            if _plain(target.default_value) != _plain(value):  # (each set updates the tree)
-                target.default_value = value
+            set_if_changed(target, _plain(sock.default_value))
         for link in into.get(sock.identifier, ()):
             # a new group node's input has no link to replace: no limit to verify
             tree.links.new(link.from_socket, target, verify_limits=False)
@@ -492,8 +488,8 @@ def set_haze(node, haze):
             values[key] = v
     for key, v in values.items():
         sock = _haze_socket(node, key)
-        if sock is not None and sock.default_value != float(v):
-            sock.default_value = float(v)
+        if sock is not None:
+            set_if_changed(sock, v)
 
 
 def haze_of(mat):

@@ -19,7 +19,7 @@ from ..core.multiscatter import cycles_version
 from . import stamp
 from .nodes.builder import TreeBuilder, socket_value
 from .nodes.emit import emit
-from .nodes.groups import group_users, restore_group_users
+from .nodes.groups import rebuild_interface
 
 #: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
 GROUP_VERSION = 2  # 2: transmission and thin films keep the IOR (the tint raises F0)
@@ -341,7 +341,8 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
     template = ng.nodes.new(BSDF_NODES[kind])
     for p, v in settings.items():
         setattr(template, p, v)
-    _rebuild_interface(ng, kind, template, smooth, baked)
+    rebuild_interface(ng, lambda tree: _interface(tree, kind, template, smooth, baked),
+                      update_sockets=False)
     ng.nodes.remove(template)
     cfg = config_for(kind, settings, smooth=smooth, baked=baked, body=body)
     lay = layer_graph.build(cfg)
@@ -550,36 +551,3 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
         return mix.outputs[0]
 
     return visit(tree, 0)
-
-
-# --------------------------------------------------------------------------------------------
-# Keeping the interface of a group being rebuilt
-# --------------------------------------------------------------------------------------------
-
-
-def _interface_items(iface):
-    out = []
-    for item in iface.items_tree:
-        parent = getattr(getattr(item, "parent", None), "name", None)
-        if item.item_type == "SOCKET":
-            out.append(("SOCKET", item.name, item.socket_type, item.in_out, parent))
-        else:
-            out.append((item.item_type, item.name, parent))
-    return out
-
-
-def _rebuild_interface(ng, kind, template, smooth, baked=False):
-    if not len(ng.interface.items_tree):
-        _interface(ng, kind, template, smooth, baked)
-        return
-    tmp = bpy.data.node_groups.new(".Hazy Gloss interface", "ShaderNodeTree")
-    try:
-        _interface(tmp, kind, template, smooth, baked)
-        if _interface_items(ng.interface) == _interface_items(tmp.interface):
-            return
-        found = group_users(ng)
-        ng.interface.clear()
-        _interface(ng, kind, template, smooth, baked)
-        restore_group_users(found)
-    finally:
-        bpy.data.node_groups.remove(tmp)

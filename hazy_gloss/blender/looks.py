@@ -24,30 +24,29 @@ def _wood(tree, bsdf):
     coord.location, wave.location, ramp.location = (-900, 200), (-700, 200), (-450, 200)
 
 
+def _roughness_texture(tree, bsdf, texture, texture_values, output, range_values):
+    """A ``texture`` node (with ``texture_values``) through a Map Range (``range_values``) to
+    the BSDF's Roughness."""
+    tex = tree.nodes.new(texture)
+    for name, value in texture_values.items():
+        tex.inputs[name].default_value = value
+    rng = tree.nodes.new("ShaderNodeMapRange")
+    for name, value in range_values.items():
+        rng.inputs[name].default_value = value
+    tree.links.new(tex.outputs[output], rng.inputs["Value"])
+    tree.links.new(rng.outputs["Result"], bsdf.inputs["Roughness"])
+    tex.location, rng.location = (-700, -200), (-450, -200)
+
+
 def _flakes(tree, bsdf):
     """Metal flakes: a fine Voronoi varying the base's roughness."""
-    vor = tree.nodes.new("ShaderNodeTexVoronoi")
-    vor.inputs["Scale"].default_value = 400.0
-    rng = tree.nodes.new("ShaderNodeMapRange")
-    rng.inputs["To Min"].default_value = 0.26
-    rng.inputs["To Max"].default_value = 0.4
-    tree.links.new(vor.outputs["Distance"], rng.inputs["Value"])
-    tree.links.new(rng.outputs["Result"], bsdf.inputs["Roughness"])
-    vor.location, rng.location = (-700, -200), (-450, -200)
+    _roughness_texture(tree, bsdf, "ShaderNodeTexVoronoi", {"Scale": 400.0}, "Distance",
+                       {"To Min": 0.26, "To Max": 0.4})
 
 
 def _worn_roughness(tree, bsdf):
-    noise = tree.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 4.0
-    noise.inputs["Detail"].default_value = 6.0
-    rng = tree.nodes.new("ShaderNodeMapRange")
-    rng.inputs["From Min"].default_value = 0.35
-    rng.inputs["From Max"].default_value = 0.65
-    rng.inputs["To Min"].default_value = 0.18
-    rng.inputs["To Max"].default_value = 0.5
-    tree.links.new(noise.outputs["Fac"], rng.inputs["Value"])
-    tree.links.new(rng.outputs["Result"], bsdf.inputs["Roughness"])
-    noise.location, rng.location = (-700, -200), (-450, -200)
+    _roughness_texture(tree, bsdf, "ShaderNodeTexNoise", {"Scale": 4.0, "Detail": 6.0}, "Fac",
+                       {"From Min": 0.35, "From Max": 0.65, "To Min": 0.18, "To Max": 0.5})
 
 
 def _radial_tangent(tree, bsdf):

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core import inverse_haze_mapping
-from ..core.conventions import alpha_from_roughness, metallic_anisotropy
+from ..core.conventions import lobe_alphas, metallic_anisotropy
 from ..core.parameters import normalise, normalise_haze
 from . import fallback, layer, material, messages, sync
 from .material import edit_problem, maps_problem
@@ -314,19 +314,8 @@ def find_two_lobe_mix(tree):
 def _lobe_alpha(node):
     """(α_x, α_y, rotation in turns) of a Glossy / Metallic lobe in its node's convention,
     rotated so that α_x >= α_y."""
-    rough = float(np.clip(_value(node, "Roughness", 0.5), 0.0, 1.0))
-    rot = float(_value(node, "Rotation", 0.0))
-    a = float(_value(node, "Anisotropy", 0.0))
-    if node.bl_idname in GLOSSY:
-        a = float(np.clip(a, -0.99, 0.99))
-        k = 1.0 - abs(a)
-        ax, ay = (rough ** 2 * k, rough ** 2 / k) if a >= 0 else (rough ** 2 / k, rough ** 2 * k)
-        ax, ay = min(ax, 1.0), min(ay, 1.0)
-    else:
-        ax, ay = (float(v) for v in alpha_from_roughness(rough, a))
-    if ax < ay:
-        ax, ay, rot = ay, ax, rot + 0.25
-    return ax, ay, rot % 1.0
+    return lobe_alphas(_value(node, "Roughness", 0.5), float(_value(node, "Anisotropy", 0.0)),
+                       float(_value(node, "Rotation", 0.0)), glossy=node.bl_idname in GLOSSY)
 
 
 def _rot_diff(a, b):

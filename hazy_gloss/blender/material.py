@@ -23,11 +23,11 @@ import numpy as np
 
 from .. import constants as K
 from ..core import inverse_haze_mapping
-from ..core.conventions import alpha_from_roughness, metallic_anisotropy
+from ..core.conventions import lobe_alphas, metallic_anisotropy
 from ..core.lobes import describe
 from ..core.parameters import DEFAULTS, is_anisotropic, normalise
 from . import compat, layer, stamp
-from .nodes.builder import TreeBuilder, socket_value
+from .nodes.builder import TreeBuilder, set_if_changed, socket_value
 from .nodes import groups
 from .nodes.groups import ensure_group
 from .nodes.lobes import ANISO_INPUTS, LOBE_NODES, build_lobes, tangent
@@ -346,10 +346,7 @@ def _set(node, name, value):
     sock = node.inputs.get(name)
     if sock is None or sock.is_linked or value is None:
         return
-    v = socket_value(sock, value)
-    current = sock.default_value
-    if (tuple(current) if hasattr(current, "__len__") else current) != v:
-        sock.default_value = v
+    set_if_changed(sock, value)
 
 
 class Write(NamedTuple):
@@ -583,25 +580,13 @@ def _tangent_of(mat, p):
 
 def _lobe_alpha(value, lobe, kind, anisotropic, rotation):
     """(α_x, α_y, rotation) of one lean lobe in its node's convention, long axis along x
-    (``value(role, input)`` reads the lobe's inputs)."""
-    rough = float(np.clip(value(lobe, "Roughness"), 0.0, 1.0))
+    (``value(role, input)`` reads the lobe's inputs; an isotropic one keeps ``rotation``)."""
     if not anisotropic:
-        a = rough * rough
+        a = float(np.clip(value(lobe, "Roughness"), 0.0, 1.0)) ** 2
         return a, a, rotation
     a_name, r_name = ANISO_INPUTS[kind]
-    aniso = float(value(lobe, a_name))
-    rot = float(value(lobe, r_name))
-    if kind == "LEGACY":  # Glossy: a in [-0.99, 0.99], a < 0 stretches along x
-        a = float(np.clip(aniso, -0.99, 0.99))
-        k = 1.0 - abs(a)
-        ax, ay = (rough * rough / k, rough * rough * k) if a <= 0 else \
-            (rough * rough * k, rough * rough / k)
-        ax, ay = min(ax, K.ALPHA_MAX), min(ay, K.ALPHA_MAX)
-    else:
-        ax, ay = (float(v) for v in alpha_from_roughness(rough, aniso))
-    if ax < ay:
-        ax, ay, rot = ay, ax, rot + 0.25
-    return ax, ay, rot
+    return lobe_alphas(value(lobe, "Roughness"), float(value(lobe, a_name)),
+                       float(value(lobe, r_name)), glossy=kind == "LEGACY")
 
 
 def _other_lobe(lobe):

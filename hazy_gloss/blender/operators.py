@@ -74,21 +74,28 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
                                        node=node))
 
 
-class HAZY_GLOSS_OT_remove_haze(bpy.types.Operator):
-    """Take the haze layer off: the material's BSDF gets its own values and links back"""
-
-    bl_idname = "hazy_gloss.remove_haze"
-    bl_label = "Remove Haze"
+class _OneMaterialOperator:
+    """An undoable operator on one material (``material`` by name, else the context's):
+    ``apply(mat)`` does the work and returns what :func:`reports.finish` reports."""
     bl_options = {"REGISTER", "UNDO"}
-
-    material: StringProperty(**_MATERIAL_PROP)
 
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
             report(self, "ERROR", "No material")
             return {"CANCELLED"}
-        return finish(self, *remove_haze(mat))
+        return finish(self, *self.apply(mat))
+
+
+class HAZY_GLOSS_OT_remove_haze(_OneMaterialOperator, bpy.types.Operator):
+    """Take the haze layer off: the material's BSDF gets its own values and links back"""
+
+    bl_idname = "hazy_gloss.remove_haze"
+    bl_label = "Remove Haze"
+    material: StringProperty(**_MATERIAL_PROP)
+
+    def apply(self, mat):
+        return remove_haze(mat)
 
 
 class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
@@ -113,43 +120,32 @@ class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
         return finish(self, *upgrade_layers(mats))
 
 
-class HAZY_GLOSS_OT_add_haziness_map(bpy.types.Operator):
+class HAZY_GLOSS_OT_add_haziness_map(_OneMaterialOperator, bpy.types.Operator):
     """Link a new paintable image to the haze layer's Haziness (or Coat Haziness), filled with
     its current value and made the active Texture Paint slot"""
 
     bl_idname = "hazy_gloss.add_haziness_map"
     bl_label = "Add Haziness Map"
-    bl_options = {"REGISTER", "UNDO"}
 
     material: StringProperty(**_MATERIAL_PROP)
     target: EnumProperty(name="Input", items=(("haziness", "Haziness", "The base's haziness"),
                                               ("coat_haziness", "Coat Haziness", "The coat's")))
     size: bpy.props.IntProperty(name="Size", default=1024, min=16, max=16384)
 
-    def execute(self, context):
-        mat = target_material(context, self.material)
-        if mat is None:
-            report(self, "ERROR", "No material")
-            return {"CANCELLED"}
-        return finish(self, *add_haziness_map(mat, size=self.size, param=self.target))
+    def apply(self, mat):
+        return add_haziness_map(mat, size=self.size, param=self.target)
 
 
-class HAZY_GLOSS_OT_import_two_lobe_mix(bpy.types.Operator):
+class HAZY_GLOSS_OT_import_two_lobe_mix(_OneMaterialOperator, bpy.types.Operator):
     """Read a Mix Shader of two Glossy or two Metallic BSDFs as a hazy material (the inverse
     haze mapping): the sharper lobe becomes the core, the other the halo"""
 
     bl_idname = "hazy_gloss.import_two_lobe_mix"
     bl_label = "Import Two-Lobe Mix"
-    bl_options = {"REGISTER", "UNDO"}
-
     material: StringProperty(**_MATERIAL_PROP)
 
-    def execute(self, context):
-        mat = target_material(context, self.material)
-        if mat is None:
-            report(self, "ERROR", "No material")
-            return {"CANCELLED"}
-        return finish(self, *import_two_lobe_mix(mat))
+    def apply(self, mat):
+        return import_two_lobe_mix(mat)
 
 
 _KIND_ITEMS = [("DEFAULT", "Default", "The kind set in the add-on preferences")] + [

@@ -177,6 +177,27 @@ def draw_haze(layout, hg):
     sub.prop(hg, "smoothness", text="w")
 
 
+def draw_warnings(layout, warns):
+    """A box of the plain-language warnings (nothing when there are none)."""
+    if warns:
+        box = layout.box()
+        for text in warns:
+            box.label(text=text, icon="ERROR")
+
+
+def draw_physical_values(layout, idname, rows):
+    """The closed-by-default "Physical Values" subpanel: a two-column grid of (label, value)
+    rows. Returns the subpanel's body (None while it is closed) for notes below the grid."""
+    header, panel = layout.panel(f"{idname}_physical", default_closed=True)
+    header.label(text="Physical Values")
+    if panel is not None:
+        grid = panel.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
+        for label, value in rows:
+            grid.label(text=label)
+            grid.label(text=value)
+    return panel
+
+
 def draw_material(layout, context, mat, idname):
     """The body of both panels; ``idname`` keeps their collapsible sections apart."""
     prefs = preferences.get(context)
@@ -272,19 +293,10 @@ def draw_material(layout, context, mat, idname):
         box.label(text=plain_message(exc), icon="ERROR")
         return
 
-    warns = warnings_for(mat, p, m, context, prefs)
-    if warns:
-        box = col.box()
-        for text in warns:
-            box.label(text=text, icon="ERROR")
+    draw_warnings(col, warnings_for(mat, p, m, context, prefs))
 
-    header, panel = col.panel(f"{idname}_physical", default_closed=True)
-    header.label(text="Physical Values")
+    panel = draw_physical_values(col, idname, mapped_values(p, m))
     if panel is not None:
-        grid = panel.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
-        for label, value in mapped_values(p, m):
-            grid.label(text=label)
-            grid.label(text=value)
         if p["shader_mapping"] and properties.has_hazy_nodes(mat):
             group = material.ours(mat.node_tree).get(material.GROUP_ROLE)
             if group is not None and any(s.is_linked for s in group.inputs
@@ -410,18 +422,9 @@ def draw_layer(layout, context, mat, idname, hg, problem):
     body.operator("hazy_gloss.add_haziness_map", icon="BRUSH_DATA")
     draw_eevee(body, mat, hg)
 
-    warns = layer_warnings(info, context)
-    if warns:
-        box = col.box()
-        for text in warns:
-            box.label(text=text, icon="ERROR")
-    header, panel = col.panel(f"{idname}_physical", default_closed=True)
-    header.label(text="Physical Values")
+    draw_warnings(col, layer_warnings(info, context))
+    panel = draw_physical_values(col, idname, layer_rows(info))
     if panel is not None:
-        grid = panel.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
-        for label, value in layer_rows(info):
-            grid.label(text=label)
-            grid.label(text=value)
         if info["textured"]:
             panel.label(text="For the unlinked values; linked inputs vary them per pixel",
                         icon="TEXTURE")
@@ -458,40 +461,37 @@ def _context_material(context):
     return target_material(context)
 
 
-class HAZY_GLOSS_PT_material(bpy.types.Panel):
-    bl_label = "Hazy Gloss"
-    bl_idname = "HAZY_GLOSS_PT_material"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "material"
+def _in_material_properties(context):
+    return getattr(context, "material", None) is not None or \
+        getattr(context, "object", None) is not None
 
-    @classmethod
-    def poll(cls, context):
-        return getattr(context, "material", None) is not None or \
-            getattr(context, "object", None) is not None
 
+def _in_object_shader_editor(context):
+    space = getattr(context, "space_data", None)
+    if space is None or getattr(space, "tree_type", "") != "ShaderNodeTree":
+        return False
+    if getattr(space, "shader_type", "OBJECT") != "OBJECT":
+        return False
+    return _context_material(context) is not None or getattr(context, "object", None) is not None
+
+
+def _material_panel(idname, subpanel_prefix, shown, **placement):
+    """The Hazy Gloss material panel class ``idname``: placed by ``placement`` (bl_space_type,
+    bl_region_type...), polled by ``shown(context)``, its subpanels named by the prefix."""
     def draw(self, context):
-        draw_material(self.layout, context, _context_material(context), "hazy_gloss_material")
+        draw_material(self.layout, context, _context_material(context), subpanel_prefix)
+
+    return type(idname, (bpy.types.Panel,), dict(
+        bl_label="Hazy Gloss", bl_idname=idname, **placement,
+        poll=classmethod(lambda cls, context: shown(context)), draw=draw))
 
 
-class HAZY_GLOSS_PT_shader_editor(bpy.types.Panel):
-    bl_label = "Hazy Gloss"
-    bl_idname = "HAZY_GLOSS_PT_shader_editor"
-    bl_space_type = "NODE_EDITOR"
-    bl_region_type = "UI"
-    bl_category = "Hazy Gloss"
-
-    @classmethod
-    def poll(cls, context):
-        space = getattr(context, "space_data", None)
-        if space is None or getattr(space, "tree_type", "") != "ShaderNodeTree":
-            return False
-        if getattr(space, "shader_type", "OBJECT") != "OBJECT":
-            return False
-        return _context_material(context) is not None or getattr(context, "object", None) is not None
-
-    def draw(self, context):
-        draw_material(self.layout, context, _context_material(context), "hazy_gloss_node")
+HAZY_GLOSS_PT_material = _material_panel(
+    "HAZY_GLOSS_PT_material", "hazy_gloss_material", _in_material_properties,
+    bl_space_type="PROPERTIES", bl_region_type="WINDOW", bl_context="material")
+HAZY_GLOSS_PT_shader_editor = _material_panel(
+    "HAZY_GLOSS_PT_shader_editor", "hazy_gloss_node", _in_object_shader_editor,
+    bl_space_type="NODE_EDITOR", bl_region_type="UI", bl_category="Hazy Gloss")
 
 
 class HAZY_GLOSS_PT_recomposite(bpy.types.Panel):

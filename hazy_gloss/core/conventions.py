@@ -20,6 +20,24 @@ def alpha_from_roughness(roughness, anisotropy=0.0):
     return np.minimum(alpha / s, ALPHA_MAX), np.minimum(alpha * s, ALPHA_MAX)
 
 
+def lobe_alphas(roughness, anisotropy, rotation, glossy):
+    """(α_x, α_y, rotation in turns in [0, 1)) of one lobe node's Roughness, Anisotropy and
+    Rotation: a Glossy BSDF's convention when ``glossy``, else the Metallic / Principled one;
+    the long axis along x (a quarter turn more when it was y)."""
+    rough = float(np.clip(roughness, 0.0, 1.0))
+    if glossy:
+        a = float(np.clip(anisotropy, -0.99, 0.99))
+        k = 1.0 - abs(a)
+        ax, ay = (rough * rough / k, rough * rough * k) if a <= 0 else \
+            (rough * rough * k, rough * rough / k)
+        ax, ay = min(ax, ALPHA_MAX), min(ay, ALPHA_MAX)
+    else:
+        ax, ay = (float(v) for v in alpha_from_roughness(rough, anisotropy))
+    if ax < ay:
+        ax, ay, rotation = ay, ax, rotation + 0.25
+    return ax, ay, rotation % 1.0
+
+
 def lobe_from_alpha(alpha_x, alpha_y):
     """(R, ratio, swap): R = (α_x α_y)^(1/4), ratio = short/long axis in (0, 1], swap = True when
     the long axis is y (then the lobe's rotation needs +0.25 turn)."""

@@ -92,6 +92,15 @@ def _const_key(value):
     return tuple(float(v) for v in np.ravel(value))
 
 
+def _math_node(op, doc):
+    """A :class:`Graph` method making the scalar Math node ``op`` of its operands (keywords as
+    :meth:`Graph.math`)."""
+    def method(self, *args, **kw):
+        return self.math(op, *args, **kw)
+    method.__doc__ = doc
+    return method
+
+
 class Graph:
     """Builds expressions, folding constants and merging duplicates (hash-consing)."""
 
@@ -158,39 +167,17 @@ class Graph:
             raise TypeError(f"Math {op} on a vector operand")
         return self._make(op, args, vector=False, clamp=clamp, label=label)
 
-    def add(self, a, b, **kw):
-        return self.math("ADD", a, b, **kw)
-
-    def sub(self, a, b, **kw):
-        return self.math("SUBTRACT", a, b, **kw)
-
-    def mul(self, a, b, **kw):
-        return self.math("MULTIPLY", a, b, **kw)
-
-    def div(self, a, b, **kw):
-        return self.math("DIVIDE", a, b, **kw)
-
-    def madd(self, a, b, c, **kw):
-        """a * b + c."""
-        return self.math("MULTIPLY_ADD", a, b, c, **kw)
-
-    def sqrt(self, a, **kw):
-        return self.math("SQRT", a, **kw)
-
-    def minimum(self, a, b, **kw):
-        return self.math("MINIMUM", a, b, **kw)
-
-    def maximum(self, a, b, **kw):
-        return self.math("MAXIMUM", a, b, **kw)
-
-    def less(self, a, b, **kw):
-        """1 if a < b else 0."""
-        return self.math("LESS_THAN", a, b, **kw)
-
-    def clamp(self, a, lo, hi, **kw):
-        """min(max(a, lo), hi), NaN -> lo (one Clamp node; ``lo``, ``hi`` may be expressions:
-        lo <= hi is the caller's to keep)."""
-        return self.math("CLAMP", a, lo, hi, **kw)
+    add = _math_node("ADD", "a + b.")
+    sub = _math_node("SUBTRACT", "a - b.")
+    mul = _math_node("MULTIPLY", "a * b.")
+    div = _math_node("DIVIDE", "a / b.")
+    madd = _math_node("MULTIPLY_ADD", "a * b + c.")
+    sqrt = _math_node("SQRT", "sqrt(a).")
+    minimum = _math_node("MINIMUM", "min(a, b).")
+    maximum = _math_node("MAXIMUM", "max(a, b).")
+    less = _math_node("LESS_THAN", "1 if a < b else 0.")
+    clamp = _math_node("CLAMP", "min(max(a, lo), hi), NaN -> lo (one Clamp node; ``lo``, ``hi`` may "
+                       "be expressions: lo <= hi is the caller's to keep).")
 
     def at_least(self, a, lo, **kw):
         """max(a, lo) for a known finite (not ±inf): a Clamp node, cheaper than Maximum."""

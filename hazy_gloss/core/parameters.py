@@ -71,11 +71,21 @@ def _numbers_in(text):
         return None
 
 
+def _refuse_string(name, text, expected, group=None):
+    """Fail on a string given where ``expected`` (words) belongs, with a hint how to write the
+    number, or the ``group`` = (word, size) of numbers (e.g. ("triple", 3)), the string spells."""
+    nums = _numbers_in(text)
+    hint = ""
+    if nums and group is not None and len(nums) == group[1]:
+        hint = f" (write the {group[0]} ({', '.join(f'{v:g}' for v in nums)}))"
+    elif nums and len(nums) == 1:
+        hint = f" (write {nums[0]:g}, a number, not a string)"
+    _fail(f"{name} must be {expected}, got the string {_short(text)}{hint}")
+
+
 def _number(name, value):
     if isinstance(value, str):
-        nums = _numbers_in(value)
-        hint = f" (write {nums[0]:g}, a number, not a string)" if nums and len(nums) == 1 else ""
-        _fail(f"{name} must be a number, got the string {_short(value)}{hint}")
+        _refuse_string(name, value, "a number")
     if isinstance(value, bool) or value is None:
         _fail(f"{name} must be a number, got {_short(value)}")
     try:
@@ -102,14 +112,7 @@ def _in_range(name, x):
 
 def _colour(name, value):
     if isinstance(value, str):
-        nums = _numbers_in(value)
-        hint = ""
-        if nums and len(nums) == 3:
-            hint = f" (write the tuple ({', '.join(f'{v:g}' for v in nums)}))"
-        elif nums and len(nums) == 1:
-            hint = f" (write {nums[0]:g}, a number, not a string)"
-        _fail(f"{name} must be a number or an RGB triple of numbers, got the string "
-              f"{_short(value)}{hint}")
+        _refuse_string(name, value, "a number or an RGB triple of numbers", ("tuple", 3))
     if isinstance(value, dict) or value is None:
         _fail(f"{name} must be a number or an RGB triple of numbers, got {_short(value)}")
     if np.ndim(value) == 0 and not isinstance(value, (list, tuple)):
@@ -136,14 +139,7 @@ def _colour(name, value):
 
 def _extent(value, name="haze_extent"):
     if isinstance(value, str):
-        nums = _numbers_in(value)
-        hint = ""
-        if nums and len(nums) == 2:
-            hint = f" (write the pair ({nums[0]:g}, {nums[1]:g}))"
-        elif nums and len(nums) == 1:
-            hint = f" (write {nums[0]:g}, a number, not a string)"
-        _fail(f"{name} must be a number or an (x, y) pair of numbers, got the string "
-              f"{_short(value)}{hint}")
+        _refuse_string(name, value, "a number or an (x, y) pair of numbers", ("pair", 2))
     if isinstance(value, (tuple, list, np.ndarray)):
         if len(value) != 2:
             hint = f" (for one extent in both directions write {name}={_short(value[0])})" \
@@ -176,6 +172,16 @@ def _choice(name, value, options):
     return v
 
 
+def _refuse_unknown(what, unknown, valid):
+    """Fail on the ``unknown`` names (of a ``what``), each with the closest ``valid`` one."""
+    parts = []
+    for name in unknown:
+        close = difflib.get_close_matches(str(name), valid, n=1)
+        parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+    _fail(f"unknown {what}{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
+          f"valid: {', '.join(valid)}")
+
+
 def normalise(params, explicit=None):
     """Fill the defaults and check one material's parameters; returns a new dict.
 
@@ -186,12 +192,7 @@ def normalise(params, explicit=None):
         _fail(f"parameters must be a dict, got {type(params).__name__}")
     unknown = sorted(set(params) - set(PARAMETERS))
     if unknown:
-        parts = []
-        for name in unknown:
-            close = difflib.get_close_matches(str(name), PARAMETERS, n=1)
-            parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
-        _fail(f"unknown hazy parameter{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
-              f"valid: {', '.join(PARAMETERS)}")
+        _refuse_unknown("hazy parameter", unknown, PARAMETERS)
     p = dict(DEFAULTS)
     p.update(params)
     p["kind"] = _choice("kind", p["kind"], K.KINDS)
@@ -232,12 +233,7 @@ def normalise_haze(params, current=None):
             _fail(f"{', '.join(core)} of a haze layer belong{'s' if len(core) == 1 else ''} to "
                   f"its BSDF node: edit the node itself (Hazy Gloss follows it); the layer's own "
                   f"parameters are {', '.join(HAZE_PARAMETERS)}")
-        parts = []
-        for name in unknown:
-            close = difflib.get_close_matches(str(name), HAZE_PARAMETERS, n=1)
-            parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
-        _fail(f"unknown haze parameter{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
-              f"valid: {', '.join(HAZE_PARAMETERS)}")
+        _refuse_unknown("haze parameter", unknown, HAZE_PARAMETERS)
     h = dict(HAZE_DEFAULTS if current is None else current)
     h.update(params)
     for name in ("haziness", "coat_haziness", "reflectivity_cap"):

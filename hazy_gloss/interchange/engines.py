@@ -79,6 +79,12 @@ def _alphas(lobes):
     return (tuple(_f(a) for a in m.alpha), tuple(_f(a) for a in m.alpha_wide))
 
 
+def _fit_inputs(lobes):
+    """What every engine fit starts from: the core's and the wide lobe's (α_x, α_y), β and the
+    reflectivity r (RGB)."""
+    return _alphas(lobes), _f(lobes.beta), _rgb(lobes.mapping.reflectivity)
+
+
 def _fresnel_of(lobes):
     """F(cos θ_d) of the material: conductor η, κ; Principled dielectric; legacy r."""
     m = lobes.mapping
@@ -163,10 +169,7 @@ def openpbr_anisotropy(r, a):
 
 def unity_stacklit(lobes, max_dielectric_f0=K.UNITY_MAX_DIELECTRIC_F0):
     """Unity HDRP StackLit, Dual Specular Lobe = Hazy Gloss."""
-    m = lobes.mapping
-    (ax, ay), (wx, wy) = _alphas(lobes)
-    beta = _f(lobes.beta)
-    r = _rgb(m.reflectivity)
+    ((ax, ay), (wx, wy)), beta, r = _fit_inputs(lobes)
     notes = []
     inv = inverse_haze_mapping(beta, (ax, ay), (wx, wy), reflectivity=r, distribution="GGX",
                                smoothness=K.UNITY_HAZE_BEZIER_W, alpha_max=K.ALPHA_MAX)
@@ -209,10 +212,7 @@ def unity_stacklit(lobes, max_dielectric_f0=K.UNITY_MAX_DIELECTRIC_F0):
 
 def ue_substrate(lobes):
     """Unreal Engine 5 Substrate slab with a second roughness."""
-    m = lobes.mapping
-    (ax, ay), (wx, wy) = _alphas(lobes)
-    beta = _f(lobes.beta)
-    r = _rgb(m.reflectivity)
+    ((ax, ay), (wx, wy)), beta, r = _fit_inputs(lobes)
     notes = []
     fres = _fresnel_of(lobes)
     if lobes.kind == "LEGACY":
@@ -275,10 +275,8 @@ class _ClearCoat:
 def filament(lobes):
     """Filament (released): the core lobe alone; the clear-coat fit as an alternative."""
     m = lobes.mapping
-    (ax, ay), (wx, wy) = _alphas(lobes)
-    beta = _f(lobes.beta)
+    ((ax, ay), (wx, wy)), beta, r = _fit_inputs(lobes)
     rc = _rgb(m.core_reflectivity)
-    r = _rgb(m.reflectivity)
     notes = ["no second specular lobe in released Filament (secondRoughness / "
              "secondRoughnessWeight are announced for apiLevel 2 without a documented model)"]
     rho, a = _tb_from_alpha(ax, ay)
@@ -325,9 +323,7 @@ def filament(lobes):
 def openpbr_12(lobes):
     """OpenPBR 1.2 with specular_haze (dev_1.2 branch)."""
     m = lobes.mapping
-    (ax, ay), (wx, wy) = _alphas(lobes)
-    beta = _f(lobes.beta)
-    r = _rgb(m.reflectivity)
+    ((ax, ay), (wx, wy)), beta, r = _fit_inputs(lobes)
     notes = []
     swap = ay > ax
     t, b = (ay, ax) if swap else (ax, ay)  # OpenPBR's tangent is the long axis

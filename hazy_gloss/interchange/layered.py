@@ -290,6 +290,17 @@ class Writer:
         if text not in self.notes:
             self.notes.append(text)
 
+    def inverse_of_constants(self, inverse, values, note):
+        """``inverse`` (a value and its residual) of constant ``values`` as a float constant,
+        with the note ``note(residual)`` when it is not exact; None when a value is not a
+        constant (the caller builds nodes)."""
+        if not all(v.is_const for v in values):
+            return None
+        value, residual = inverse(*(v.const for v in values))
+        if abs(residual) > 1e-6:
+            self.note(note(residual))
+        return _c("float", value)
+
     def name(self, base):
         return valid_name(base, self.taken)
 
@@ -1071,33 +1082,16 @@ class Writer:
             r_e, a_o = self._openpbr_inverse_nodes(rough, aniso, n)
         # under a coat: undo OpenPBR's roughening and its coat-relative base IOR
         if coated:
-            if r_e.is_const and coat_r.is_const and coat_w.is_const:
-                r_o, res = coat_roughness_inverse(r_e.const, coat_r.const, coat_w.const)
-                if abs(res) > 1e-6:
-                    self.note(f"“{n}”: the coat roughens OpenPBR's base beyond its roughness "
-                              f"{_fmt(r_e.const)} (coat roughness {_fmt(coat_r.const)}): written at 0")
-                r_e = _c("float", r_o)
-            else:  # exact at coat weight 0 and 1: mix(r, (max(r⁴ - 2 c⁴, 0))^¼, w)
-                r4 = self.mul(self.mul(r_e, r_e, n + "_r2"), self.mul(r_e, r_e, n + "_r2b"), n + "_r4")
-                c2 = self.mul(coat_r, coat_r, n + "_c2")
-                c4 = self.mul(self.mul(c2, c2, n + "_c4"), _c("float", 2.0), n + "_2c4")
-                inner = self.maximum(self.sub(r4, c4, n + "_r4c4"), _c("float", 0.0), n + "_pos")
-                un = self.sqrt(self.sqrt(inner, n + "_q2"), n + "_q4")
-                r_e = self.mix(self.clamp(coat_w, base=n + "_coat_w01"), r_e, un, n + "_uncoated")
-                if not coat_w.is_const:
-                    self.note(f"“{n}”: textured Coat Weight: OpenPBR's coat roughening and base IOR "
-                              f"are undone exactly at weights 0 and 1 only")
-            if ior.is_const and coat_ior.is_const and coat_w.is_const:
-                e_o, res = coat_ior_inverse(ior.const, coat_ior.const, coat_w.const)
-                if abs(res) > 1e-6:
-                    self.note(f"“{n}”: no specular_ior gives OpenPBR's coat-relative IOR "
-                              f"{_fmt(ior.const)}: off by {res:.3g}")
-                ior = _c("float", e_o)
-            else:  # the branch η_o ≥ η_c: η / ((1-w) + w/η_c)
-                w = self.clamp(coat_w, base=n + "_coat_wi")
-                den = self.add(self.sub(_c("float", 1.0), w, n + "_1mw"), self.div(w, coat_ior, n + "_w_c"),
-                               n + "_den")
-                ior = self.div(ior, den, n + "_ior_coated")
+            r_e = self.inverse_of_constants(
+                coat_roughness_inverse, (r_e, coat_r, coat_w),
+                lambda res: f"“{n}”: the coat roughens OpenPBR's base beyond its roughness "
+                            f"{_fmt(r_e.const)} (coat roughness {_fmt(coat_r.const)}): written at 0") \
+                or self._uncoated_roughness_nodes(r_e, coat_r, coat_w, n)
+            ior = self.inverse_of_constants(
+                coat_ior_inverse, (ior, coat_ior, coat_w),
+                lambda res: f"“{n}”: no specular_ior gives OpenPBR's coat-relative IOR "
+                            f"{_fmt(ior.const)}: off by {res:.3g}") \
+                or self._uncoated_ior_nodes(ior, coat_ior, coat_w, n)
         # specular_weight: Principled's Specular IOR Level acts on the dielectric only
         if metallic.is_const and float(metallic.const) >= 1.0:
             spec_w = _c("float", 1.0)
@@ -1174,6 +1168,27 @@ class Writer:
                 self.note(f"“{n}”: OpenPBR's coat_color tints by a constant factor, Cycles' Coat Tint "
                           f"by tint^(1/cos θ_t) (the same at normal incidence)")
         return s
+
+    def _uncoated_roughness_nodes(self, r_e, coat_r, coat_w, n):
+        """OpenPBR's coat roughening undone in nodes, exact at coat weight 0 and 1:
+        mix(r, (max(r⁴ - 2 c⁴, 0))^¼, w)."""
+        r4 = self.mul(self.mul(r_e, r_e, n + "_r2"), self.mul(r_e, r_e, n + "_r2b"), n + "_r4")
+        c2 = self.mul(coat_r, coat_r, n + "_c2")
+        c4 = self.mul(self.mul(c2, c2, n + "_c4"), _c("float", 2.0), n + "_2c4")
+        inner = self.maximum(self.sub(r4, c4, n + "_r4c4"), _c("float", 0.0), n + "_pos")
+        un = self.sqrt(self.sqrt(inner, n + "_q2"), n + "_q4")
+        if not coat_w.is_const:
+            self.note(f"“{n}”: textured Coat Weight: OpenPBR's coat roughening and base IOR "
+                      f"are undone exactly at weights 0 and 1 only")
+        return self.mix(self.clamp(coat_w, base=n + "_coat_w01"), r_e, un, n + "_uncoated")
+
+    def _uncoated_ior_nodes(self, ior, coat_ior, coat_w, n):
+        """OpenPBR's coat-relative base IOR undone in nodes, the branch η_o ≥ η_c:
+        η / ((1-w) + w/η_c)."""
+        w = self.clamp(coat_w, base=n + "_coat_wi")
+        den = self.add(self.sub(_c("float", 1.0), w, n + "_1mw"), self.div(w, coat_ior, n + "_w_c"),
+                       n + "_den")
+        return self.div(ior, den, n + "_ior_coated")
 
     def _openpbr_inverse_nodes(self, rough, aniso, n):
         """Node form of openpbr_inverse(principled_alpha(R, A)) (α clamps at 1 not modelled)."""

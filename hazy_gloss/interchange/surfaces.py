@@ -1081,6 +1081,18 @@ def apply_owned(s, owned):
                 s.set(socket, v)
 
 
+def _set_base(s, weight, subsurface, transmission, metalness, diffuse_roughness):
+    """The base layer OpenPBR and standard_surface share, by their input names: Base Color
+    (base_color times ``weight``, with the ``subsurface`` and ``transmission`` (weight, colour,
+    name) tints), Metallic and Diffuse Roughness.  Returns the base colour and the metalness."""
+    base = s.b.mul(s.v("base_color"), s.v(weight))
+    s.set("Base Color", _base_colour(s, base, (subsurface, transmission)), 3)
+    metal = s.v(metalness)
+    s.set("Metallic", metal, 1)
+    s.set("Diffuse Roughness", s.v(diffuse_roughness), 1)
+    return base, metal
+
+
 def openpbr(doc, node, graph, name, notes, owned=None):
     """open_pbr_surface (1.1.1; 1.2 draft: specular_haze, emission_weight).  ``owned``: the
     record of a layered document (the user's values of the inputs the layer owns)."""
@@ -1088,12 +1100,9 @@ def openpbr(doc, node, graph, name, notes, owned=None):
     b = s.b
     v = s.v
     version = str(node.attrs.get("version", "1.1"))
-    base = b.mul(v("base_color"), v("base_weight"))
-    s.set("Base Color", _base_colour(s, base, (("subsurface_weight", "subsurface_color", "subsurface"),
-                                                ("transmission_weight", "transmission_color", "transmission"))), 3)
-    metal = v("base_metalness")
-    s.set("Metallic", metal, 1)
-    s.set("Diffuse Roughness", v("base_diffuse_roughness"), 1)
+    _, metal = _set_base(s, "base_weight", ("subsurface_weight", "subsurface_color", "subsurface"),
+                        ("transmission_weight", "transmission_color", "transmission"),
+                        "base_metalness", "base_diffuse_roughness")
     spec_w = v("specular_weight")
     s.set("Specular IOR Level", b.mul(spec_w, C(0.5)), 1)
     if not (spec_w.is_const and spec_w.const == 1.0) and not (metal.is_const and metal.const == 0.0):
@@ -1210,12 +1219,9 @@ def standard_surface(doc, node, graph, name, notes):
     s = _Surface(doc, node, graph, name, notes)
     b = s.b
     v = s.v
-    base = b.mul(v("base_color"), v("base"))
-    s.set("Base Color", _base_colour(s, base, (("subsurface", "subsurface_color", "subsurface"),
-                                                ("transmission", "transmission_color", "transmission"))), 3)
-    metal = v("metalness")
-    s.set("Metallic", metal, 1)
-    s.set("Diffuse Roughness", v("diffuse_roughness"), 1)
+    base, metal = _set_base(s, "base", ("subsurface", "subsurface_color", "subsurface"),
+                            ("transmission", "transmission_color", "transmission"),
+                            "metalness", "diffuse_roughness")
     s.set("Specular IOR Level", b.mul(v("specular"), C(0.5)), 1)
     spec_c = v("specular_color")
     if metal.is_const and metal.const >= 1.0 and base.is_const and spec_c.is_const:

@@ -95,6 +95,15 @@ class TreeBuilder:
         self.links.new(out_socket, in_socket)
 
 
+def set_if_changed(socket, value):
+    """Give ``socket`` the ``value`` (in its form: :func:`socket_value`) unless it has it
+    already (each set updates the whole tree)."""
+    value = socket_value(socket, value)
+    current = socket.default_value
+    if (tuple(current) if hasattr(current, "__len__") else current) != value:
+        socket.default_value = value
+
+
 def socket_value(socket, value):
     """``value`` in the form ``socket.default_value`` takes (RGBA colours, 3-vectors)."""
     if socket.type == "RGBA":

@@ -164,26 +164,28 @@ def restore_group_users(found):
                 tree.links.new(node.outputs[sname], dst)
 
 
-def _rebuild_interface(ng, kind, anisotropic, smooth):
-    """Give ``ng`` this configuration's interface.  A group being rebuilt (an outdated version
-    in the user's file) keeps its sockets when they are the same, so every link and value its
-    group nodes have stays; otherwise the interface is made anew and the group nodes' links
-    and values are put back by socket name."""
+def rebuild_interface(ng, make_interface, update_sockets=True):
+    """Give ``ng`` the interface ``make_interface(tree)`` makes.  A group being rebuilt (an
+    outdated version in the user's file) keeps its sockets when they are the same, so every
+    link and value its group nodes have stays (``update_sockets``: their defaults, ranges and
+    descriptions become the new ones); otherwise the interface is made anew and the group
+    nodes' links and values are put back by socket name."""
     if not len(ng.interface.items_tree):
-        _interface(ng, kind, anisotropic, smooth)
+        make_interface(ng)
         return
     tmp = bpy.data.node_groups.new(".Hazy Gloss interface", "ShaderNodeTree")
     try:
-        _interface(tmp, kind, anisotropic, smooth)
+        make_interface(tmp)
         if _interface_items(ng.interface) == _interface_items(tmp.interface):
-            for have, want in zip(ng.interface.items_tree, tmp.interface.items_tree):
-                for attr in _SOCKET_ATTRS:
-                    if hasattr(want, attr) and hasattr(have, attr):
-                        setattr(have, attr, getattr(want, attr))
+            if update_sockets:
+                for have, want in zip(ng.interface.items_tree, tmp.interface.items_tree):
+                    for attr in _SOCKET_ATTRS:
+                        if hasattr(want, attr) and hasattr(have, attr):
+                            setattr(have, attr, getattr(want, attr))
             return
         found = group_users(ng)
         ng.interface.clear()
-        _interface(ng, kind, anisotropic, smooth)
+        make_interface(ng)
         restore_group_users(found)
     finally:
         bpy.data.node_groups.remove(tmp)
@@ -191,7 +193,7 @@ def _rebuild_interface(ng, kind, anisotropic, smooth):
 
 def build_group(ng, kind, distribution, anisotropic, smooth):
     ng.nodes.clear()
-    _rebuild_interface(ng, kind, anisotropic, smooth)
+    rebuild_interface(ng, lambda tree: _interface(tree, kind, anisotropic, smooth))
     gin = ng.nodes.new("NodeGroupInput")
     gin.location = (-300, 0)
     gout = ng.nodes.new("NodeGroupOutput")
