@@ -137,7 +137,7 @@ def run_conversion(api, paths, out):
     return time.perf_counter() - t, res
 
 
-def run_floor(bconv, core, paths, out, outputs):
+def run_floor(binputs, boutputs, core, paths, out, outputs):
     """The conversion's image I/O without the mapping: the same sources read (strips, decoding),
     the same arrays written and verified by the same strip writers (the conversion's renames
     into place are left out)."""
@@ -145,17 +145,17 @@ def run_floor(bconv, core, paths, out, outputs):
     t = time.perf_counter()
     specs, _ = core.resolve_inputs(paths)
     warnings = []
-    oiio = bconv.openimageio()
+    oiio = binputs.openimageio()
     for name, spec in specs.items():
         if not spec.is_constant:
-            r = bconv._Source(name, spec.role, spec.source).strips(None, warnings, oiio)
+            r = binputs._Source(name, spec.role, spec.source).strips(None, warnings, oiio)
             rows = S.strip_rows(r.width)
             for y0 in range(0, r.height, rows):
                 r.rows(y0, min(r.height, y0 + rows))
             r.close()
     for name, values in outputs.items():
         h, w = values.shape[:2]
-        f = bconv._MapFile("OPEN_EXR", "ZIP", str(out / f"{name}.exr"), str(out / f"{name}.exr"), w, h)
+        f = boutputs._MapFile("OPEN_EXR", "ZIP", str(out / f"{name}.exr"), str(out / f"{name}.exr"), w, h)
         rows = S.strip_rows(w)
         flipped = values[::-1]  # file order
         for y0 in range(0, h, rows):
@@ -164,12 +164,12 @@ def run_floor(bconv, core, paths, out, outputs):
     return time.perf_counter() - t
 
 
-def read_inputs(bconv, core, paths):
+def read_inputs(binputs, core, paths):
     specs, _ = core.resolve_inputs(paths)
     arrays, warnings = {}, []
     for name, spec in specs.items():
         arrays[name] = spec.source if spec.is_constant else \
-            bconv._Source(name, spec.role, spec.source).read(None, warnings)  # whole, via Blender
+            binputs._Source(name, spec.role, spec.source).read(None, warnings)  # whole, via Blender
     return arrays
 
 
@@ -207,7 +207,7 @@ def main(argv=None):
     import numpy as np
     from hazy_gloss import api
     from hazy_gloss import convert as core
-    from hazy_gloss.blender import convert as bconv
+    from hazy_gloss.blender import convert_inputs as binputs, convert_outputs as boutputs
 
     n = args.size
     tmp = Path(tempfile.mkdtemp(prefix="hg_bench_convert_"))
@@ -217,7 +217,7 @@ def main(argv=None):
     paths = make_inputs(bpy, tmp / "in", n)
     print(f"  generated in {time.perf_counter() - t:.1f} s", flush=True)
 
-    arrays = read_inputs(bconv, core, paths)
+    arrays = read_inputs(binputs, core, paths)
     mapped = core.map_textures(arrays, kind="CONDUCTOR")
     outputs = dict(mapped.maps)
     in_channels = sum(3 if np.ndim(a) == 3 else 1 for a in arrays.values())
@@ -240,7 +240,7 @@ def main(argv=None):
                 report = res.report
                 print(f"A round {r}: {dt:.2f} s, peak +{(peak or 0) / 2**30:.2f} GiB", flush=True)
             elif which == "B":
-                dt = run_floor(bconv, core, paths, out, outputs)
+                dt = run_floor(binputs, boutputs, core, paths, out, outputs)
                 b_times.append(dt)
                 print(f"B round {r}: {dt:.2f} s", flush=True)
             elif which == "C":

@@ -59,7 +59,7 @@ import bpy
 import numpy as np
 from hazy_gloss import api, imagestream as S
 from hazy_gloss import convert as core
-from hazy_gloss.blender import convert as bc
+from hazy_gloss.blender import convert as bc, convert_inputs as bin_, convert_outputs as bout
 
 def status(key):
     for line in open("/proc/self/status"):
@@ -70,7 +70,7 @@ paths = {"core_reflectivity": folder + "/rc.png", "roughness": folder + "/rough.
          "haziness": folder + "/haze.exr"}
 if mode == "floor":
     specs, _ = core.resolve_inputs(paths)
-    sources = {n: bc._Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
+    sources = {n: bin_._Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
     report = core.ConversionReport(kind="CONDUCTOR", distribution="GGX", file_format=fmt)
     run = bc._Run(specs, sources, False, False, report, core.Progress(), False, 1 << 18)
     readers, (w, h) = run.open(None)
@@ -93,8 +93,8 @@ if mode == "floor":
     readers, _ = run.open(None)
     codec = "ZIP"
     ext = ".png" if fmt == "PNG" else ".exr"
-    files = {s.name: bc._MapFile(fmt, codec, os.path.join(out, s.name + ext),
-                                 os.path.join(out, s.name + ext), w, h) for s in out_specs}
+    files = {s.name: bout._MapFile(fmt, codec, os.path.join(out, s.name + ext),
+                                   os.path.join(out, s.name + ext), w, h) for s in out_specs}
 
     def read(y0, y1):
         return run._arrays(readers, y0, y1)
@@ -169,7 +169,7 @@ def make_set(folder, n):
     _child([_MAKE, str(ROOT), str(folder), str(n)])
     # the colour input as an 8-bit sRGB PNG, converted by Blender's OpenImageIO (streamed)
     _child(["import sys, bpy; sys.path.insert(0, sys.argv[1]);"
-            "from hazy_gloss.blender.convert import openimageio as o; oi = o();"
+            "from hazy_gloss.blender.convert_inputs import openimageio as o; oi = o();"
             "inp = oi.ImageInput.open(sys.argv[2]); spec = oi.ImageSpec(inp.spec().width, "
             "inp.spec().height, 3, oi.UINT8); out = oi.ImageOutput.create(sys.argv[3]);"
             "out.open(sys.argv[3], spec);"

@@ -38,7 +38,8 @@ ROLES = {
     "base": ("Blender versions, stamps, messages and reports", ("", "compat", "stamp", "messages", "reports")),
     "model": ("hazy materials in Blender: build, read, update", (
         "material", "layer", "layer_group", "legacy_layer", "surface_build",
-        "convert", "composite", "fallback")),
+        "convert", "convert_inputs", "convert_outputs", "convert_wiring", "composite",
+        "fallback")),
     "actions": ("what the operators and the API do", (
         "make_hazy", "edit", "sync", "convert_pbr", "interchange", "looks", "eevee_layer", "cli")),
     "ui": ("operators, panels, menus, properties, registration", (

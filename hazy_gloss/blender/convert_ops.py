@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The texture batch-conversion operator (the conversion itself is blender/convert.py)."""
+"""The texture batch-conversion operator (the conversion itself is blender/convert.py and
+the convert_inputs, convert_outputs and convert_wiring modules it uses)."""
 import os
 import re
 import tempfile
@@ -13,8 +14,9 @@ from .. import constants as K
 from .. import convert as core
 from ..convert import ConversionError
 from . import compat
-from .convert import convert_maps_steps, wire_material
+from .convert import convert_maps_steps
 from .convert_pbr import convert_library_steps, convert_set_steps
+from .convert_wiring import wire_material
 
 # --------------------------------------------------------------------------------------------
 # Operator

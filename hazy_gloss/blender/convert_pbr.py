@@ -7,8 +7,8 @@ the maps; an input the user linked to something else is refused, never replaced)
 layer is the one Make Hazy builds (blender.layer): its outputs (the raised IOR / Base Color, the
 wide roughness, β per part, the coat's) are computed by the layer's own graph (core.graph:
 the node math of the in-shader layer, evaluated in numpy with Blender's float32 semantics) over
-every texel and written as maps, all or nothing (blender.convert's transaction); the layer then
-reads those maps instead of node math.  A Metallic map splits the material per texel into its
+every texel and written as maps, all or nothing (blender.convert_outputs' transaction); the
+layer then reads those maps instead of node math.  A Metallic map splits the material per texel into its
 dielectric and metal parts, each with its own β map.
 """
 from __future__ import annotations
@@ -26,9 +26,11 @@ from ..core import layer_graph
 from ..core.graph import evaluate
 from ..core.parameters import HAZE_DEFAULTS, RANGES
 from . import compat, layer, layer_group
-from .convert import (_EXT, UDIM_TOKEN, _MapFile, _Source, _Transaction, _check_codec,
-                      _check_prefix, _check_targets, _final_path, _image_for,
-                      _load_image, _out_path, _reason, openimageio, udim_tiles)
+from .convert import _check_prefix, _check_targets
+from .convert_inputs import UDIM_TOKEN, _Source, _reason, openimageio, udim_tiles
+from .convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
+                              _out_path)
+from .convert_wiring import _image_for, _load_image
 from .make_hazy import find_core_bsdf
 
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).

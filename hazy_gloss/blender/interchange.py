@@ -16,7 +16,7 @@ from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
 from ..interchange import layered, materialx, usd
 from . import compat, fallback, layer, layer_group, material, stamp, surface_build
-from .convert import wire_material
+from .convert_wiring import wire_material
 from .messages import plain_message
 from .nodes.builder import default_value_of
 

@@ -39,6 +39,7 @@ def mods(hg, clean_file):
         api = importlib.import_module(hg.__name__ + ".api")
         core = importlib.import_module(hg.__name__ + ".convert")
         bconv = importlib.import_module(hg.__name__ + ".blender.convert")
+        binputs = importlib.import_module(hg.__name__ + ".blender.convert_inputs")
         pbr = importlib.import_module(hg.__name__ + ".blender.convert_pbr")
         ops = importlib.import_module(hg.__name__ + ".blender.convert_ops")
         stream = importlib.import_module(hg.__name__ + ".imagestream")
@@ -81,7 +82,7 @@ res = api.convert_maps({"haziness": folder + "/haze.exr", "roughness": 0.2,
 seconds = time.perf_counter() - t
 peak = status("VmHWM") - base
 # rows at the top, middle and bottom of the written beta map against the mapping in memory
-from hazy_gloss.blender.convert import openimageio
+from hazy_gloss.blender.convert_inputs import openimageio
 inp = openimageio().ImageInput.open(res["beta"])
 ok = []
 for y0 in (0, n // 2, n - 16):
@@ -252,7 +253,7 @@ def test_damaged_files_that_pass_the_check_are_one_line(mods, tmp_path):
     rng = np.random.default_rng(22)
     exr = _exr_bytes(tmp_path, n=40)
     png = Path(write_png(tmp_path / "f.png", rng.integers(0, 65536, (40, 40)), 16)).read_bytes()
-    oiio = mods.bconv.openimageio()
+    oiio = mods.binputs.openimageio()
     assert oiio is not None
     seen = {"values": 0, "refused": 0}
     for i in range(300):
@@ -262,7 +263,7 @@ def test_damaged_files_that_pass_the_check_are_one_line(mods, tmp_path):
             data[at] = int(rng.integers(256))
         p = tmp_path / f"fuzz{i}.{('exr', 'png')[i % 2]}"
         p.write_bytes(bytes(data))
-        src = mods.bconv._Source("haziness", "data", str(p))
+        src = mods.binputs._Source("haziness", "data", str(p))
         try:
             src.check()
             r = src.strips(None, [], oiio)
@@ -287,7 +288,7 @@ def test_openimageio_codecs_and_the_whole_image_fallback(mods, tmp_path):
     zip_ = mods.api.convert_maps(paths, str(tmp_path / "zip"))
     piz = mods.api.convert_maps(paths, str(tmp_path / "piz"), exr_codec="PIZ")
     assert set(zip_) == set(piz)
-    oiio = mods.bconv.openimageio()
+    oiio = mods.binputs.openimageio()
     for name in zip_:
         assert exr.exr_header_check(piz[name])[0].compression == "PIZ"
         a = oiio.ImageInput.open(piz[name]).read_image(0, 0, 0, 3, oiio.FLOAT)

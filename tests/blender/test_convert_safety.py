@@ -43,8 +43,15 @@ def core(hg):
 
 
 @pytest.fixture
-def bconv(hg):
-    return importlib.import_module(hg.__name__ + ".blender.convert")
+def binputs(hg):
+    """blender/convert_inputs.py: check_readable, the readers."""
+    return importlib.import_module(hg.__name__ + ".blender.convert_inputs")
+
+
+@pytest.fixture
+def boutputs(hg):
+    """blender/convert_outputs.py: _MapFile, the transaction."""
+    return importlib.import_module(hg.__name__ + ".blender.convert_outputs")
 
 
 def snapshot(folder):
@@ -128,7 +135,7 @@ def _jpeg_bytes(tmp_path, n=40):
 
 
 @pytest.mark.parametrize("fmt", ["exr", "png", "jpg"])
-def test_every_cut_of_a_file_is_refused_and_whole_files_pass(bconv, tmp_path, fmt):
+def test_every_cut_of_a_file_is_refused_and_whole_files_pass(binputs, tmp_path, fmt):
     if fmt == "exr":
         data = _exr_bytes(tmp_path, n=40)
     elif fmt == "jpg":
@@ -138,31 +145,31 @@ def test_every_cut_of_a_file_is_refused_and_whole_files_pass(bconv, tmp_path, fm
         data = Path(p).read_bytes()
     whole = tmp_path / f"whole.{fmt}"
     whole.write_bytes(data)
-    assert bconv.check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG",
+    assert binputs.check_readable(str(whole), "x") == {"exr": "OpenEXR", "png": "PNG",
                                                       "jpg": "JPEG"}[fmt]
     (tmp_path / f"trailing.{fmt}").write_bytes(data + b"\0" * 4096)  # data after the end: fine
-    assert bconv.check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
+    assert binputs.check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
     cut = tmp_path / f"cut.{fmt}"
     accepted = []
     for n in sorted(set(range(1, len(data), max(1, len(data) // 400))) | {len(data) - 1}):
         cut.write_bytes(data[:n])
         try:
-            bconv.check_readable(str(cut), "x")
+            binputs.check_readable(str(cut), "x")
             accepted.append(n)
-        except bconv.ConversionError as exc:
+        except binputs.ConversionError as exc:
             one_line(exc)
             assert "truncated" in str(exc) or "corrupt" in str(exc), str(exc)
     assert accepted == []
 
 
-def test_every_blender_exr_codec_passes_the_check(bconv, tmp_path):
+def test_every_blender_exr_codec_passes_the_check(binputs, tmp_path):
     codecs = ["NONE", "ZIP", "ZIPS", "PIZ", "RLE", "PXR24", "DWAA", "DWAB"]
     if bpy.app.version >= (5, 0, 0):
         codecs.append("HTJ2K")
     for codec in codecs:
         p = tmp_path / f"{codec}.exr"
         p.write_bytes(_exr_bytes(tmp_path, n=300, codec=codec))  # > 256 lines: several chunks
-        assert bconv.check_readable(str(p), codec) == "OpenEXR"
+        assert binputs.check_readable(str(p), codec) == "OpenEXR"
 
 
 def _attr(name, typ, data):
@@ -174,7 +181,7 @@ def _attr(name, typ, data):
     (33, 17, 16, 16, 0x00, 6), (33, 17, 16, 16, 0x01, 11), (33, 17, 16, 16, 0x11, 13),
     (33, 17, 16, 16, 0x02, 48), (33, 17, 16, 16, 0x12, 70), (64, 64, 7, 5, 0x02, 667),
     (5, 300, 16, 16, 0x11, 44), (5, 300, 7, 5, 0x12, 492), (5, 300, 7, 5, 0x00, 60)])
-def test_tiled_exr_chunk_counts(bconv, tmp_path, w, h, xs, ys, mode, chunks):
+def test_tiled_exr_chunk_counts(binputs, tmp_path, w, h, xs, ys, mode, chunks):
     """A tiled EXR (one level, mipmaps, ripmaps; rounding down/up): built here with the chunk
     count OpenEXR gives and each chunk's tile and level coordinates; whole passes, cut fails."""
     win = struct.pack("<4i", 0, 0, w - 1, h - 1)
@@ -213,14 +220,14 @@ def test_tiled_exr_chunk_counts(bconv, tmp_path, w, h, xs, ys, mode, chunks):
     data = head + struct.pack(f"<{chunks}Q", *offsets) + b"".join(body)
     p = tmp_path / "tiled.exr"
     p.write_bytes(data)
-    assert bconv.check_readable(str(p), "x") == "OpenEXR"
+    assert binputs.check_readable(str(p), "x") == "OpenEXR"
     for n in (len(head) + 8 * chunks - 1, len(data) - 1):
         p.write_bytes(data[:n])
-        with pytest.raises(bconv.ConversionError, match="truncated OpenEXR"):
-            bconv.check_readable(str(p), "x")
+        with pytest.raises(binputs.ConversionError, match="truncated OpenEXR"):
+            binputs.check_readable(str(p), "x")
 
 
-def test_headers_claiming_huge_images_are_refused(bconv, tmp_path):
+def test_headers_claiming_huge_images_are_refused(binputs, tmp_path):
     """A 300-byte PNG claiming 40000x40000 (Blender would try to allocate 25.6 GB) and an EXR
     whose data window is 2^30 wide: refused by the check."""
     import zlib
@@ -231,14 +238,14 @@ def test_headers_claiming_huge_images_are_refused(bconv, tmp_path):
     png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 40000, 40000, 16, 2, 0, 0, 0))
            + chunk(b"IDAT", zlib.compress(b"\0" * 240001)) + chunk(b"IEND", b""))
     (tmp_path / "big.png").write_bytes(png)
-    with pytest.raises(bconv.ConversionError, match="cannot hold 40000x40000"):
-        bconv.check_readable(str(tmp_path / "big.png"), "x")
+    with pytest.raises(binputs.ConversionError, match="cannot hold 40000x40000"):
+        binputs.check_readable(str(tmp_path / "big.png"), "x")
     data = bytearray(_exr_bytes(tmp_path))
     at = data.index(b"dataWindow\0box2i\0") + len(b"dataWindow\0box2i\0") + 4
     data[at:at + 16] = struct.pack("<4i", 0, 0, (1 << 30) - 1, 31)
     (tmp_path / "wide.exr").write_bytes(bytes(data))
-    with pytest.raises(bconv.ConversionError, match="data window 1073741824x32"):
-        bconv.check_readable(str(tmp_path / "wide.exr"), "x")
+    with pytest.raises(binputs.ConversionError, match="data window 1073741824x32"):
+        binputs.check_readable(str(tmp_path / "wide.exr"), "x")
 
 
 @pytest.mark.parametrize("case", ["png_no_iend", "not_image", "folder", "nul"])
@@ -280,12 +287,12 @@ def test_operator_reports_truncated_exr(hg, clean_file, tmp_path):
 # --------------------------------------------------------------------------------------------
 
 
-def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, bconv, tmp_path, monkeypatch):
+def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_path, monkeypatch):
     """A file cut off after it was written (Blender's PNG writer reported success on a file cut
     off by a full disk): simulated by cutting the third file once it is complete.  The
     read-back of its bytes catches it; nothing changes."""
     paths, out, before = old_set(api, tmp_path, fmt="PNG")
-    real = bconv._MapFile.close_file
+    real = boutputs._MapFile.close_file
     calls = []
 
     def full_disk(self):
@@ -295,8 +302,8 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, bconv, tmp_path,
             data = Path(self.tmp).read_bytes()
             Path(self.tmp).write_bytes(data[:len(data) // 2])
 
-    monkeypatch.setattr(bconv._MapFile, "close_file", full_disk)
-    with pytest.raises(bconv.ConversionError, match=r"could not write .*roughness_wide.png "
+    monkeypatch.setattr(boutputs._MapFile, "close_file", full_disk)
+    with pytest.raises(boutputs.ConversionError, match=r"could not write .*roughness_wide.png "
                                                     r"\(disk full\?\): .* has \d+ bytes, \d+ were "
                                                     "written") as info:
         api.convert_maps(paths, str(out), file_format="PNG")
@@ -305,11 +312,11 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, bconv, tmp_path,
 
 
 @pytest.mark.parametrize("fmt, where", [("OPEN_EXR", 0.5), ("OPEN_EXR", 0.01), ("PNG", 0.5)])
-def test_write_that_reads_back_different_is_caught(api, bconv, tmp_path, monkeypatch, fmt, where):
+def test_write_that_reads_back_different_is_caught(api, boutputs, tmp_path, monkeypatch, fmt, where):
     """A complete file with one other byte (a failing device; in the pixels, or in the EXR
     header and offset table): the hash of the bytes read back catches it, without decoding."""
     paths, out, before = old_set(api, tmp_path, fmt=fmt)
-    real = bconv._MapFile.close_file
+    real = boutputs._MapFile.close_file
 
     def flip(self):
         real(self)
@@ -317,8 +324,8 @@ def test_write_that_reads_back_different_is_caught(api, bconv, tmp_path, monkeyp
         data[int(len(data) * where)] ^= 0x10
         Path(self.tmp).write_bytes(bytes(data))
 
-    monkeypatch.setattr(bconv._MapFile, "close_file", flip)
-    with pytest.raises(bconv.ConversionError, match=r"could not write .*beta.(exr|png) \(disk "
+    monkeypatch.setattr(boutputs._MapFile, "close_file", flip)
+    with pytest.raises(boutputs.ConversionError, match=r"could not write .*beta.(exr|png) \(disk "
                                                     r"full\?\): bytes \d+..\d+ of .* read back "
                                                     "differently"):
         api.convert_maps(paths, str(out), file_format=fmt)
@@ -326,7 +333,7 @@ def test_write_that_reads_back_different_is_caught(api, bconv, tmp_path, monkeyp
 
 
 @pytest.mark.parametrize("k", [0, 1, 3, 4])
-def test_rename_failing_after_k_files_restores_the_old_set(api, bconv, tmp_path, monkeypatch, k):
+def test_rename_failing_after_k_files_restores_the_old_set(api, boutputs, tmp_path, monkeypatch, k):
     """A rename of a new map into place fails after k succeeded (the commit is k/5 done): the k
     replaced maps are restored from their backups."""
     paths, out, before = old_set(api, tmp_path)
@@ -340,8 +347,8 @@ def test_rename_failing_after_k_files_restores_the_old_set(api, bconv, tmp_path,
             done.append(dst)
         return real(src, dst)
 
-    monkeypatch.setattr(bconv.os, "replace", replace)
-    with pytest.raises(bconv.ConversionError, match="No space left on device.*output folder is "
+    monkeypatch.setattr(boutputs.os, "replace", replace)
+    with pytest.raises(boutputs.ConversionError, match="No space left on device.*output folder is "
                                                     "unchanged") as info:
         api.convert_maps(paths, str(out))
     monkeypatch.undo()
@@ -349,7 +356,7 @@ def test_rename_failing_after_k_files_restores_the_old_set(api, bconv, tmp_path,
     assert snapshot(out) == before
 
 
-def test_rerun_after_failure_gives_the_bytes_of_a_clean_run(api, bconv, tmp_path, monkeypatch):
+def test_rerun_after_failure_gives_the_bytes_of_a_clean_run(api, boutputs, tmp_path, monkeypatch):
     paths, out, _ = old_set(api, tmp_path)
     clean = api.convert_maps(paths, str(tmp_path / "clean"))
     real = os.replace
@@ -359,8 +366,8 @@ def test_rerun_after_failure_gives_the_bytes_of_a_clean_run(api, bconv, tmp_path
             raise OSError(5, "Input/output error", dst)
         return real(src, dst)
 
-    monkeypatch.setattr(bconv.os, "replace", replace)
-    with pytest.raises(bconv.ConversionError):
+    monkeypatch.setattr(boutputs.os, "replace", replace)
+    with pytest.raises(boutputs.ConversionError):
         api.convert_maps(paths, str(out))
     monkeypatch.undo()
     api.convert_maps(paths, str(out))
@@ -384,7 +391,7 @@ def test_overwrite_of_an_input_in_a_later_tile_writes_nothing(api, core, tmp_pat
     assert snapshot(folder) == before
 
 
-def test_read_only_output_folder(api, bconv, tmp_path, monkeypatch):
+def test_read_only_output_folder(api, boutputs, tmp_path, monkeypatch):
     paths, out, before = old_set(api, tmp_path)
     os.chmod(out, 0o555)
     try:
@@ -402,8 +409,8 @@ def test_read_only_output_folder(api, bconv, tmp_path, monkeypatch):
                 if os.path.dirname(os.fspath(path)) == str(out):
                     raise PermissionError(13, "Permission denied", path)
                 return real_open(path, *a, **k)
-            monkeypatch.setattr(bconv.os, "open", deny)
-        with pytest.raises(bconv.ConversionError, match=r"output folder .*out is not writable: "
+            monkeypatch.setattr(boutputs.os, "open", deny)
+        with pytest.raises(boutputs.ConversionError, match=r"output folder .*out is not writable: "
                                                         "Permission denied") as info:
             api.convert_maps(paths, str(out))
         one_line(info.value)
@@ -422,8 +429,8 @@ def test_output_folder_that_cannot_be_created(api, core, tmp_path, monkeypatch):
     with pytest.raises(core.ConversionError, match="cannot create the output folder /proc/"):
         api.convert_maps(paths, "/proc/hazy_gloss_test_out")
     # a failed run removes the folders it created (here: the write of the first map fails)
-    bconv = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.convert")
-    monkeypatch.setattr(bconv._MapFile, "close_file", lambda self: (_ for _ in ()).throw(
+    boutputs = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.convert_outputs")
+    monkeypatch.setattr(boutputs._MapFile, "close_file", lambda self: (_ for _ in ()).throw(
         OSError(5, "simulated")))
     with pytest.raises(core.ConversionError, match="could not write .*beta.exr: simulated"):
         api.convert_maps(paths, str(tmp_path / "new" / "deeper"))
@@ -444,7 +451,7 @@ def test_keyboard_interrupt_while_writing(api, tmp_path):
     assert not [i for i in bpy.data.images if i.name.startswith(".hazy_gloss")]
 
 
-def test_sigint_while_renaming_is_undone(api, bconv, tmp_path, monkeypatch):
+def test_sigint_while_renaming_is_undone(api, boutputs, tmp_path, monkeypatch):
     """A real SIGINT between two renames of the commit: held, then handled where the whole set
     can still be undone."""
     paths, out, before = old_set(api, tmp_path)
@@ -458,7 +465,7 @@ def test_sigint_while_renaming_is_undone(api, bconv, tmp_path, monkeypatch):
             if len(n) == 2:
                 os.kill(os.getpid(), signal.SIGINT)
 
-    monkeypatch.setattr(bconv.os, "replace", replace)
+    monkeypatch.setattr(boutputs.os, "replace", replace)
     with pytest.raises(KeyboardInterrupt):
         api.convert_maps(paths, str(out))
     monkeypatch.undo()
@@ -512,7 +519,7 @@ def test_udim_tiles_of_a_larger_earlier_set_are_retired(api, tmp_path):
 
 _DRIVER = r"""
 import os, signal, sys, time
-from hazy_gloss.blender import convert as bc
+from hazy_gloss.blender import convert_outputs as bc
 mode, signum, k = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 real_write, real_replace, count = bc._MapFile.finish, os.replace, []
 
@@ -800,7 +807,7 @@ def test_option_mistakes_are_one_line_and_write_nothing(api, core, tmp_path, opt
     assert not (tmp_path / "out").exists()
 
 
-def test_file_check_fuzz(bconv, tmp_path):
+def test_file_check_fuzz(binputs, tmp_path):
     """4000 mutations (cuts, byte flips, random 32-bit fields) of an EXR, a PNG and a JPEG: the
     check returns or raises ConversionError, within a time bound, never anything else."""
     rng = np.random.default_rng(14)
@@ -824,9 +831,9 @@ def test_file_check_fuzz(bconv, tmp_path):
         p.write_bytes(bytes(data))
         t = time.perf_counter()
         try:
-            bconv.check_readable(str(p), "fuzz")
+            binputs.check_readable(str(p), "fuzz")
             outcomes["ok"] += 1
-        except bconv.ConversionError as exc:
+        except binputs.ConversionError as exc:
             one_line(exc)
             outcomes["refused"] += 1
         assert time.perf_counter() - t < 1.0
