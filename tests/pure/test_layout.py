@@ -147,3 +147,25 @@ def test_blender_roles_import_downward():
         if rank[src] > rank[dst]:
             upward.append(f"{imp.source}:{imp.line} ({src}) imports {imp.target} ({dst})")
     assert not upward, upward
+
+
+#: Modules over 800 lines still waiting to be split (issue 23): each is a known debt, and the
+#: test fails once one of them is back under the limit, so that the list only shrinks.
+#: blender/convert.py is being split on its own branch; blender/layer.py and blender/material.py
+#: are next.
+_OVER_800 = {"hazy_gloss/blender/layer.py", "hazy_gloss/blender/material.py",
+             "hazy_gloss/blender/convert.py"}
+MAX_MODULE_LINES = 800
+
+
+def test_module_size():
+    """No module of code over 800 lines (issue 23): a module that grows past it is split into
+    cohesive modules.  Generated data tables (hazy_gloss/core/tables/) are not code."""
+    sizes = {str(path.relative_to(ROOT).as_posix()): len(path.read_text(encoding="utf-8").splitlines())
+             for path, _ in modules() if DATA_DIR not in path.parents}
+    over = sorted(f"{p}: {n} lines" for p, n in sizes.items()
+                  if n > MAX_MODULE_LINES and p not in _OVER_800)
+    assert not over, f"modules over {MAX_MODULE_LINES} lines (split them): {over}"
+    done = sorted(f"{p}: {sizes.get(p, 0)} lines" for p in _OVER_800
+                  if sizes.get(p, 0) <= MAX_MODULE_LINES)
+    assert not done, f"no longer over {MAX_MODULE_LINES} lines, drop them from _OVER_800: {done}"
