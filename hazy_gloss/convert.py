@@ -21,10 +21,7 @@ the bottom row); nothing here depends on the order.
 """
 from __future__ import annotations
 
-import difflib
 import os
-import re
-import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -33,6 +30,13 @@ import numpy as np
 from . import constants as K
 from .core.lobes import describe
 from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, sanitise
+# Split off this module and re-exported here (``hazy_gloss.convert`` still names them): the
+# errors and progress, the pixel helpers, the PBR texture sets.
+from .conversion_status import (ConversionCancelled, ConversionError, ConversionOptionError,
+                                Progress, did_you_mean, drain, format_seconds, progress_bar)
+from .pbr_sets import PBR_NAME_PARTS, detect_pbr_set, udim_sets
+from .pixels import (linear_to_srgb, resample_axis, resample_block, resample_bilinear,
+                     srgb_bytes_to_linear, srgb_to_linear)
 
 __all__ = (
     "ConversionError",
@@ -62,6 +66,14 @@ __all__ = (
     "sanitise_inputs",
     "is_anisotropic",
     "describe_maps",
+    "did_you_mean",
+    "format_seconds",
+    "progress_bar",
+    "resample_axis",
+    "resample_block",
+    "PBR_NAME_PARTS",
+    "udim_sets",
+    "detect_pbr_set",
 )
 
 FILE_FORMATS = ("OPEN_EXR", "PNG")
@@ -87,27 +99,6 @@ DEFAULTS = dict(core_reflectivity=_API_DEFAULTS["core_reflectivity"][0],
                 anisotropy=_API_DEFAULTS["anisotropy"], rotation=_API_DEFAULTS["rotation"],
                 haziness=_API_DEFAULTS["haziness"], haze_extent_x=_API_DEFAULTS["haze_extent"][0],
                 haze_extent_y=_API_DEFAULTS["haze_extent"][1])
-
-
-class ConversionError(ValueError):
-    """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is
-    one line meant for the user (several lines given are joined with '; ')."""
-
-    def __init__(self, message=""):
-        text = str(message)
-        if "\n" in text or "\r" in text:
-            text = "; ".join(p.strip() for p in text.splitlines() if p.strip())
-        super().__init__(text)
-
-
-class ConversionOptionError(ConversionError, TypeError):
-    """An unknown keyword argument of a conversion (a ConversionError and a TypeError)."""
-
-
-def did_you_mean(word, choices):
-    """' (did you mean 'x'?)' for the closest of ``choices``, or ''."""
-    close = difflib.get_close_matches(str(word), list(choices), n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 # --------------------------------------------------------------------------------------------
@@ -259,80 +250,6 @@ def check_sizes(named_sizes):
         raise ConversionError(f"input images have different resolutions: {desc} "
                               "(resize them, or pass resample=True / --resample)")
 
-
-# --------------------------------------------------------------------------------------------
-# Colour
-# --------------------------------------------------------------------------------------------
-
-
-def srgb_to_linear(x):
-    """IEC 61966-2-1 sRGB decoding (piecewise, 0.04045 / 12.92 / 2.4), computed in float64,
-    returned as float32.  Blender's OCIO "sRGB" colour space uses this curve (measured: a 16-bit
-    PNG tagged sRGB decodes to it)."""
-    x = np.asarray(x, dtype=np.float64)
-    out = np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4)
-    return out.astype(np.float32)
-
-
-def srgb_bytes_to_linear(x):
-    """:func:`srgb_to_linear` of the float values Blender gives for an 8-bit image (k/255 as
-    float32), through a 256-entry table: identical results, float32 memory only (the general
-    function's float64 temporaries would take ~8x the image for a 4K map)."""
-    x = np.asarray(x, dtype=np.float32)
-    k = np.arange(256, dtype=np.float32) * np.float32(1 / 255)  # Blender's byte -> float
-    lut = srgb_to_linear(k)
-    idx = np.rint(x * np.float32(255))
-    np.clip(idx, 0, 255, out=idx)
-    idx = idx.astype(np.uint8)
-    if not np.array_equal(np.take(k, idx), x):
-        return srgb_to_linear(x)  # not 8-bit values: the general (exact) path
-    return np.take(lut, idx)
-
-
-def linear_to_srgb(x):
-    """Inverse of :func:`srgb_to_linear` (recovers the file values of a float image Blender
-    decoded from sRGB)."""
-    x = np.asarray(x, dtype=np.float64)
-    out = np.where(x <= 0.0031308, x * 12.92,
-                   1.055 * np.maximum(x, 0.0031308) ** (1.0 / 2.4) - 0.055)
-    return out.astype(np.float32)
-
-
-def resample_axis(n_out, n_in):
-    """(i0, i1, f) of bilinear resampling along one axis: output texel k reads input texels i0
-    and i1 with weight f of i1 (texel centres aligned, edges clamped)."""
-    x = (np.arange(n_out, dtype=np.float64) + 0.5) * (n_in / n_out) - 0.5
-    x = np.clip(x, 0.0, n_in - 1)
-    i0 = np.floor(x).astype(np.intp)
-    i1 = np.minimum(i0 + 1, n_in - 1)
-    return i0, i1, (x - i0).astype(np.float32)
-
-
-def resample_block(arr, y0, y1, fy, xs):
-    """Rows of a bilinear resampling: ``arr`` the input rows, ``y0``/``y1``/``fy`` the rows
-    (indices into ``arr``) and weights of each output row, ``xs`` = resample_axis along x."""
-    x0, x1, fx = xs
-    if arr.ndim == 3:
-        fx = fx[:, None]
-    top = arr[y0][:, x0] * (1 - fx) + arr[y0][:, x1] * fx
-    bot = arr[y1][:, x0] * (1 - fx) + arr[y1][:, x1] * fx
-    fy = fy[:, None, None] if arr.ndim == 3 else fy[:, None]
-    return (top * (1 - fy) + bot * fy).astype(np.float32)
-
-
-def resample_bilinear(arr, size):
-    """Resample an (H, W[, C]) array to ``size`` = (width, height), texel centres aligned
-    (the convention of image editors), edges clamped.  float32 in and out."""
-    w, h = int(size[0]), int(size[1])
-    arr = np.asarray(arr, dtype=np.float32)
-    h0, w0 = arr.shape[:2]
-    if (h0, w0) == (h, w):
-        return arr
-    y0, y1, fy = resample_axis(h, h0)
-    return resample_block(arr, y0, y1, fy, resample_axis(w, w0))
-
-
-# --------------------------------------------------------------------------------------------
 # Outputs
 # --------------------------------------------------------------------------------------------
 
@@ -610,199 +527,3 @@ class ConversionResult(dict):
 
 
 # --------------------------------------------------------------------------------------------
-# Progress and cancel
-# --------------------------------------------------------------------------------------------
-
-
-class ConversionCancelled(ConversionError):
-    """The conversion was cancelled (Esc in the operator, :meth:`Progress.cancel`); like any
-    failure, nothing of it is left in the output folder."""
-
-
-class Progress:
-    """How far a conversion is, and its cancel flag.
-
-    The conversion calls :meth:`begin` with its total work (rows of every tile of every set)
-    and :meth:`advance` after each strip; :meth:`advance` raises :class:`ConversionCancelled`
-    once :meth:`cancel` was called (between two strips: the run is then undone like a failed
-    one).  ``callback(done, total, message)`` is called on every step (the API's
-    ``progress=``).  :meth:`status` is the one line the operator and the CLI show: what is
-    being done (map or step, UDIM tile, set), percent and time left."""
-
-    def __init__(self, callback=None, clock=None):
-        self.callback = callback
-        self.clock = clock or time.monotonic
-        self.total = 0
-        self.done = 0
-        self.message = ""
-        self.levels = []
-        self.cancelled = False
-        self.started = self.clock()
-
-    def cancel(self):
-        """Ask the running conversion to stop at its next strip (and undo itself)."""
-        self.cancelled = True
-
-    def check(self):
-        if self.cancelled:
-            raise ConversionCancelled("cancelled; the output folder is unchanged")
-
-    def begin(self, total):
-        self.total += max(0, int(total))
-
-    def next_item(self, index, count, name, key="set"):
-        """Item ``index`` of ``count`` starts: a set of a library batch (``key`` "set") or a
-        UDIM tile of a set ("tile"); the fraction is then (items done + this item's fraction)
-        / count at each level, and the rows of the item start from 0."""
-        keep = [lv for lv in self.levels if lv[0] == "set"] if key != "set" else []
-        self.levels = keep + [(key, int(index), max(1, int(count)), str(name))]
-        self.total = self.done = 0
-
-    def advance(self, units=0, message=None):
-        self.done = min(self.total, self.done + max(0, int(units)))
-        if message is not None:
-            self.message = message
-        if self.callback is not None:
-            self.callback(self.done, max(self.total, 1), self.message)
-        self.check()
-
-    levels = ()
-
-    @property
-    def fraction(self):
-        f = self.done / self.total if self.total else 0.0
-        for _, i, n, _ in reversed(self.levels):
-            f = (i + f) / n
-        return min(1.0, f)
-
-    def seconds_left(self):
-        """Time left, extrapolated from the rate so far (None before the first strip)."""
-        f = self.fraction
-        if f <= 0:
-            return None
-        spent = self.clock() - self.started
-        return spent * (1 - f) / f
-
-    def status(self):
-        left = self.seconds_left()
-        eta = "" if left is None else f", {format_seconds(left)} left"
-        parts = [f"{key} {name} ({i + 1} of {n})" for key, i, n, name in self.levels]
-        where = f"{', '.join(parts)}: " if parts else ""
-        return f"{where}{self.message} {100 * self.fraction:.0f}%{eta}".strip()
-
-
-def format_seconds(s):
-    """'12 s', '3 min 05 s', '2 h 04 min'."""
-    s = max(0, int(round(s)))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
-
-
-def progress_bar(progress, width=30):
-    """A text progress bar of a :class:`Progress` (the CLI's): '[#####-----]  50% ...'."""
-    n = int(round(width * progress.fraction))
-    return f"[{'#' * n}{'-' * (width - n)}] {progress.status()}"
-
-
-def drain(steps):
-    """Run a conversion generator to its end; returns its result (what the blocking API does,
-    where the modal operator steps the same generator between events)."""
-    while True:
-        try:
-            next(steps)
-        except StopIteration as stop:
-            return stop.value
-
-
-# --------------------------------------------------------------------------------------------
-# PBR texture sets: which file is which map
-# --------------------------------------------------------------------------------------------
-
-#: Name parts texture libraries use for each map of a PBR set (lower case, matched as whole
-#: words between separators: "crate_BaseColor_2k.png", "Wood049_4K-PNG_Roughness.png").
-PBR_NAME_PARTS = {
-    "base_color": ("basecolor", "base_color", "albedo", "diffuse", "diff", "color", "col"),
-    "metallic": ("metallic", "metalness", "metal"),
-    "roughness": ("roughness", "rough"),
-    "normal": ("normal", "normalgl", "nor_gl", "norm", "nrm", "nor"),
-    "coat": ("coat", "clearcoat"),
-    "alpha": ("opacity", "alpha", "mask"),
-    "haziness": ("haziness", "haze"),
-}
-_PBR_IMAGE_EXT = (".png", ".jpg", ".jpeg", ".exr", ".tif", ".tiff", ".tga", ".bmp", ".webp", ".hdr")
-
-
-_UDIM_FILE = None
-
-
-def udim_sets(filenames):
-    """File names with the tiles of a UDIM set (``name.1001.png``, ``name_1002.png``: a 4-digit
-    tile 1001-2000 before the extension) folded into one ``name.<UDIM>.png``; others as they
-    are."""
-    global _UDIM_FILE
-    if _UDIM_FILE is None:
-        _UDIM_FILE = re.compile(r"\A(?P<head>.*[._])(?P<tile>\d{4})(?P<ext>\.[^.]+)\Z")
-    out = []
-    for fn in filenames:
-        m = _UDIM_FILE.match(os.path.basename(fn))
-        if m and 1001 <= int(m["tile"]) <= 2000:
-            fn = os.path.join(os.path.dirname(fn), f"{m['head']}<UDIM>{m['ext']}")
-        if fn not in out:
-            out.append(fn)
-    return out
-
-
-def detect_pbr_set(filenames):
-    """{map name: file name} for the files of one PBR set, by the name parts texture libraries
-    use (PBR_NAME_PARTS; UDIM tiles are one ``<UDIM>`` name, :func:`udim_sets`); a DirectX normal map ("NormalDX") is skipped for the OpenGL one, and
-    refused when it is the only normal map (Blender's Normal Map node reads OpenGL normals).
-    Raises ConversionError when two files claim one map or none is found."""
-    found, clash, directx = {}, {}, []
-    named = {}
-    for fn in sorted(udim_sets(filenames)):
-        stem, ext = os.path.splitext(os.path.basename(fn))
-        if ext.lower() in _PBR_IMAGE_EXT:
-            named[fn] = [w for w in re.split(r"[^a-z0-9]+", re.sub(
-                r"([a-z])([A-Z])", r"\1_\2", stem).lower()) if w]
-    # the set's name is the words every file starts with; the resolution ("2k") the words
-    # every file ends with, unless they name a map
-    lists = list(named.values())
-    pre = 0
-    while len(lists) > 1 and all(len(w) > pre for w in lists) and \
-            len({w[pre] for w in lists}) == 1:
-        pre += 1
-    post = 0
-    map_words = {p for parts in PBR_NAME_PARTS.values() for p in parts}
-    while len(lists) > 1 and all(len(w) > pre + post for w in lists) and \
-            len({w[-1 - post] for w in lists}) == 1 and lists[0][-1 - post] not in map_words:
-        post += 1
-    def which(words):
-        joined = {a + b for a, b in zip(words, words[1:])} | {a + "_" + b for a, b in zip(words, words[1:])}
-        return next((name for name, parts in PBR_NAME_PARTS.items()
-                     if any(p in words or p in joined for p in parts)), None)
-
-    for fn, all_words in named.items():
-        words = all_words[pre:len(all_words) - post] or all_words
-        if "dx" in all_words and ({"normal", "nor", "nrm"} & set(all_words)):
-            directx.append(fn)  # green down: Blender's Normal Map node reads OpenGL normals
-            continue
-        name = which(words)
-        if name is None:
-            continue
-        if name in found and found[name] != fn:
-            clash.setdefault(name, [found[name]]).append(fn)
-        found.setdefault(name, fn)
-    if clash:
-        raise ConversionError("more than one file for " + "; ".join(
-            f"{k}: {', '.join(v)}" for k, v in clash.items()) + " (pass the maps by name)")
-    if directx and "normal" not in found:
-        raise ConversionError(f"{directx[0]}: a DirectX normal map (green down); Blender's "
-                              f"Normal Map node reads OpenGL normals: use the set's OpenGL "
-                              f"normal map")
-    if not found:
-        raise ConversionError("no map of a PBR set found (names with basecolor, metallic, "
-                              "roughness, normal, ...)")
-    return found

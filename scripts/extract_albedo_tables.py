@@ -3,7 +3,7 @@
 
     .venv/bin/python scripts/extract_albedo_tables.py [--check] [--venv-root DIR]
 
-writes ``hazy_gloss/core/cycles_albedo_tables.py`` (``--check``: compare with it and exit 1 if
+writes ``hazy_gloss/core/tables/cycles_albedo_tables.py`` (``--check``: compare with it and exit 1 if
 it differs).  No bpy import: the wheels' ``bpy/__init__.so`` is read as an ELF file, with the
 reader of scripts/extract_ggx_tables.py (same wheels, same venv layout).
 
@@ -50,7 +50,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 from extract_ggx_tables import WHEELS, read_symbol, run  # noqa: E402
 
-OUT = ROOT / "hazy_gloss" / "core" / "cycles_albedo_tables.py"
+OUT = ROOT / "hazy_gloss" / "core" / "tables" / "cycles_albedo_tables.py"
 IOR_S = "_ZN3cclL27table_ggx_gen_schlick_ior_sE"
 E = "_ZN3cclL11table_ggx_EE"
 GLASS_E = "_ZN3cclL17table_ggx_glass_EE"

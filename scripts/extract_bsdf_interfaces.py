@@ -3,7 +3,7 @@
 
     bash scripts/setup.sh --no-demo && .venv/bin/python scripts/extract_bsdf_interfaces.py [--check]
 
-writes ``hazy_gloss/core/bsdf_interfaces.py`` (``--check``: compare and exit 1 if it differs).
+writes ``hazy_gloss/core/tables/bsdf_interfaces.py`` (``--check``: compare and exit 1 if it differs).
 The layer's node group has the wrapped BSDF's inputs with their names, types, limits, defaults
 and panels; Python cannot read a built-in node's declaration (``bl_rna`` holds the socket
 type's generic limits), but Blender's own Make Group (Ctrl+G) copies it into the group's
@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "hazy_gloss" / "core" / "bsdf_interfaces.py"
+OUT = ROOT / "hazy_gloss" / "core" / "tables" / "bsdf_interfaces.py"
 VENVS = (".venv45", ".venv52", ".venv")
 
 _PROBE = r'''

@@ -3,7 +3,7 @@
 
     .venv/bin/python scripts/extract_ggx_tables.py [--check] [--venv-root DIR]
 
-writes ``hazy_gloss/core/cycles_ggx_tables.py`` (``--check``: compare with it and exit 1 if it
+writes ``hazy_gloss/core/tables/cycles_ggx_tables.py`` (``--check``: compare with it and exit 1 if it
 differs).  No bpy import: the wheels' ``bpy/__init__.so`` (in the venvs of scripts/setup.sh,
 under the repository root or ``--venv-root``) is read as an ELF file.
 
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "hazy_gloss" / "core" / "cycles_ggx_tables.py"
+OUT = ROOT / "hazy_gloss" / "core" / "tables" / "cycles_ggx_tables.py"
 #: bpy version -> its wheel's shared object, relative to the venv root (scripts/setup.sh)
 WHEELS = {
     "4.5.15": ".venv45/lib/python3.11/site-packages/bpy/__init__.so",

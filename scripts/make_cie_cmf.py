@@ -3,7 +3,7 @@
 
     python scripts/make_cie_cmf.py [--check]
 
-writes ``hazy_gloss/core/cie_1931.py`` (``--check``: compare with it, exit 1 if it differs).
+writes ``hazy_gloss/core/tables/cie_1931.py`` (``--check``: compare with it, exit 1 if it differs).
 Needs the ``colour-science`` package (PyPI, BSD-3-Clause; a development tool only, never a
 dependency of the add-on): ``pip install colour-science`` into any Python 3 environment.
 
@@ -23,7 +23,7 @@ import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "hazy_gloss" / "core" / "cie_1931.py"
+OUT = ROOT / "hazy_gloss" / "core" / "tables" / "cie_1931.py"
 NAME = "CIE 1931 2 Degree Standard Observer"
 
 

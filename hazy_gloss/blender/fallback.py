@@ -31,7 +31,7 @@ import numpy as np
 
 from .. import constants as K
 from ..core import conventions, gulbrandsen_inverse
-from ..interchange import engines, layered, materialx
+from ..interchange import engines, materialx, openpbr_corrections
 from ..interchange.brdf import fresnel_conductor
 from . import layer, layer_group, legacy_layer, material, stamp
 from .nodes.builder import default_value_of, socket_value
@@ -492,7 +492,7 @@ def _metal_fallback(tree, fb, core, base, notes):
             notes.append("the Glossy BSDF's linked anisotropy is not in the fallback")
             a, rot = 0.0, 0.0
         r = float(u("Roughness")[0])
-        ax, ay = layered.glossy_alpha(r, a)
+        ax, ay = openpbr_corrections.glossy_alpha(r, a)
         if ax != ay:
             rough, ratio, swap = conventions.lobe_from_alpha(ax, ay)
             a = float(conventions.metallic_anisotropy(ratio))

@@ -14,7 +14,7 @@ import bpy
 
 from .. import constants as K
 from ..convert import ConversionReport, ConversionResult, output_specs
-from ..interchange import layered, materialx, usd
+from ..interchange import layered_tree, materialx, usd
 from . import compat, fallback, layer, layer_group, material, stamp, surface_build
 from .convert_wiring import wire_material
 from .messages import plain_message
@@ -64,7 +64,7 @@ def _snap_socket(sock, is_input, into=None):
         lk = into.get((sock.node.name, sock.identifier)) if into is not None else sock.links[0]
         if lk is not None and getattr(lk, "is_valid", True) and not getattr(lk, "is_muted", False):
             link = (lk.from_node.name, lk.from_socket.identifier)
-    return layered.Socket(sock.identifier, sock.name, sock.type, default_value_of(sock), link,
+    return layered_tree.Socket(sock.identifier, sock.name, sock.type, default_value_of(sock), link,
                           bool(getattr(sock, "enabled", True)),
                           bool(not is_input and sock.is_linked), sock.node.name)
 
@@ -86,7 +86,7 @@ def _image_info(img):
 def _bnode(n, core=None, prefix="", into=None):
     props = {k: getattr(n, k) for k in _NODE_PROPS if hasattr(n, k)}
     props = {k: (v if isinstance(v, (bool, int, float, str)) else str(v)) for k, v in props.items()}
-    b = layered.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True, into) for x in n.inputs],
+    b = layered_tree.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True, into) for x in n.inputs],
                       [_snap_socket(x, False, into) for x in n.outputs], props, n.label,
                       material.role(n), core is not None and n == core, bool(n.mute))
     if n.bl_idname == "ShaderNodeTexImage":
@@ -175,7 +175,7 @@ def _inline_group(gnode, nodes, feed, prefix=""):
 def _core_view(gnode, kind, settings):
     """The user's BSDF as the layer node holds it (its inputs are the BSDF's own): a node of
     the core's type for the snapshot (the USD preview and the fallback read it)."""
-    b = layered.BNode(gnode.name + " (core)", layer_group.BSDF_NODES[kind],
+    b = layered_tree.BNode(gnode.name + " (core)", layer_group.BSDF_NODES[kind],
                       [_snap_socket(x, True) for x in gnode.inputs], [], dict(settings),
                       gnode.label, None, True, False)
     b.base = {}
@@ -183,7 +183,7 @@ def _core_view(gnode, kind, settings):
 
 
 def tree_snapshot(mat):
-    """The node tree of ``mat`` as interchange.layered.Tree (plain values, no bpy), with the
+    """The node tree of ``mat`` as interchange.layered_tree.Tree (plain values, no bpy), with the
     haze layer's state.  The layer node's group is inlined: the exporters see the BSDF copies,
     mixes and math the group renders with."""
     tree = mat.node_tree
@@ -234,7 +234,7 @@ def tree_snapshot(mat):
             lay.update(core=gnode.name, core_type=kind, settings=settings, live_math=True,
                        group=gnode.node_tree.name, version=layer.LAYER_VERSION,
                        nodes=sorted(n for n in nodes if n.startswith(gnode.name + "/")))
-    return layered.Tree(mat.name, nodes, used.name if used is not None else None, lay)
+    return layered_tree.Tree(mat.name, nodes, used.name if used is not None else None, lay)
 
 
 def source_of(mat):

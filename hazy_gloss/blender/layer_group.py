@@ -3,7 +3,7 @@
 method or Fresnel type, haze curve, Blender version), shared by every material that has it.
 
 Its interface is the wrapped BSDF's own inputs — names, types, limits, defaults and panels as
-Blender declares them (core.bsdf_interfaces, read through Make Group) — and a Haze panel
+Blender declares them (core.tables.bsdf_interfaces, read through Make Group) — and a Haze panel
 (constants.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
 mapping in frames, then the BSDF slots (copies of the wrapped node type whose inputs are the
 group's own, except those the mapping computes) and their Mix Shaders.  Two outputs: "BSDF"
@@ -14,8 +14,9 @@ from __future__ import annotations
 import bpy
 
 from .. import constants as K
-from ..core import bsdf_interfaces, layer_graph, node_body_colour
+from ..core import layer_graph, node_body_colour
 from ..core.multiscatter import cycles_version
+from ..core.tables import bsdf_interfaces
 from . import stamp
 from .nodes.builder import TreeBuilder, socket_value
 from .nodes.emit import emit
@@ -140,7 +141,7 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
 _SOURCES = ("blender/layer_group.py", "blender/nodes/emit.py", "blender/nodes/builder.py",
             "core/layer_graph.py", "core/node_math.py", "core/node_fresnel.py", "core/node_multiscatter.py",
             "core/node_body_colour.py", "core/body_colour.py", "core/node_thin_film.py",
-            "core/thin_film.py", "core/cycles_albedo_tables.py", "core/graph.py", "core/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
+            "core/thin_film.py", "core/tables/cycles_albedo_tables.py", "core/graph.py", "core/tables/bsdf_interfaces.py", "core/multiscatter.py", "constants.py")
 _digest = []
 
 

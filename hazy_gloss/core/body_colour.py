@@ -53,8 +53,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import cycles_albedo_tables as _albedo_tables
-from . import cycles_ggx_tables as _ggx_tables
+from .tables import cycles_albedo_tables as _albedo_tables
+from .tables import cycles_ggx_tables as _ggx_tables
 from .multiscatter import cycles_version
 
 __all__ = ("DISTRIBUTIONS", "MAX_ANGLE", "specular_albedo", "albedo_estimate",

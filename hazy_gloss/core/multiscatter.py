@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import cycles_ggx_tables as _tables
+from .tables import cycles_ggx_tables as _tables
 from .mapping import HazeMapping, _haze_terms, dielectric_ior, gulbrandsen_ior
 
 __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness_index",

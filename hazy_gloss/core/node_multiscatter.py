@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import constants as K
-from . import cycles_ggx_tables as _tables
+from .tables import cycles_ggx_tables as _tables
 from .multiscatter import _exact_conductor, _generation
 from .node_fresnel import TINY, gulbrandsen
 

@@ -34,7 +34,7 @@ import functools
 
 import numpy as np
 
-from . import cie_1931
+from .tables import cie_1931
 from .multiscatter import cycles_version
 
 __all__ = ("THICKNESS_CUTOFF", "WORKING_SPACES", "LIMITS", "generation", "xyz_to_rgb_matrix",

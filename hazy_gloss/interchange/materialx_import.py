@@ -38,7 +38,8 @@ from ..core.parameters import HAZE_DEFAULTS, is_anisotropic, normalise
 from . import engines, haze_blend, surfaces
 from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, OPENPBR_UNSUPPORTED,
                        read_xml, valid_name)
-from .surfaces import Notes as _Notes, tangent_of
+from .surface_inputs import tangent_of
+from .surface_nodes import Notes as _Notes
 
 __all__ = ("ImportedMaterial", "lobes_of", "recognise", "read", "resolve_haze", "LOBES")
 

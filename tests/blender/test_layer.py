@@ -333,7 +333,7 @@ def test_make_hazy_is_one_node_with_the_bsdfs_inputs(env, name):
               for it in node.node_tree.interface.items_tree if it.item_type == "SOCKET"
               and it.in_out == "INPUT"}
     kind = env.layer.core_type(core)
-    decl = importlib.import_module(f"{env.hg.__name__}.core.bsdf_interfaces").TABLES
+    decl = importlib.import_module(f"{env.hg.__name__}.core.tables.bsdf_interfaces").TABLES
     table = decl[f"{bpy.app.version[0]}.{bpy.app.version[1]}"][kind]["sockets"]
     for k in want:
         assert panels[k] == table[k]["panel"], (k, panels[k], table[k]["panel"])

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hazy_gloss.core import cie_1931
+from hazy_gloss.core.tables import cie_1931
 
 #: config.ocio (5.x): CIE XYZ D65 -> Linear Rec.709 (the Cycles matrix is this to ~1e-6).
 XYZ_TO_REC709 = np.array([[3.2409699, -1.5373832, -0.4986108],

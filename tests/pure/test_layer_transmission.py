@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from hazy_gloss.core import bsdf_interfaces, layer_graph, node_thin_film, thin_film
+from hazy_gloss.core import layer_graph, node_thin_film, thin_film
+from hazy_gloss.core.tables import bsdf_interfaces
 from hazy_gloss.core.graph import Graph, evaluate
 
 VERSIONS = ((4, 5), (5, 2), (5, 3))

@@ -84,7 +84,7 @@ def test_no_symlinks():
 
 
 #: Generated data tables (numbers that are data, not constants of the add-on).
-DATA_MODULES = ("cie_1931.py", "cycles_ggx_tables.py")
+DATA_DIR = PKG / "core" / "tables"
 
 
 def _uses(tree):
@@ -114,7 +114,7 @@ def test_constants_written_once(kind, value, name):
     """The shared constants are written in constants.py only (elsewhere they are imported)."""
     hits = []
     for path, module in modules():
-        if path.name == "constants.py" or path.name in DATA_MODULES:
+        if path.name == "constants.py" or DATA_DIR in path.parents:
             continue
         for k, v, line in _uses(ast.parse(path.read_text(encoding="utf-8"))):
             if k == kind and (v == value if kind != "prefix" else str(v).startswith(value)):
@@ -147,3 +147,23 @@ def test_blender_roles_import_downward():
         if rank[src] > rank[dst]:
             upward.append(f"{imp.source}:{imp.line} ({src}) imports {imp.target} ({dst})")
     assert not upward, upward
+
+
+#: Modules over 800 lines still waiting to be split (issue 23): each is a known debt, and the
+#: test fails once one of them is back under the limit, so that the list only shrinks.
+#: blender/layer.py and blender/material.py are next.
+_OVER_800 = {"hazy_gloss/blender/layer.py", "hazy_gloss/blender/material.py"}
+MAX_MODULE_LINES = 800
+
+
+def test_module_size():
+    """No module of code over 800 lines (issue 23): a module that grows past it is split into
+    cohesive modules.  Generated data tables (hazy_gloss/core/tables/) are not code."""
+    sizes = {str(path.relative_to(ROOT).as_posix()): len(path.read_text(encoding="utf-8").splitlines())
+             for path, _ in modules() if DATA_DIR not in path.parents}
+    over = sorted(f"{p}: {n} lines" for p, n in sizes.items()
+                  if n > MAX_MODULE_LINES and p not in _OVER_800)
+    assert not over, f"modules over {MAX_MODULE_LINES} lines (split them): {over}"
+    done = sorted(f"{p}: {sizes.get(p, 0)} lines" for p in _OVER_800
+                  if sizes.get(p, 0) <= MAX_MODULE_LINES)
+    assert not done, f"no longer over {MAX_MODULE_LINES} lines, drop them from _OVER_800: {done}"

@@ -22,7 +22,7 @@ import pytest
 
 import ggx_albedo as Q
 from hazy_gloss import constants as K
-from hazy_gloss.core import cycles_ggx_tables as T
+from hazy_gloss.core.tables import cycles_ggx_tables as T
 from hazy_gloss.core import lobes as core_lobes
 from hazy_gloss.core import multiscatter as ms
 from hazy_gloss.core.conventions import alpha_from_roughness
