@@ -146,7 +146,7 @@ def layer_times(comp, path):
     """{layer: (path tracing s, synchronisation s)} from the Cycles metadata of an EXR."""
     with open(path, "rb") as fh:
         data = fh.read()
-    attrs, _ = exr._exr_header(data, 8)
+    attrs, _ = exr._parse_header(exr._Reader(data, str(path)), 8, 0)
     out = {}
     for key, (_, raw) in attrs.items():
         if key.startswith("cycles.") and key.endswith(".render_time"):
