@@ -3,8 +3,6 @@
 cycles between the package's modules (function-level imports included; those only in the entry
 points), no symlinks, the shared constants written once."""
 import ast
-import os
-import re
 from pathlib import Path
 
 import pytest
@@ -17,39 +15,10 @@ BLENDER_MODULES = {"bpy", "mathutils", "bmesh", "bpy_extras", "addon_utils", "bl
                    "bl_ui", "gpu", "blf", "aud", "idprop", "bl_math", "freestyle", "imbuf"}
 
 
-def modules():
-    for path in sorted(PKG.rglob("*.py")):
-        yield path, ".".join(path.relative_to(ROOT).with_suffix("").parts)
-
-
-def imports(path, module):
-    """(absolute module name, line) of every import in ``path`` (function-level included)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    pkg = module.rsplit(".", 1)[0] if path.name != "__init__.py" else module
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            for a in node.names:
-                yield a.name, node.lineno
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = pkg.split(".")
-                base = base[:len(base) - node.level + 1]
-                name = ".".join(base + ([node.module] if node.module else []))
-            else:
-                name = node.module
-            yield name, node.lineno
-            for a in node.names:  # "from . import x" imports the module x
-                yield f"{name}.{a.name}", node.lineno
-
-
 def test_bpy_only_under_blender():
-    offenders = []
-    for path, module in modules():
-        if module.startswith("hazy_gloss.blender"):
-            continue
-        for name, line in imports(path, module):
-            if name.split(".")[0] in BLENDER_MODULES:
-                offenders.append(f"{path.relative_to(ROOT)}:{line} imports {name}")
+    offenders = [f"{i.source}:{i.line} imports {i.target}" for i in layout_graph.imports()
+                 if not i.internal and i.target in BLENDER_MODULES
+                 and not i.source.startswith("hazy_gloss.blender")]
     assert not offenders, offenders
 
 
@@ -113,7 +82,7 @@ def _uses(tree):
 def test_constants_written_once(kind, value, name):
     """The shared constants are written in constants.py only (elsewhere they are imported)."""
     hits = []
-    for path, module in modules():
+    for path in layout_graph.modules().values():
         if path.name == "constants.py" or DATA_DIR in path.parents:
             continue
         for k, v, line in _uses(ast.parse(path.read_text(encoding="utf-8"))):
@@ -160,7 +129,7 @@ def test_module_size():
     """No module of code over 800 lines (issue 23): a module that grows past it is split into
     cohesive modules.  Generated data tables (hazy_gloss/core/tables/) are not code."""
     sizes = {str(path.relative_to(ROOT).as_posix()): len(path.read_text(encoding="utf-8").splitlines())
-             for path, _ in modules() if DATA_DIR not in path.parents}
+             for path in layout_graph.modules().values() if DATA_DIR not in path.parents}
     over = sorted(f"{p}: {n} lines" for p, n in sizes.items()
                   if n > MAX_MODULE_LINES and p not in _OVER_800)
     assert not over, f"modules over {MAX_MODULE_LINES} lines (split them): {over}"
