@@ -490,9 +490,9 @@ def upgrade_layers(materials):
             continue
         messages.clear_error(mat)
         sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
-        if messages.error_for(mat):
-            notes.append(f"“{mat.name}”: upgraded, but {messages.error_for(mat)[:1].lower()}"
-                         f"{messages.error_for(mat)[1:]}")
+        error = messages.error_for(mat)
+        if error:
+            notes.append(f"“{mat.name}”: upgraded, but {error[:1].lower()}{error[1:]}")
         done.append(mat.name)
     if not done and not notes:
         return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []
