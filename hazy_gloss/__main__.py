@@ -29,29 +29,16 @@ import signal
 import sys
 
 from . import constants as K
+from .schema import HAZE_MAP_INPUTS, LAYER_MAP_INPUTS
 
+#: The core's maps of a perceptual conversion (the haze maps are the schema's HAZE_MAP_INPUTS).
+_CORE_INPUTS = ("core_reflectivity", "edge_tint", "roughness", "alpha", "anisotropy", "rotation")
+#: The maps of a PBR texture set (api.convert_maps' PBR form: a Principled material with a
+#: baked layer); it also takes the haze layer's own haze maps (coat_haziness, ...).
+_PBR_INPUTS = ("base_color", "metallic", "normal", "coat", "coat_roughness", "opacity")
 #: (parameter name, flag) of the map/constant inputs.
-INPUT_FLAGS = (
-    ("core_reflectivity", "--core-reflectivity"),
-    ("edge_tint", "--edge-tint"),
-    ("roughness", "--roughness"),
-    ("alpha", "--alpha"),
-    ("anisotropy", "--anisotropy"),
-    ("rotation", "--rotation"),
-    ("haziness", "--haziness"),
-    ("haze_extent", "--haze-extent"),
-    ("haze_extent_x", "--haze-extent-x"),
-    ("haze_extent_y", "--haze-extent-y"),
-    # a PBR texture set (api.convert_maps' PBR form): a Principled material with a baked layer
-    ("base_color", "--base-color"),
-    ("metallic", "--metallic"),
-    ("normal", "--normal"),
-    ("coat", "--coat"),
-    ("coat_roughness", "--coat-roughness"),
-    ("opacity", "--opacity"),
-    ("coat_haziness", "--coat-haziness"),
-    ("coat_haze_extent", "--coat-haze-extent"),
-)
+INPUT_FLAGS = tuple((name, "--" + name.replace("_", "-"))
+                    for name in _CORE_INPUTS + HAZE_MAP_INPUTS + _PBR_INPUTS)
 PROG = "hazy_gloss convert"
 
 
@@ -208,8 +195,7 @@ def _run_convert(args, signals):
         return _error(f"--out must name a folder, got {args.out!r}")
     inputs = {name: parse_value(getattr(args, name)) for name, _ in INPUT_FLAGS
               if getattr(args, name) is not None}
-    pbr = any(k in inputs for k in ("base_color", "metallic", "normal", "coat", "coat_roughness",
-                                    "opacity", "coat_haziness", "coat_haze_extent"))
+    pbr = any(k in inputs for k in _PBR_INPUTS + LAYER_MAP_INPUTS)
     if "opacity" in inputs:
         if "alpha" in inputs:
             return _error("--alpha is the core roughness α of perceptual maps; a PBR set's "
@@ -315,9 +301,7 @@ def _run_batch(args, inputs, progress, bar, cli, signals):
     set converted, 4 when some failed (one line each on stderr)."""
     from .blender.convert_pbr import convert_library_steps
     from .convert import ConversionError, drain
-    haze = {k: v for k, v in inputs.items() if k in ("haziness", "haze_extent", "haze_extent_x",
-                                                      "haze_extent_y", "coat_haziness",
-                                                      "coat_haze_extent")}
+    haze = {k: v for k, v in inputs.items() if k in HAZE_MAP_INPUTS}
     paths = [k for k, v in haze.items() if isinstance(v, str)]
     others = [k for k in inputs if k not in haze]
     if paths or others:

@@ -18,6 +18,7 @@ Everything here delegates to ``hazy_gloss.blender`` (bpy) and ``hazy_gloss.core`
 from . import constants as K
 from .blender import material as _material
 from .core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise as normalise_parameters
+from .schema import HAZE_SOCKETS
 
 STAMP = K.STAMP
 NODE_PREFIX = K.NODE_PREFIX
@@ -98,7 +99,7 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     status, msg, _ = _make.add_haziness_map(mat, size=size, param=param)
     if status == "ERROR":
         raise ValueError(msg)
-    sock = layer.layer_node(mat).inputs[K.HAZE_SOCKETS[param][0]]
+    sock = layer.layer_node(mat).inputs[HAZE_SOCKETS[param][0]]
     return sock.links[0].from_node.image
 
 

@@ -6,19 +6,65 @@ add-on's own choices; every path (lean material, in-shader nodes, baked maps, re
 clamps with these same values.
 """
 
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Term:
+    """One word of the vocabulary: ``id`` (the stamp's and Blender's enum value), ``label`` (UI,
+    node group names, docs), ``description`` (tooltip); ``kinds``: for a distribution, the kinds
+    whose node offers it."""
+    id: str
+    label: str
+    description: str
+    kinds: tuple = ()
+
+
 #: Lobe kinds: Metallic BSDF lobes (conductor Fresnel), Principled BSDF lobes (dielectric
 #: Fresnel over a base), Glossy BSDF lobes (no Fresnel, weights in the colours).
-KINDS = ("CONDUCTOR", "DIELECTRIC", "LEGACY")
+KIND_TERMS = (
+    Term("CONDUCTOR", "Conductor", "Metal: Metallic BSDF lobes with the physical conductor "
+         "Fresnel from core reflectivity and edge tint (Gulbrandsen 2014)"),
+    Term("DIELECTRIC", "Dielectric", "Plastic, varnish, glass: Principled BSDF specular lobes "
+         "over a base colour; keep haziness small (about 0-0.1)"),
+    Term("LEGACY", "Legacy", "Glossy BSDF lobes without Fresnel (colours only)"),
+)
+#: Microfacet distributions, spelled as Blender's node enums, and which kinds' nodes offer them
+#: (Metallic, Principled, Glossy BSDF).
+DISTRIBUTION_TERMS = (
+    Term("GGX", "GGX", "GGX microfacets (all kinds)", ("CONDUCTOR", "DIELECTRIC", "LEGACY")),
+    Term("BECKMANN", "Beckmann", "Beckmann microfacets (conductor and legacy)",
+         ("CONDUCTOR", "LEGACY")),
+    Term("MULTI_GGX", "Multiscatter GGX", "GGX with multiple-scattering energy compensation "
+         "(β and r corrected so the peak stays invariant)", ("CONDUCTOR", "DIELECTRIC", "LEGACY")),
+    Term("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "Ashikhmin-Shirley lobes (legacy only)",
+         ("LEGACY",)),
+)
+#: The tangent of anisotropic lobes.
+TANGENT_TERMS = (
+    Term("UV_MAP", "UV Map", "Tangent from the object's UV map (the usual choice)"),
+    Term("RADIAL_X", "Radial X", "Radial tangent around the object's X axis"),
+    Term("RADIAL_Y", "Radial Y", "Radial tangent around the object's Y axis"),
+    Term("RADIAL_Z", "Radial Z", "Radial tangent around the object's Z axis (Blender's default "
+         "for an unconnected Tangent)"),
+)
 
-#: Microfacet distributions, spelled as Blender's node enums.
-DISTRIBUTIONS = ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY")
+KINDS = tuple(t.id for t in KIND_TERMS)
+DISTRIBUTIONS = tuple(t.id for t in DISTRIBUTION_TERMS)
+TANGENTS = tuple(t.id for t in TANGENT_TERMS)
+#: Which distributions each kind's node offers.
+NODE_DISTRIBUTIONS = {k: tuple(t.id for t in DISTRIBUTION_TERMS if k in t.kinds) for k in KINDS}
 
-#: Which distributions each kind's node offers (Metallic, Principled, Glossy BSDF).
-NODE_DISTRIBUTIONS = {
-    "CONDUCTOR": ("GGX", "BECKMANN", "MULTI_GGX"),
-    "DIELECTRIC": ("GGX", "MULTI_GGX"),
-    "LEGACY": ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY"),
-}
+
+def label(terms, term_id):
+    """The label of ``term_id`` in ``terms`` (KIND_TERMS, ...); the id itself when unknown."""
+    return next((t.label for t in terms if t.id == term_id), term_id)
+
+
+def enum_items(terms):
+    """(id, label, description, number) items of a Blender EnumProperty."""
+    return tuple((t.id, t.label, t.description, i) for i, t in enumerate(terms))
+
 
 #: Haziness β_h is kept in [0, MAX_HAZINESS]: β_h = 1 is the degenerate single-wide-lobe case
 #: (the paper's β_h ∈ [0, 1)); every path clamps to this one value.

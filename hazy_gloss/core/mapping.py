@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from .. import constants as K
+
 # HazeMapping and PerceptualParameters live in mapping_io (split off this module), re-exported.
 from .mapping_io import HazeMapping, PerceptualParameters, _colour, _pair, _Validator, _working_dtype
 
@@ -32,8 +34,9 @@ __all__ = (
     "dielectric_ior",
 )
 
-#: Lobe distributions the add-on offers, spelled as Blender's node enums.
-DISTRIBUTIONS = ("GGX", "BECKMANN", "MULTI_GGX", "ASHIKHMIN_SHIRLEY")
+#: Lobe distributions the add-on offers, spelled as Blender's node enums (constants'
+#: vocabulary).
+DISTRIBUTIONS = K.DISTRIBUTIONS
 
 #: Cycles clamps Ashikhmin-Shirley roughness to [1e-4, 1] (bsdf_ashikhmin_shirley_setup).
 _AS_ALPHA_RANGE = (1e-4, 1.0)

@@ -1,10 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The perceptual parameters of a hazy material: names, defaults, valid ranges (bpy-free).
+"""The perceptual parameters of a hazy material: validation (bpy-free).
 
-One schema for every entry point: :func:`normalise` checks the parameters of one material
-(the scripting API, the panel, presets) and raises ValueError with one line naming the
-parameter and what would be valid; :func:`sanitise` clamps and counts bad texels of a map
-(texture conversion) with the same ranges.
+Their names, defaults and ranges are derived from the one schema, hazy_gloss.schema (re-exported
+here: PARAMETERS, DEFAULTS, HAZE_PARAMETERS, HAZE_DEFAULTS, RANGES).  :func:`normalise` checks
+the parameters of one material (the scripting API, the panel, presets) and raises ValueError
+with one line naming the parameter and what would be valid; :func:`sanitise` clamps and counts
+bad texels of a map (texture conversion) with the same ranges.
 """
 from __future__ import annotations
 
@@ -14,42 +15,25 @@ import math
 import numpy as np
 
 from .. import constants as K
+from ..schema import (DEFAULTS, HAZE_DEFAULTS, HAZE_PARAMETERS, PARAMETERS, RANGES, SCHEMA,
+                      SCHEMA_BY_NAME)
 from .lobes import check_kind
 
-__all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "HAZE_PARAMETERS", "normalise", "normalise_haze",
-           "check_value", "sanitise", "is_anisotropic")
+__all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "HAZE_PARAMETERS", "HAZE_DEFAULTS", "RANGES",
+           "normalise", "normalise_haze", "check_value", "sanitise", "is_anisotropic")
 
-#: Every perceptual parameter of a hazy material (the stamp's keys).
-PARAMETERS = ("kind", "distribution", "core_reflectivity", "edge_tint", "roughness", "anisotropy",
-              "rotation", "haziness", "haze_extent", "smoothness", "shader_mapping", "base_color",
-              "transmission", "tangent")
+TANGENTS = K.TANGENTS
 
-DEFAULTS = dict(kind="CONDUCTOR", distribution="GGX", core_reflectivity=(0.5, 0.5, 0.5),
-                edge_tint=(0.0, 0.0, 0.0), roughness=0.1, anisotropy=0.0, rotation=0.0,
-                haziness=0.5, haze_extent=(5.0, 5.0), smoothness=None, shader_mapping=False,
-                base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP")
-
-TANGENTS = ("UV_MAP", "RADIAL_X", "RADIAL_Y", "RADIAL_Z")
-
-#: The parameters of a haze layer on a user's BSDF (Make Hazy); the core's own parameters stay
-#: on its node.
-HAZE_PARAMETERS = ("haziness", "haze_extent", "smoothness", "reflectivity_cap", "coat_haziness",
-                   "coat_haze_extent", "keep_body_colour")
-HAZE_DEFAULTS = dict(haziness=0.0, haze_extent=(5.0, 5.0), smoothness=None, reflectivity_cap=1.0,
-                     coat_haziness=0.0, coat_haze_extent=5.0, keep_body_colour=False)
-
-#: (lo, hi) of the numeric parameters, hi None = unbounded; colours per channel.
-RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "base_color": (0.0, 1.0),
-          "roughness": (0.0, 1.0), "anisotropy": (0.0, 1.0), "transmission": (0.0, 1.0),
-          "haziness": (0.0, K.MAX_HAZINESS), "haze_extent": (0.0, None),
-          "rotation": (-math.inf, math.inf), "smoothness": (K.MIN_SMOOTHNESS, math.inf),
-          "coat_haziness": (0.0, K.MAX_HAZINESS), "coat_haze_extent": (0.0, None),
-          "reflectivity_cap": (0.0, 1.0)}
-_COLOURS = ("core_reflectivity", "edge_tint", "base_color")
-_WHY = {"haziness": " (1 would break energy conservation)",
-        "reflectivity_cap": " (1: no cap)",
-        "haze_extent": " (units of the core's roughness)",
-        "smoothness": " (the Bézier weight w; None selects Eq. 7)"}
+_COLOURS = tuple(p.name for p in SCHEMA if p.type == "colour")
+_IDS = {p.name: tuple(t.id for t in p.terms) for p in SCHEMA if p.type == "enum"}
+#: A hazy material's parameters by how normalise checks them (after kind and distribution).
+_M = [p for p in SCHEMA if p.on_material]
+_M_EXTENTS = tuple(p.name for p in _M if p.type == "extent")
+_M_NUMBERS = tuple(p.name for p in _M if p.type == "float" and p.default is not None)
+_M_OPTIONAL = tuple(p.name for p in _M if p.type == "float" and p.default is None)
+_M_FLAGS = tuple(p.name for p in _M if p.type == "bool")
+_M_CHOICES = tuple(p.name for p in _M if p.type == "enum" and p.name not in ("kind", "distribution"))
+_WHY = {p.name: p.why for p in SCHEMA if p.why}
 
 
 def _fail(msg):
@@ -146,9 +130,9 @@ def _extent(value, name="haze_extent"):
                 if len(value) == 1 else ""
             _fail(f"{name} must be a number or an (x, y) pair, got {len(value)} "
                   f"value{'s' if len(value) != 1 else ''} {_short(tuple(value))}{hint}")
-        x, y = (_in_range("haze_extent", _number(name, v)) for v in value)
+        x, y = (_in_range(name, _number(name, v)) for v in value)
         return (x, y)
-    x = _in_range("haze_extent", _number(name, value))
+    x = _in_range(name, _number(name, value))
     return (x, x)
 
 
@@ -195,8 +179,8 @@ def normalise(params, explicit=None):
         _refuse_unknown("hazy parameter", unknown, PARAMETERS)
     p = dict(DEFAULTS)
     p.update(params)
-    p["kind"] = _choice("kind", p["kind"], K.KINDS)
-    p["distribution"] = _choice("distribution", p["distribution"], K.DISTRIBUTIONS)
+    p["kind"] = _choice("kind", p["kind"], _IDS["kind"])
+    p["distribution"] = _choice("distribution", p["distribution"], _IDS["distribution"])
     check_kind(p["kind"], p["distribution"])
     for name in _COLOURS:
         p[name] = _colour(name, p[name])
@@ -210,15 +194,19 @@ def normalise(params, explicit=None):
             _colour("edge_tint", params["edge_tint"]) != (0.0, 0.0, 0.0):
         _fail(f"edge_tint applies to conductors only; a {p['kind'].lower()} has no edge tint "
               f"(set kind='CONDUCTOR', or leave edge_tint out)")
-    p["haze_extent"] = _extent(p["haze_extent"])
-    for name in ("roughness", "anisotropy", "rotation", "haziness", "transmission"):
+    for name in _M_EXTENTS:
+        p[name] = _extent(p[name], name)
+    for name in _M_NUMBERS:
         p[name] = _in_range(name, _number(name, p[name]))
     if p["kind"] != "DIELECTRIC" and p["transmission"] != 0.0 and "transmission" in explicit:
         _fail(f"transmission applies to dielectrics only; a {p['kind'].lower()} transmits no light")
-    if p["smoothness"] is not None:
-        p["smoothness"] = _in_range("smoothness", _number("smoothness", p["smoothness"]))
-    p["shader_mapping"] = _flag("shader_mapping", p["shader_mapping"])
-    p["tangent"] = _choice("tangent", p["tangent"], TANGENTS)
+    for name in _M_OPTIONAL:
+        if p[name] is not None:
+            p[name] = _in_range(name, _number(name, p[name]))
+    for name in _M_FLAGS:
+        p[name] = _flag(name, p[name])
+    for name in _M_CHOICES:
+        p[name] = _choice(name, p[name], _IDS[name])
     return p
 
 
@@ -236,13 +224,8 @@ def normalise_haze(params, current=None):
         _refuse_unknown("haze parameter", unknown, HAZE_PARAMETERS)
     h = dict(HAZE_DEFAULTS if current is None else current)
     h.update(params)
-    for name in ("haziness", "coat_haziness", "reflectivity_cap"):
-        h[name] = _in_range(name, _number(name, h[name]))
-    h["haze_extent"] = _extent(h["haze_extent"])
-    h["coat_haze_extent"] = check_value("coat_haze_extent", h["coat_haze_extent"])
-    if h["smoothness"] is not None:
-        h["smoothness"] = _in_range("smoothness", _number("smoothness", h["smoothness"]))
-    h["keep_body_colour"] = check_value("keep_body_colour", h["keep_body_colour"])
+    for name in HAZE_PARAMETERS:
+        h[name] = check_value(name, h[name])
     return h
 
 
@@ -257,13 +240,15 @@ def check_value(name, value):
     """The normalised form of one parameter's value on its own (material or haze layer), or
     ValueError with one line naming it and what is valid.  Used for values read back from a
     stamp, where each key is checked separately (kind-dependent rules are normalise's)."""
-    if name in ("kind", "distribution", "tangent"):
-        return _choice(name, value, {"kind": K.KINDS, "distribution": K.DISTRIBUTIONS,
-                                     "tangent": TANGENTS}[name])
-    if name in _COLOURS:
+    p = SCHEMA_BY_NAME.get(name)
+    if p is None:
+        _fail(f"unknown hazy parameter {name!r}")
+    if p.type == "enum":
+        return _choice(name, value, _IDS[name])
+    if p.type == "colour":
         return _colour(name, value)
-    if name == "haze_extent":
-        return _extent(value)
+    if p.type == "extent":
+        return _extent(value, name)
     if name == "coat_haze_extent":
         if isinstance(value, (tuple, list, np.ndarray)) and not isinstance(value, str):
             if len(value) != 1:
@@ -271,13 +256,11 @@ def check_value(name, value):
                       f"{len(value)} values {_short(tuple(value))}")
             value = value[0]
         return _in_range(name, _number(name, value))
-    if name in ("shader_mapping", "keep_body_colour"):
+    if p.type == "bool":
         return _flag(name, value)
-    if name == "smoothness":
-        return None if value is None else _in_range(name, _number(name, value))
-    if name in RANGES:
-        return _in_range(name, _number(name, value))
-    _fail(f"unknown hazy parameter {name!r}")
+    if p.default is None and value is None:  # optional (smoothness: None selects Eq. 7)
+        return None
+    return _in_range(name, _number(name, value))
 
 
 def is_anisotropic(p):

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The generated parts of the docs are up to date: docs/architecture.md's import diagram is what
-scripts/architecture.py draws from the code now (its ``--check``)."""
+scripts/architecture.py draws from the code now, docs/parameters.md's tables what
+scripts/parameter_table.py writes from the parameter schema (their ``--check``)."""
 import subprocess
 import sys
 from pathlib import Path
@@ -42,3 +43,31 @@ def test_unknown_blender_module_goes_in_other():
     assert architecture.group_of("hazy_gloss.blender.brand_new")[1] == "other"
     assert architecture.group_of("hazy_gloss.blender.layer")[1] == "model"
     assert architecture.group_of("hazy_gloss.newfolder.x", {"hazy_gloss.newfolder"})[1] == "newfolder"
+
+
+TABLES = ROOT / "scripts" / "parameter_table.py"
+
+
+def test_parameter_tables_are_current():
+    """docs/parameters.md's tables are what scripts/parameter_table.py writes from the schema."""
+    run = subprocess.run([sys.executable, str(TABLES), "--check"], capture_output=True,
+                         text=True, cwd=ROOT, timeout=120)
+    assert run.returncode == 0, run.stderr.strip() or run.stdout.strip()
+
+
+def test_parameter_table_check_fails_on_a_stale_table(tmp_path, monkeypatch):
+    sys.path.insert(0, str(TABLES.parent))
+    try:
+        import parameter_table
+    finally:
+        sys.path.remove(str(TABLES.parent))
+    doc = tmp_path / "parameters.md"
+    text = parameter_table.DOC.read_text(encoding="utf-8")
+    doc.write_text(text.replace("| r_c |", "| r |", 1), encoding="utf-8")
+    monkeypatch.setattr(parameter_table, "DOC", doc)
+    monkeypatch.setattr(parameter_table, "ROOT", tmp_path)
+    assert parameter_table.main(["--check"]) == 1
+    assert parameter_table.main([]) == 0 and parameter_table.main(["--check"]) == 0
+    assert doc.read_text(encoding="utf-8") == text
+    doc.write_text("no markers", encoding="utf-8")
+    assert parameter_table.main(["--check"]) == 1

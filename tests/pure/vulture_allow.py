@@ -23,3 +23,5 @@ _.IOR_S_V4, _.IOR_S_V53, _.E_V4, _.E_V53, _.GLASS_E_MU1_V4, _.GLASS_E_MU1_V53
 # Documented API (docs/compositing.md, docs/body-colour.md) and the asset library build
 # (node_groups/build_library.py)
 _.recomposite, _.compensated_base, _.catalog_definitions, _.CATALOG_FILE
+# Schema columns only docs/parameters.md's generator reads (scripts/parameter_table.py)
+_.symbol, _.doc_layer, _.range_note
