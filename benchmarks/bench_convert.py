@@ -207,7 +207,7 @@ def main(argv=None):
     import numpy as np
     from hazy_gloss import api
     from hazy_gloss import convert as core
-    from hazy_gloss.blender import convert_inputs as binputs, convert_outputs as boutputs
+    from hazy_gloss.blender.model import convert_inputs as binputs, convert_outputs as boutputs
 
     n = args.size
     tmp = Path(tempfile.mkdtemp(prefix="hg_bench_convert_"))

@@ -59,7 +59,8 @@ import bpy
 import numpy as np
 from hazy_gloss import api, imagestream as S
 from hazy_gloss import convert as core
-from hazy_gloss.blender import convert as bc, convert_inputs as bin_, convert_outputs as bout
+from hazy_gloss.blender.actions import convert as bc
+from hazy_gloss.blender.model import convert_inputs as bin_, convert_outputs as bout
 
 def status(key):
     for line in open("/proc/self/status"):
@@ -169,7 +170,7 @@ def make_set(folder, n):
     _child([_MAKE, str(ROOT), str(folder), str(n)])
     # the colour input as an 8-bit sRGB PNG, converted by Blender's OpenImageIO (streamed)
     _child(["import sys, bpy; sys.path.insert(0, sys.argv[1]);"
-            "from hazy_gloss.blender.convert_inputs import openimageio as o; oi = o();"
+            "from hazy_gloss.blender.model.convert_inputs import openimageio as o; oi = o();"
             "inp = oi.ImageInput.open(sys.argv[2]); spec = oi.ImageSpec(inp.spec().width, "
             "inp.spec().height, 3, oi.UINT8); out = oi.ImageOutput.create(sys.argv[3]);"
             "out.open(sys.argv[3], spec);"

@@ -82,7 +82,7 @@ def main():
     C.start_blender()
     import bpy
     from hazy_gloss import api, exr
-    from hazy_gloss.blender import layer
+    from hazy_gloss.blender.model import layer
     import real_materials as R
     rows, furnace = measure(api, layer, exr.read_exr, R)
     res = {"rows": rows, "furnace": furnace, "blender": bpy.app.version_string,

@@ -23,7 +23,7 @@ from hazy_gloss.core.lobes import describe  # noqa: E402
 
 
 def hazy(ior, roughness, haziness, distribution="GGX", extent=5.0):
-    """(β, α_wide, IOR') of a Principled core as blender/layer.py computes them."""
+    """(β, α_wide, IOR') of a Principled core as blender/model/layer.py computes them."""
     f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
     d = describe("DIELECTRIC", distribution, core_reflectivity=(f0,) * 3, roughness=roughness,
                  haziness=haziness, haze_extent=extent)

@@ -157,7 +157,7 @@ def hand_wired(bpy, layered):
     node's inputs and the values the group's math gives it, Mix Shaders with the factors it
     gives (layer_probe.slot_values / the group's graph evaluated: constant inputs only)."""
     import layer_probe
-    from hazy_gloss.blender import layer
+    from hazy_gloss.blender.model import layer
     from hazy_gloss.core import layer_graph
     node = layer.layer_node(layered)
     lay = layer.graph_of(node)
@@ -204,7 +204,7 @@ def hand_wired(bpy, layered):
 def rendered_slots(layered):
     """(BSDF copies Cycles renders, exact?) of the layer node (layer_probe.rendered_slots)."""
     import layer_probe
-    from hazy_gloss.blender import layer
+    from hazy_gloss.blender.model import layer
     return layer_probe.rendered_slots(layer, layer.layer_node(layered))
 
 

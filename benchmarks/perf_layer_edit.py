@@ -247,7 +247,7 @@ def main():
     hg = C.start_blender()
     import bpy
     from hazy_gloss import api
-    from hazy_gloss.blender import layer, layer_group
+    from hazy_gloss.blender.model import layer, layer_group
     del hg
     C.clean_file()
     res = {"repeats": REPEATS, "many": MANY, "rounds": ROUNDS, "blender": bpy.app.version_string,

@@ -8,7 +8,7 @@ A. Closures (run in every installed Blender: .venv 5.3, .venv52 5.2, .venv45 4.5
    mean), and its mean against the sum of renders of each of its BSDF copies alone (the copy
    kept in its Mix Shaders, the others unlinked): linearity, i.e. no closure dropped and no
    weight lost when several closures share EEVEE's bins.  The same for the EEVEE-only output of
-   blender.eevee_layer (mode "always") and for the original material.
+   blender.actions.eevee_output (mode "always") and for the original material.
 B. Against Cycles (5.3): a smooth UV sphere under a delta sun, black world, orthographic camera;
    Cycles at 1 sample is exact there (each pixel evaluates the BSDF once at its centre); EEVEE
    at 64 TAA samples.  Relative RMSE and mean bias over the sphere against the Cycles render of
@@ -122,11 +122,11 @@ def copies(mat):
 
 
 def with_eevee_output(label):
-    """The layered material built afresh with blender.eevee_layer's EEVEE-only output (mode
+    """The layered material built afresh with blender.actions.eevee_output's EEVEE-only output (mode
     "always").  Not a copy of another layered material: a copy has a new session id, so the
     add-on's depsgraph handler reruns its layer at the first render, and a rebuilding layer
     removes the EEVEE output's nodes (which then fall back to the full layer)."""
-    from hazy_gloss.blender import eevee_layer
+    from hazy_gloss.blender.actions import eevee_output as eevee_layer
     mat = build(label)
     info = eevee_layer.add_eevee_output(mat, mode="always")
     assert info["added"], info
@@ -349,7 +349,7 @@ def markdown(res):
     L.append(f"**A. Closures** (flat plane {s['plane'][0]}x{s['plane'][1]} px, delta sun; "
              f"noise = RMS of (n TAA samples - {s['ref']}) / mean; linearity = EEVEE's full layer "
              f"at {s['ref']} samples / the sum of its BSDF copies rendered alone - 1; the "
-             "EEVEE-only output is blender.eevee_layer's, mode \"always\"):\n")
+             "EEVEE-only output is blender.actions.eevee_output's, mode \"always\"):\n")
     header = ["Blender", "material", "BSDFs", "view", "noise @1: layer / EEVEE output / original",
               f"noise @{s['noise'][-1]}: layer / output / original", "linearity (layer)"]
     rows = []

@@ -13,10 +13,10 @@ Importing this package does not import bpy; ``register()`` does.
 
 
 def register():
-    from .blender import registration
+    from .blender.ui import registration
     registration.register()
 
 
 def unregister():
-    from .blender import registration
+    from .blender.ui import registration
     registration.unregister()

@@ -206,12 +206,12 @@ def _run_convert(args, signals):
     if args.blend and os.path.exists(args.blend) and not os.path.isfile(args.blend):
         return _error(f"--blend {args.blend}: not a file")
     try:
-        from .blender import cli  # imports bpy (the conversion reads and writes images with it)
+        from .blender.actions import cli  # imports bpy (the conversion reads and writes images with it)
     except ImportError as exc:
         return _error(f"bpy is not importable ({exc}); install the bpy module or run inside "
                       "Blender", K.EXIT_NO_BPY)
     from . import api
-    from .blender import convert as _  # noqa: F401  (imported before the signals raise)
+    from .blender.actions import convert as _  # noqa: F401  (imported before the signals raise)
     from .convert import ConversionError, Progress
     bar = ProgressBar(sys.stderr, enabled=not args.quiet and not args.json and (
         args.progress or _isatty(sys.stderr)))
@@ -299,7 +299,7 @@ class ProgressBar:
 def _run_batch(args, inputs, progress, bar, cli, signals):
     """--batch FOLDER: every subfolder a PBR set; a summary line at the end; exit 0 when every
     set converted, 4 when some failed (one line each on stderr)."""
-    from .blender.convert_pbr import convert_library_steps
+    from .blender.actions.convert_pbr import convert_library_steps
     from .convert import ConversionError, drain
     haze = {k: v for k, v in inputs.items() if k in HAZE_MAP_INPUTS}
     paths = [k for k, v in haze.items() if isinstance(v, str)]
@@ -381,7 +381,7 @@ def _fail(prog, msg, code=2):
 
 def _need_bpy(prog):
     try:
-        from .blender import cli  # noqa: F401  (imports bpy)
+        from .blender.actions import cli  # noqa: F401  (imports bpy)
     except ImportError as exc:
         return _fail(prog, f"bpy is not importable ({exc}); install the bpy module or run "
                            f"inside Blender", 3)
@@ -389,7 +389,7 @@ def _need_bpy(prog):
 
 
 def _open_blend(path):
-    from .blender import cli
+    from .blender.actions import cli
     cli.open_blend(path)
 
 
@@ -456,7 +456,7 @@ def _import(args):
             if rc is not None:
                 return rc
             from . import api
-            from .blender import cli
+            from .blender.actions import cli
             cli.empty_file()
             try:
                 res = api.import_materialx(os.path.abspath(args.path), progress=bar)
@@ -502,7 +502,7 @@ def _engines(args):
         if rc is not None:
             return rc
         _open_blend(args.path)
-        from .blender import cli
+        from .blender.actions import cli
         params = cli.hazy_parameters()
     else:
         for im in _read_any(args.path):

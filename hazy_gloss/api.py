@@ -16,7 +16,7 @@ renders identically where the add-on is not installed (only built-in nodes are u
 Everything here delegates to ``hazy_gloss.blender`` (bpy) and ``hazy_gloss.core`` (numpy).
 """
 from . import constants as K
-from .blender import material as _material
+from .blender.model import material as _material
 from .core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise as normalise_parameters
 from .schema import HAZE_SOCKETS
 
@@ -64,7 +64,7 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     reflectivity_cap, coat_haziness, coat_haze_extent, keep_body_colour; ``node`` (a node or its
     name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
     ValueError (one line, the reason) when it cannot, touching nothing."""
-    from .blender import make_hazy as _make
+    from .blender.actions import make_hazy as _make
     _material.check_material(mat, "make_hazy")
     status, msg, notes = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
     if status == "ERROR":
@@ -77,8 +77,8 @@ def upgrade_layers(materials=None):
     nodes, with their values (``materials``: all of the file's by default; a layer is also
     upgraded on its first edit).  Returns the names of the materials upgraded; raises
     ValueError (one line) when there were old layers and none could be upgraded."""
-    from .blender import layer
-    from .blender import make_hazy as _make
+    from .blender.model import layer
+    from .blender.actions import make_hazy as _make
     mats = _make.materials_or_all(materials)
     for m in mats:
         _material.check_material(m, "upgrade_layers")
@@ -93,8 +93,8 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     """Link a paintable float image (filled with the current value, packed into the file) into
     the layer node's Haziness (``param="coat_haziness"``: Coat Haziness) through an Image
     Texture, made the active paint slot.  Returns the image; raises ValueError (one line)."""
-    from .blender import layer
-    from .blender import make_hazy as _make
+    from .blender.model import layer
+    from .blender.actions import make_hazy as _make
     _material.check_material(mat, "add_haziness_map")
     status, msg, _ = _make.add_haziness_map(mat, size=size, param=param)
     if status == "ERROR":
@@ -107,14 +107,14 @@ def create_look(look, name=None, **haze):
     """A new Principled material for one of the looks (``hazy_gloss.utils.looks.LOOKS``: CAR_PAINT,
     LACQUERED_WOOD, SATIN_VARNISH, BRUSHED_ALUMINIUM, WORN_PLASTIC) with its haze layer;
     ``haze`` overrides the look's haze parameters (haziness=0, coat_haziness=0: the original)."""
-    from .blender import looks as _looks
+    from .blender.actions import looks as _looks
     return _looks.create_look(look, name, **haze)
 
 
 def remove_haze(mat):
     """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
     the layer's nodes go.  Returns whether there was a layer."""
-    from .blender import make_hazy as _make
+    from .blender.actions import make_hazy as _make
     _material.check_material(mat, "remove_haze")
     status, msg, _ = _make.remove_haze(mat)
     if status == "ERROR":
@@ -129,7 +129,7 @@ def add_eevee_output(mat, mode="auto"):
     would otherwise pick lobes at random (a Principled core with a coat), "always" for any
     layer.  The request is kept: the output follows every later change of the layer.  Returns
     ``{"added": bool, "reason": str, "nodes": int}``; raises ValueError when ``mat`` has no layer."""
-    from .blender import eevee_layer as _eevee
+    from .blender.actions import eevee_output as _eevee
     _material.check_material(mat, "add_eevee_output")
     return _eevee.add_eevee_output(mat, mode=mode)
 
@@ -137,7 +137,7 @@ def add_eevee_output(mat, mode="auto"):
 def remove_eevee_output(mat):
     """Take the EEVEE-only output off ``mat`` (EEVEE renders the full layer again).  Returns
     whether there was one."""
-    from .blender import eevee_layer as _eevee
+    from .blender.actions import eevee_output as _eevee
     _material.check_material(mat, "remove_eevee_output")
     return _eevee.remove_eevee_output(mat)
 
@@ -148,7 +148,7 @@ def sync_haze(mat):
     earlier Hazy Gloss (a handler does this for materials in use; call it for a material no
     object uses).  A haze layer itself needs nothing: its node computes from its inputs.
     Returns whether anything changed."""
-    from .blender import sync as _sync
+    from .blender.actions import sync as _sync
     _material.check_material(mat, "sync_haze")
     return _sync.sync(mat, force=True)
 
@@ -173,7 +173,7 @@ def update_material_links(mat, **changes):
 
 
 def _update(mat, changes):
-    from .blender import edit as _edit
+    from .blender.actions import edit as _edit
     out = _edit.update_material(mat, **changes)
     if out[0] is None and _material.layer.is_layered(mat):
         out = (Notes(mat, _material.layer.notes(mat)), out[1])
@@ -216,7 +216,7 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     with a one-line message naming the parameter or file (an unknown option:
     ConversionOptionError, also a TypeError)."""
     from .convert import ConversionOptionError, did_you_mean
-    from .blender import convert_pbr as _pbr
+    from .blender.actions import convert_pbr as _pbr
     if _pbr.is_pbr(inputs):
         unknown = [k for k in options if k not in _PBR_OPTIONS]
         if unknown or kind != "CONDUCTOR":
@@ -232,7 +232,7 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
         raise ConversionOptionError(f"convert_maps: unknown option {k!r}"
                                     f"{did_you_mean(k, _CONVERT_OPTIONS)}; options: "
                                     f"{', '.join(_CONVERT_OPTIONS)}")
-    from .blender import convert as _convert
+    from .blender.actions import convert as _convert
     return _convert.convert_maps(inputs, out_dir, kind=kind, smoothness=smoothness,
                                  distribution=distribution, file_format=file_format, **options)
 
@@ -249,7 +249,7 @@ def last_error(mat):
     raised in property setters, so a script setting ``mat.hazy_gloss_settings.roughness = 2``
     learns of the refusal here, or raises with :func:`strict_settings`."""
     _material.check_material(mat, "last_error")
-    from .blender import messages as _messages
+    from .blender.actions import messages as _messages
     return _messages.error_for(mat)
 
 
@@ -260,7 +260,7 @@ def strict_settings():
         with api.strict_settings():
             mat.hazy_gloss_settings.roughness = 2   # ValueError: roughness must be in [0, 1] ...
     """
-    from .blender import properties as _props
+    from .blender.ui import properties as _props
     return _props.strict_settings()
 
 
@@ -288,7 +288,7 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     ``materialx`` package installed the file is validated (``report.validated``).
     Returns a report: ``.path``, ``.materials`` [(name, MaterialX name, notes)], ``.validated``
     (True/False, None without the package), ``.validation``, ``.notes``, ``.skipped``."""
-    from .blender import interchange as _ix
+    from .blender.actions import interchange as _ix
     return _ix.export_materialx(materials, path, flavour, validate=validate)
 
 
@@ -304,8 +304,8 @@ def import_materialx(path, *, progress=None):
     is reported and the rest of the file read.  ``progress``: callable(fraction, message).
     Returns the list of new materials with ``.report`` (one entry per material found:
     ``exact``, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``)."""
-    from .blender import interchange as _ix
-    from .blender import make_hazy as _make
+    from .blender.actions import interchange as _ix
+    from .blender.actions import make_hazy as _make
     return _ix.import_materialx(path, progress=progress, apply_haze=_make.apply_imported_haze)
 
 
@@ -313,7 +313,7 @@ def export_usd(materials=None, path="", *, preview=True):
     """Write hazy materials to USD (UsdShade with MaterialX node ids, plus a UsdPreviewSurface
     of the core lobe) with usd-core; RuntimeError when ``pxr`` is missing.
     Returns (path, [(name, prim path, notes)], skipped)."""
-    from .blender import interchange as _ix
+    from .blender.actions import interchange as _ix
     return _ix.export_usd(materials, path, preview=preview)
 
 
@@ -322,14 +322,14 @@ def add_export_fallback(mat):
     look at haziness 0) without changing Cycles/EEVEE renders; idempotent.  Returns notes.
     A material with a haze layer gets the user's own BSDF at haziness 0 (its values and links,
     the metallic map included); the notes say when Blender's USD preview takes another node."""
-    from .blender import fallback as _fallback
+    from .blender.model import fallback as _fallback
     _material.check_material(mat, "add_export_fallback")
     return _fallback.add_export_fallback(mat)
 
 
 def remove_export_fallback(mat):
     """Undo :func:`add_export_fallback`; returns True when something was removed."""
-    from .blender import fallback as _fallback
+    from .blender.model import fallback as _fallback
     _material.check_material(mat, "remove_export_fallback")
     return _fallback.remove_export_fallback(mat)
 

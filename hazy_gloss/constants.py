@@ -155,7 +155,7 @@ STRIP_TEXELS = 1 << 18
 EXR_ZIP_LEVEL = 4
 PNG_ZIP_LEVEL = 3
 
-# -- texture conversion (hazy_gloss/convert.py, blender/convert.py, python -m hazy_gloss) -------
+# -- texture conversion (hazy_gloss/convert.py, blender/actions/convert.py, python -m hazy_gloss) -------
 #: Exit statuses of ``python -m hazy_gloss convert`` (docs/textures.md).
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2  # bad input or usage: one line "hazy_gloss convert: error: ..." on stderr
@@ -203,9 +203,9 @@ UNITY_HAZE_BEZIER_W = 10.0
 UNITY_MAX_DIELECTRIC_F0 = 0.25
 #: Filament clear coat: fixed IOR 1.5, F0 = 0.04 (Schlick).
 FILAMENT_CLEARCOAT_F0 = 0.04
-#: Role names of the export fallback's nodes (blender/fallback.py add_export_fallback).
+#: Role names of the export fallback's nodes (blender/model/fallback.py add_export_fallback).
 FALLBACK_ROLE = "Export fallback"
 FALLBACK_OUTPUT_ROLE = "Export output"
 RENDER_OUTPUT_ROLE = "Render output"
-EEVEE_ROLE = "layer eevee "  # the role of every node blender/eevee_layer.py builds starts so
-EEVEE_OUTPUT_ROLE = EEVEE_ROLE + "output"  # blender/eevee_layer.py's EEVEE-only Material Output
+EEVEE_ROLE = "layer eevee "  # the role of every node blender/actions/eevee_output.py builds starts so
+EEVEE_OUTPUT_ROLE = EEVEE_ROLE + "output"  # blender/actions/eevee_output.py's EEVEE-only Material Output

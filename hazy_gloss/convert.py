@@ -15,7 +15,7 @@ textures storing variations of these parameters".  This module does the numeric 
 - :func:`srgb_to_linear` / :func:`linear_to_srgb` (IEC 61966-2-1, the curve Blender's OCIO
   "sRGB" uses) and :func:`resample_bilinear`.
 
-Reading and writing images goes through bpy (hazy_gloss/blender/convert.py).  Images here are
+Reading and writing images goes through bpy (hazy_gloss/blender/actions/convert.py).  Images here are
 arrays shaped (H, W) for scalar maps and (H, W, 3) for colours, in Blender's row order (row 0 is
 the bottom row); nothing here depends on the order.
 """
@@ -427,7 +427,7 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
     the result does not depend on either (every operation is per texel).
     ``anisotropic``: None decides from the data (any anisotropy > 0 or λ_x != λ_y); True forces
     the anisotropic map set (UDIM tiles of one set must agree).  The conversion of files
-    (blender/convert.py) runs the same three steps (:func:`sanitise_inputs`,
+    (blender/actions/convert.py) runs the same three steps (:func:`sanitise_inputs`,
     :func:`is_anisotropic`, :func:`describe_maps`) on strips instead.
     """
     kind = str(kind).upper()

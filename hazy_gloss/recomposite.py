@@ -16,7 +16,7 @@ Eq. 11 is Σ c_k H_k and the recomposite is  out = V0 + Σ_k (c_k(β', r') - c_k
 X cancels exactly, unedited pixels are V0 bit for bit, and an edited hazy pixel becomes
 V0 - Eq.11(β, r) + Eq.11(β', r').  The haze mapping (Eq. 7 with the rendered peak ratio p and
 its complement, Eq. 4-5) turns an edited haziness β_h and core reflectivity r_c into β', r'.
-docs/compositing.md explains the render set-up (hazy_gloss.blender.composite).
+docs/compositing.md explains the render set-up (hazy_gloss.blender.model.recomposite).
 
 - :func:`passes_from_exr`, :func:`recomposite`: numpy;
 - :func:`compositor_graph`: the same computation as node math (core.graph), from which the

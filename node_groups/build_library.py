@@ -5,7 +5,7 @@
     .venv/bin/python node_groups/build_library.py [--out DIR]   # default: node_groups/library/
 
 Writes ``hazy_gloss_nodes.blend`` (every group configuration of
-``hazy_gloss.blender.nodes.groups``, each marked as an asset with a description and a catalog
+``hazy_gloss.blender.model.groups``, each marked as an asset with a description and a catalog
 under "Hazy Gloss") and ``blender_assets.cats.txt`` into DIR.  ``scripts/build.py`` calls
 :func:`build_library` on the staged package to put the library into the extension (``assets/``),
 where the add-on registers it as an asset library; the output here is for inspection (it is
@@ -32,8 +32,8 @@ def build_library(package, asset_dir, manifest):
     bpy.ops.wm.read_homefile(use_empty=True)
     for ng in list(bpy.data.node_groups):
         bpy.data.node_groups.remove(ng)
-    groups = importlib.import_module(f"{package}.blender.nodes.groups")
-    menus = importlib.import_module(f"{package}.blender.menus")
+    groups = importlib.import_module(f"{package}.blender.model.groups")
+    menus = importlib.import_module(f"{package}.blender.ui.menus")
     asset_dir = Path(asset_dir)
     asset_dir.mkdir(parents=True, exist_ok=True)
     (asset_dir / menus.CATALOG_FILE).write_text(menus.catalog_definitions(), encoding="utf-8")

@@ -5,16 +5,16 @@
 
 reads every import statement of ``hazy_gloss`` with tests/pure/layout_graph.py (ast, nothing
 imported, no bpy needed), groups the modules by folder (core/, interchange/, utils/, the
-top-level bpy-free modules, the entry points) and, under blender/, by role (:data:`ROLES`, the
-one table of them), collapses the imports to edges between groups, and writes a Mermaid
+top-level bpy-free modules, the entry points) and, under blender/, by layer (its folders,
+:data:`ROLES`), collapses the imports to edges between groups, and writes a Mermaid
 flowchart between the markers of docs/architecture.md (the text around them is hand-written and
 left alone).  A solid arrow: some module-level import; dashed: function-level imports only.
 Imports from the entry points and blender/ into the bpy-free part are drawn as one arrow to its
 box (they may import any of it); the arrows inside it are drawn group by group.
 
 ``--check``: write nothing, exit 1 with a one-line reason when the file differs from what would
-be written (tests/pure/test_docs_generated.py runs it).  A module of blender/ missing from
-:data:`ROLES` goes in an "other" group, named in the diagram and on stderr: add it to the table.
+be written (tests/pure/test_docs_generated.py runs it).  A module of blender/ outside the layers'
+folders goes in an "other" group, named in the diagram and on stderr: move it into its layer.
 """
 from __future__ import annotations
 
@@ -32,20 +32,16 @@ BEGIN = "<!-- architecture diagram: begin (scripts/architecture.py) -->"
 END = "<!-- architecture diagram: end -->"
 PKG = layout_graph.PACKAGE
 
-#: The roles of the modules of hazy_gloss/blender (names relative to it).  blender/nodes/ is a
-#: role by its folder.  A module not listed here is drawn in "other".
+#: The layers of hazy_gloss/blender, top down, each a folder (base: blender/compat.py and the
+#: package itself).  A module of blender/ outside these is drawn in "other" (and fails the test).
 ROLES = {
-    "base": ("Blender versions, stamps, messages and reports", ("", "compat", "stamp", "messages", "reports")),
-    "model": ("hazy materials in Blender: build, read, update", (
-        "material", "layer", "layer_group", "legacy_layer", "surface_build",
-        "convert", "convert_inputs", "convert_outputs", "convert_wiring", "composite",
-        "fallback")),
-    "actions": ("what the operators and the API do", (
-        "make_hazy", "edit", "sync", "convert_pbr", "interchange", "looks", "eevee_layer", "cli")),
-    "ui": ("operators, panels, menus, properties, registration", (
-        "operators", "composite_ops", "convert_ops", "interchange_ops", "panels", "menus",
-        "properties", "preferences", "plots", "context", "registration")),
+    "ui": "operators, panels, menus, properties, registration",
+    "actions": "what the operators and the API do",
+    "model": "hazy materials in Blender: build, read, update; stamps; groups",
+    "nodes": "node-tree builders and emitters",
+    "base": "Blender versions (compat)",
 }
+BASE = ("", "compat")
 
 #: The groups of the bpy-free part, by folder; the entry points (the package, the facade, the
 #: command line) are a group of their own.  A new folder gets a group of its own.
@@ -68,12 +64,11 @@ def group_of(module, packages=()):
     parts = rel.split(".")
     if parts[0] == "blender":
         inner = ".".join(parts[1:])
-        if parts[1:2] == ["nodes"]:
-            return "blender", "nodes", "blender/nodes/: node-tree builders and emitters"
-        for role, (what, names) in ROLES.items():
-            if inner in names:
-                return "blender", role, f"blender/ {role}: {what}"
-        return "blender", "other", "blender/ other: not in the role table"
+        role = "base" if inner in BASE else parts[1] if len(parts) > 2 or module in packages else None
+        if role in ROLES:
+            where = "blender/compat.py" if role == "base" else f"blender/{role}/"
+            return "blender", role, f"{where}: {ROLES[role]}"
+        return "blender", "other", "blender/ other: not in a layer's folder"
     if len(parts) == 1 and module not in packages:
         return "free", "toplevel", "hazy_gloss/*.py: constants, conversion, image files"
     folder = parts[0]
@@ -85,7 +80,7 @@ def _short(module, packages):
     rel = module[len(PKG) + 1:] if module != PKG else ""
     parts = [p for p in rel.split(".") if p] + (["__init__"] if module in packages else [])
     if parts[0] == "blender":
-        parts = parts[2:] if parts[1:2] == ["nodes"] else parts[1:]
+        parts = parts[2:] if parts[1:2] in (["nodes"], ["model"], ["actions"], ["ui"]) else parts[1:]
     elif len(parts) > 1:
         parts = parts[1:]
     return ".".join(parts)
@@ -103,7 +98,7 @@ def _wrap(names, width=48):
 
 
 def diagram(root=layout_graph.ROOT):
-    """(Mermaid text, [modules of blender/ missing from ROLES])."""
+    """(Mermaid text, [modules of blender/ outside the layers' folders])."""
     mods = layout_graph.modules(root)
     found = layout_graph.imports(root)
     packages = {m for m, path in mods.items() if path.name == "__init__.py"}
@@ -159,7 +154,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     block, other = diagram()
     if other:
-        print(f"architecture.py: not in ROLES (drawn as 'other'): {', '.join(other)}",
+        print(f"architecture.py: outside the layers' folders (drawn as 'other'): {', '.join(other)}",
               file=sys.stderr)
     try:
         old = DOC.read_text(encoding="utf-8")

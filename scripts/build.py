@@ -128,7 +128,7 @@ def check_zip(zip_path, stage):
     if names != staged:
         problems.append(f"zip differs from the stage: missing {sorted(staged - names)}, "
                         f"extra {sorted(names - staged)}")
-    for required in ("__init__.py", "blender_manifest.toml", "blender/nodes/groups.py",
+    for required in ("__init__.py", "blender_manifest.toml", "blender/model/groups.py",
                      f"{ASSET_DIRNAME}/hazy_gloss_nodes.blend",
                      f"{ASSET_DIRNAME}/blender_assets.cats.txt"):
         if required not in names:

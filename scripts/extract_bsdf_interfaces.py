@@ -95,7 +95,7 @@ def render(tables):
         '"""The input sockets of the BSDF nodes a haze layer wraps, as Blender declares them\n'
         "(read through Make Group in each supported Blender): per version (major.minor) and node\n"
         "kind, {socket name: type, subtype, limits, default, hide_value, panel} and each panel's\n"
-        'default_closed.  blender/layer_group.py builds the layer group\'s interface from it."""\n\n'
+        'default_closed.  blender/model/layer_group.py builds the layer group\'s interface from it."""\n\n'
         f"TABLES = {body}\n")
 
 

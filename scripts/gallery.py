@@ -219,7 +219,7 @@ def glass_rows(api):
 def sweep_rows(api, which):
     """Parameter sweeps for the docs (paper Figures 4 and 8)."""
     from hazy_gloss.blender.nodes.builder import TreeBuilder
-    from hazy_gloss.blender import material
+    from hazy_gloss.blender.model import material
     from hazy_gloss.blender.nodes.lobes import build_lobes
     base = dict(kind="CONDUCTOR", core_reflectivity=(0.9, 0.62, 0.35), edge_tint=(1.0, 0.85, 0.6),
                 roughness=R_01)

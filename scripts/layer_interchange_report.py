@@ -6,7 +6,7 @@ Principled BSDF (docs/interchange.md §5), bpy-free:
     .venv/bin/python scripts/layer_interchange_report.py --print  # prints it instead
 
 For every part of every look (hazy_gloss/utils/looks.py: the dielectric or metal base, the coat)
-the layer's constants as blender/layer.py maps them (tests/pure/openpbr_measure.layer_part), then:
+the layer's constants as blender/model/layer.py maps them (tests/pure/openpbr_measure.layer_part), then:
 
 - the Fresnel gap: where the exact dielectric Fresnel of the raised η dips below F0, Cycles'
   Principled keeps F0 (max(F_η, F0)) and MaterialX's dielectric_bsdf does not;

@@ -82,7 +82,7 @@ def layer_rows(api):
     mat, b = principled(distribution="MULTI_GGX", **{"Metallic": 1.0})
     texture(mat, b, "Roughness")
     cases.append(("metal, roughness map, Multiscatter GGX", mat, dict(haziness=0.5)))
-    from hazy_gloss.blender import layer
+    from hazy_gloss.blender.model import layer
     for label, mat, haze in cases:
         top = len(mat.node_tree.nodes)
         api.make_hazy(mat, **haze)

@@ -186,7 +186,7 @@ def main(argv=None):
 
     hazy_gloss.register()
     from hazy_gloss import api
-    from hazy_gloss.blender import composite as comp
+    from hazy_gloss.blender.model import recomposite as comp
 
     tmp = tempfile.mkdtemp(prefix="hg_recomposite_")
     scene, mats = build_scene(api, args.samples, args.scale)

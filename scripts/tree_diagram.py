@@ -203,7 +203,7 @@ def main(argv=None):
     except ValueError:
         pass
     from hazy_gloss import api
-    from hazy_gloss.blender import layer
+    from hazy_gloss.blender.model import layer
     before = textured_material("Before")
     after = textured_material("After")
     api.make_hazy(after, haziness=0.4, coat_haziness=0.3)

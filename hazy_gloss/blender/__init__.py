@@ -1,2 +1,3 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""bpy glue. Everything under here may import bpy."""
+"""Everything that imports bpy, in layers that import only downward (docs/architecture.md):
+ui/ -> actions/ -> model/ -> nodes/ -> compat.py, each free to use the bpy-free package."""

@@ -5,9 +5,16 @@ Features are detected from RNA where Blender offers that (no property is read ju
 whether it exists: reading a deprecated property warns), versions where behaviour changed
 without an API change.  docs/blender-versions.md lists what changed and when.
 """
+import os
+
 import bpy
 
 VERSION = bpy.app.version
+
+#: The add-on's package (``bl_ext.<repo>.hazy_gloss`` as an extension; preferences are stored
+#: under it) and its folder, from this module's place: hazy_gloss/blender/compat.py.
+ADDON_PACKAGE = __package__.rpartition(".")[0]
+PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 _SCENE_PROPS = bpy.types.Scene.bl_rna.properties
 

@@ -34,7 +34,7 @@ The estimate is not the GGX BRDF's albedo: s is the mean of the remapped Fresnel
 normals, which assumes an energy-conserving microfacet model (A -> 1 as f0 -> 1 for any
 roughness); docs/body-colour.md compares the two.
 
-Hazy layer (blender/layer.py, Make Hazy): the core keeps its roughness α_n, its IOR is raised to
+Hazy layer (blender/model/layer.py, Make Hazy): the core keeps its roughness α_n, its IOR is raised to
 IOR' (F0(IOR') = gain F0(IOR)); a copy with roughness α_w and the same IOR' is mixed in by β.
 The base under the mix is base [(1-β)(1 - A(α_n, IOR')) + β(1 - A(α_w, IOR'))]: darker than the
 original base (1 - A(α_n, IOR)).  :func:`compensation` gives the factor c(μ) that restores it,

@@ -259,7 +259,7 @@ def glossy_to_metallic(g, anisotropy, rotation):
 def folded_roughness(g, beta, r_n, r_w):
     """R_f = R_n ((1 - β) + β (R_n / R_w)⁴)^(-1/4): the single GGX lobe with the peak of
     (1 - β) D(α_n) + β D(α_w) at the same F(0) (1/α_f² = (1-β)/α_n² + β/α_w², α = R²; the
-    EEVEE-only output, blender.eevee_layer).  POWER bases are kept > 0 (4.5: 0^-¼ is inf)."""
+    EEVEE-only output, blender.actions.eevee_output).  POWER bases are kept > 0 (4.5: 0^-¼ is inf)."""
     ratio = g.div(r_n, g.maximum(r_w, 1e-6))
     s = g.madd(beta, g.math("POWER", ratio, 4.0), g.sub(1.0, beta))
     return g.mul(r_n, g.math("POWER", g.maximum(s, 1e-12), -0.25), label="R_f")

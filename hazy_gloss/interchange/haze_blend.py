@@ -4,7 +4,7 @@
 
 OpenPBR 1.2 draws its base specular as (1 - w) f_core + w f_haze: two GGX lobes with one
 Fresnel F (F(0) = F0), the haze lobe at r_haze = lerp(r_core, 1, ξ) with the core's
-anisotropy, each energy-compensated.  A haze layer on a Principled BSDF (blender/layer.py) draws
+anisotropy, each energy-compensated.  A haze layer on a Principled BSDF (blender/model/layer.py) draws
 (1 - β) f_n + β f_w with F(0) = r, where (β, r, α_w) come from the paper's mapping of the
 user's BSDF (F(0) = r_c) and the haze parameters (β_h, λ) — Eq. 3-8 of Barla et al. 2018, with
 Cycles' Multiscatter GGX correction where the lobes are Multiscatter GGX (docs/mapping.md).
@@ -20,7 +20,7 @@ and :func:`solve` finds the user's r_c and (β_h, λ) that give it:
   r_c = F0 [(1 - w) + w p], p = α_n,x α_n,y / (α_w,x α_w,y) (core.inverse_haze_mapping);
 - under Multiscatter GGX, where each lobe has Cycles' energy factor S(α, F), from that start by
   fixed-point on r_c (r_c ← r_c F0 / r) and secant steps on β_h, each step the layer's own
-  forward mapping (core.lobes.describe, as blender/layer.py calls it), to 1e-10.
+  forward mapping (core.lobes.describe, as blender/model/layer.py calls it), to 1e-10.
 
 The blend is reachable unless it is brighter at its peak than the energy bounds of Eq. 6 allow
 (β_h would be ≥ 1) or its F0 would need r_c > 1; then β_h is capped at MAX_HAZINESS and the
@@ -53,7 +53,7 @@ def extent(rough, aniso, rough_wide):
 
 def forward(part, dist, rc, rough, aniso, rot, haziness, lam, tint=(1.0, 1.0, 1.0)):
     """(β, r, wide roughness) a haze layer renders on a Principled part with core F(0) ``rc``:
-    the layer's constant path (blender/layer.py values(): describe, then the dielectric's F(0)
+    the layer's constant path (blender/model/layer.py values(): describe, then the dielectric's F(0)
     raised by the max-channel gain, the metal's Base Color set to the mapping's r)."""
     anisotropic = aniso != 0.0 or lam[0] != lam[1]
     ms = dict(lobe="F82_TINT", tint=tuple(tint)) if part == "METAL" else None

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Haze layers (Make Hazy, blender/layer.py) as MaterialX 1.39 networks, bpy-free.
+"""Haze layers (Make Hazy, blender/model/layer.py) as MaterialX 1.39 networks, bpy-free.
 
 A layered material is the artist's own shading network with a haze layer in it: the user's
 BSDF (the core) renders the narrow lobe, hidden copies of it the wide one, Mix Shaders mix
@@ -29,7 +29,7 @@ tree holds, node by node, from the Material Output the renderers use (:class:`Wr
   exported at the socket's own value, with a note.
 
 The module only reads a snapshot (:class:`Tree`, layered_tree.py), made from bpy by
-blender/interchange.py.  It holds the shaders and the documents' layer record; the value nodes
+blender/actions/interchange.py.  It holds the shaders and the documents' layer record; the value nodes
 are written by layered_values.py's ValueWriter (Writer's base), the OpenPBR corrections as
 constants are in openpbr_corrections.py.
 """

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What interchange/layered.py writes from: the bpy-free snapshot of a Blender node tree (:class:`Tree`,
-:class:`BNode`, :class:`Socket`, made by blender/interchange.py) and the Blender -> MaterialX
+:class:`BNode`, :class:`Socket`, made by blender/actions/interchange.py) and the Blender -> MaterialX
 name tables (colour spaces, image address and filter modes, socket types).
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ _GLOSSY = ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
 
 
 # --------------------------------------------------------------------------------------------
-# The snapshot of a Blender tree (made by blender/interchange.py)
+# The snapshot of a Blender tree (made by blender/actions/interchange.py)
 # --------------------------------------------------------------------------------------------
 
 

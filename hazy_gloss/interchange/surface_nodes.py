@@ -3,7 +3,7 @@
 values or :class:`Link` s into :class:`TexNode` s), the values a mapping computes with
 (:class:`Val`: constants folded in float64, or links with an affine map folded in) and the
 :class:`Builder` that adds the Math / Vector Math / Mix nodes a linked value needs.
-interchange/surfaces.py maps the surfaces onto them; blender/surface_build.py makes the nodes.
+interchange/surfaces.py maps the surfaces onto them; blender/model/surface_build.py makes the nodes.
 """
 from __future__ import annotations
 

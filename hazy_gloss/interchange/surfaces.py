@@ -6,7 +6,7 @@
 :class:`~hazy_gloss.interchange.document.Document` into a :class:`SurfaceSpec`: the Principled
 BSDF's socket values (or links into a small node network: Image Texture, Math, Vector Math, Mix,
 Separate / Combine XYZ, Mapping, UV Map, Normal Map), its distribution, and, for OpenPBR haze,
-the keywords of ``api.make_hazy``.  blender/surface_build.py makes the nodes; nothing here
+the keywords of ``api.make_hazy``.  blender/model/surface_build.py makes the nodes; nothing here
 imports bpy.  What is built (SurfaceSpec, Val, Builder) is in surface_nodes.py, the reading of a
 document's inputs and upstream nodes (Upstream) in surface_inputs.py; this module holds the
 conventions and the mapping of each surface.

@@ -3,7 +3,7 @@
 
 A look is what an artist would build by hand — a Principled BSDF with its base, coat and a few
 procedural textures — plus the haze Make Hazy puts on it (``haze``: base haziness / extent and
-the coat's own).  ``hazy_gloss.blender.looks.create_look`` builds one; applied as a preset to a
+the coat's own).  ``hazy_gloss.blender.actions.looks.create_look`` builds one; applied as a preset to a
 material that already has a haze layer, only ``haze`` is used (the material stays the artist's).
 
 The values are ours (the paper's examples are in utils.presets): chosen to read as the named
@@ -24,7 +24,7 @@ class Look:
     description: str
     principled: dict  #: Principled BSDF input name -> value
     haze: dict  #: haze parameters of the layer (api.make_hazy keywords)
-    textures: tuple = ()  #: procedural set-ups by name (blender.looks.TEXTURES)
+    textures: tuple = ()  #: procedural set-ups by name (blender.actions.looks.TEXTURES)
     extra: dict = field(default_factory=dict)
 
 

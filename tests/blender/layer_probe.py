@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What a haze layer node's group gives its BSDF slots, for tests, benchmarks and scripts (not
 shipped: the add-on itself only renders the group).  ``layer`` is the add-on's module that
-evaluates a layer node's group (``hazy_gloss.blender.layer`` of whichever copy of the package
+evaluates a layer node's group (``hazy_gloss.blender.model.layer`` of whichever copy of the package
 the caller loaded: the test harness loads it as ``bl_ext.test_repo.hazy_gloss``)."""
 
 

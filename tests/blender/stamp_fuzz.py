@@ -256,9 +256,9 @@ class Fuzz:
     def __init__(self, pkg, folder, *, alarm=10.0):
         mod = lambda n: importlib.import_module(f"{pkg}.{n}")  # noqa: E731
         self.api = mod("api")
-        self.panels = mod("blender.panels")
-        self.errors = mod("blender.messages")  # the refused changes the panel shows
-        self.reports = mod("blender.reports")
+        self.panels = mod("blender.ui.panels")
+        self.errors = mod("blender.actions.messages")  # the refused changes the panel shows
+        self.reports = mod("blender.ui.reports")
         self.folder = folder
         self.alarm = alarm
         self.counts = collections.Counter()  # (material type, attack, driver, outcome)

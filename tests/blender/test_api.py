@@ -58,7 +58,7 @@ def test_material_operators_are_in_menus(hg):
     """F3 menu search finds what menus list: the material operators are in Node > Hazy Gloss and
     the material specials menu; the entry leaves with the add-on."""
     import bpy
-    ops = importlib.import_module(hg.__name__ + ".blender.menus")
+    ops = importlib.import_module(hg.__name__ + ".blender.ui.menus")
     for name in ("NODE_MT_node", "MATERIAL_MT_context_menu"):
         assert ops.draw_menu_entry in getattr(bpy.types, name)._dyn_ui_initialize()
     listed = []

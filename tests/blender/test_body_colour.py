@@ -257,7 +257,7 @@ def test_layer_weight_facing_is_one_minus_cos(env):
 
 
 def hazy_parameters(lobes, ior, roughness, haziness, distribution="GGX", extent=5.0):
-    """(β, R_wide, IOR') as blender/layer.py computes them for a Principled core."""
+    """(β, R_wide, IOR') as blender/model/layer.py computes them for a Principled core."""
     f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
     d = lobes.describe("DIELECTRIC", distribution, core_reflectivity=(f0,) * 3,
                        roughness=roughness, haziness=haziness, haze_extent=extent)

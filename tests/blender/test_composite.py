@@ -35,7 +35,7 @@ EDITED = 0.7  # β_h for every hazy pixel after the edit
 @pytest.fixture
 def mods(hg, clean_file):
     api = importlib.import_module(hg.__name__ + ".api")
-    comp = importlib.import_module(hg.__name__ + ".blender.composite")
+    comp = importlib.import_module(hg.__name__ + ".blender.model.recomposite")
     global rc  # the bpy-free recomposite (numpy), used by the helpers below too
     rc = importlib.import_module(hg.__name__ + ".recomposite")
     return api, comp
@@ -414,7 +414,7 @@ def test_damaged_source_is_refused_before_blender_loads_it(mods, tmp_path):
 def test_recomposite_entry_points(hg):
     """The operators are reachable from Render > Hazy Gloss Recomposite (so F3 finds them) and a
     View Layer properties panel; both go away when the add-on is disabled."""
-    ops = importlib.import_module(hg.__name__ + ".blender.menus")
+    ops = importlib.import_module(hg.__name__ + ".blender.ui.menus")
     assert ops.draw_render_menu in bpy.types.TOPBAR_MT_render._dyn_ui_initialize()
     assert hasattr(bpy.types, "HAZY_GLOSS_PT_recomposite")
     drawn = []

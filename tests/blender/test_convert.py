@@ -43,7 +43,7 @@ def core(hg):
 
 @pytest.fixture
 def bconv(hg):
-    return importlib.import_module(hg.__name__ + ".blender.convert")
+    return importlib.import_module(hg.__name__ + ".blender.actions.convert")
 
 
 # --------------------------------------------------------------------------------------------

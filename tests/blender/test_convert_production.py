@@ -38,10 +38,10 @@ def mods(hg, clean_file):
     class M:
         api = importlib.import_module(hg.__name__ + ".api")
         core = importlib.import_module(hg.__name__ + ".convert")
-        bconv = importlib.import_module(hg.__name__ + ".blender.convert")
-        binputs = importlib.import_module(hg.__name__ + ".blender.convert_inputs")
-        pbr = importlib.import_module(hg.__name__ + ".blender.convert_pbr")
-        ops = importlib.import_module(hg.__name__ + ".blender.convert_ops")
+        bconv = importlib.import_module(hg.__name__ + ".blender.actions.convert")
+        binputs = importlib.import_module(hg.__name__ + ".blender.model.convert_inputs")
+        pbr = importlib.import_module(hg.__name__ + ".blender.actions.convert_pbr")
+        ops = importlib.import_module(hg.__name__ + ".blender.ui.convert_ops")
         stream = importlib.import_module(hg.__name__ + ".imagestream")
     return M
 
@@ -82,7 +82,7 @@ res = api.convert_maps({"haziness": folder + "/haze.exr", "roughness": 0.2,
 seconds = time.perf_counter() - t
 peak = status("VmHWM") - base
 # rows at the top, middle and bottom of the written beta map against the mapping in memory
-from hazy_gloss.blender.convert_inputs import openimageio
+from hazy_gloss.blender.model.convert_inputs import openimageio
 inp = openimageio().ImageInput.open(res["beta"])
 ok = []
 for y0 in (0, n // 2, n - 16):

@@ -44,14 +44,14 @@ def core(hg):
 
 @pytest.fixture
 def binputs(hg):
-    """blender/convert_inputs.py: check_readable, the readers."""
-    return importlib.import_module(hg.__name__ + ".blender.convert_inputs")
+    """blender/model/convert_inputs.py: check_readable, the readers."""
+    return importlib.import_module(hg.__name__ + ".blender.model.convert_inputs")
 
 
 @pytest.fixture
 def boutputs(hg):
-    """blender/convert_outputs.py: _MapFile, the transaction."""
-    return importlib.import_module(hg.__name__ + ".blender.convert_outputs")
+    """blender/model/convert_outputs.py: _MapFile, the transaction."""
+    return importlib.import_module(hg.__name__ + ".blender.model.convert_outputs")
 
 
 def snapshot(folder):
@@ -429,7 +429,7 @@ def test_output_folder_that_cannot_be_created(api, core, tmp_path, monkeypatch):
     with pytest.raises(core.ConversionError, match="cannot create the output folder /proc/"):
         api.convert_maps(paths, "/proc/hazy_gloss_test_out")
     # a failed run removes the folders it created (here: the write of the first map fails)
-    boutputs = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.convert_outputs")
+    boutputs = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.model.convert_outputs")
     monkeypatch.setattr(boutputs._MapFile, "close_file", lambda self: (_ for _ in ()).throw(
         OSError(5, "simulated")))
     with pytest.raises(core.ConversionError, match="could not write .*beta.exr: simulated"):
@@ -519,7 +519,7 @@ def test_udim_tiles_of_a_larger_earlier_set_are_retired(api, tmp_path):
 
 _DRIVER = r"""
 import os, signal, sys, time
-from hazy_gloss.blender import convert_outputs as bc
+from hazy_gloss.blender.model import convert_outputs as bc
 mode, signum, k = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 real_write, real_replace, count = bc._MapFile.finish, os.replace, []
 

@@ -164,7 +164,7 @@ def _pbr_set(folder, stem):
 
 def _passes_exr(path, api):
     """A tiny recomposite render: the multilayer EXR composite.passes_from_exr reads."""
-    comp = importlib.import_module(api.__name__.rpartition(".")[0] + ".blender.composite")
+    comp = importlib.import_module(api.__name__.rpartition(".")[0] + ".blender.model.recomposite")
     scene = scenes.setup_render(samples=1, resolution=(8, 8), bounces=1, seed=1)
     mat = api.create_material("Docs Recomposite", kind="CONDUCTOR",
                               core_reflectivity=(0.9, 0.6, 0.3), edge_tint=(1.0, 0.8, 0.5),

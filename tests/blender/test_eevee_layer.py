@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The EEVEE-only simplification of a haze layer (blender.eevee_layer, issue 13 item 7).
+"""The EEVEE-only simplification of a haze layer (blender.actions.eevee_output, issue 13 item 7).
 
 What is checked: the EEVEE output leaves the user's nodes and Cycles' image alone and goes away
 cleanly; its one BSDF's lobes have the peak-preserving roughness 1/α_f² = (1-β)/α_n² + β/α_w²
@@ -23,7 +23,7 @@ from test_layer import car_paint, glossy_node, in_a_mix, metallic_map, metallic_
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), E=mod("blender.eevee_layer"),
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), E=mod("blender.actions.eevee_output"),
                            ownership=mod("blender.nodes.ownership"))
 
 

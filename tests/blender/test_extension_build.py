@@ -134,7 +134,7 @@ def _expected_groups(groups_mod):
 def test_group_names_fit_blender_45_id_limit(hg):
     """Blender 4.5 truncates ID names to 63 bytes, so ensure_group() cannot find (and rebuilds)
     a group with a longer name, and 4.5 drops such groups when reading a 5.0 asset file."""
-    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.model.groups")
     long = [n for n in _expected_groups(groups) if len(n.encode()) > BLENDER_45_ID_NAME_BYTES]
     assert not long, f"names over {BLENDER_45_ID_NAME_BYTES} bytes: {long}"
 
@@ -142,8 +142,8 @@ def test_group_names_fit_blender_45_id_limit(hg):
 def test_asset_library_blend(clean_file, hg, built_zip, tmp_path):
     """Every node group is in the .blend, marked as an asset with a description and a catalog
     defined in blender_assets.cats.txt."""
-    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
-    menus = importlib.import_module(hg.__name__ + ".blender.menus")
+    groups = importlib.import_module(hg.__name__ + ".blender.model.groups")
+    menus = importlib.import_module(hg.__name__ + ".blender.ui.menus")
     with zipfile.ZipFile(built_zip) as zf:
         zf.extract(ASSET_BLEND, tmp_path)
         cats = zf.read(CATALOGS).decode("utf-8")
@@ -304,7 +304,7 @@ def _group_nodes(mat):
     ("CONDUCTOR", "BECKMANN", True, True),
 ])
 def test_add_node_operator(clean_file, hg, config):
-    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.model.groups")
     kind, dist, aniso, smooth = config
     mat = _new_material(hg)
     kw = dict(kind=kind, distribution=dist, anisotropic=aniso, smooth=smooth, material=mat.name)
@@ -432,9 +432,9 @@ def _draw(menu_cls, context):
 
 
 def test_add_menu_lists_every_group(hg):
-    menus = importlib.import_module(hg.__name__ + ".blender.menus")
+    menus = importlib.import_module(hg.__name__ + ".blender.ui.menus")
     compat = importlib.import_module(hg.__name__ + ".blender.compat")
-    groups = importlib.import_module(hg.__name__ + ".blender.nodes.groups")
+    groups = importlib.import_module(hg.__name__ + ".blender.model.groups")
     host = compat.shader_add_menu()
     assert host.bl_idname in ("NODE_MT_shader_node_add_all", "NODE_MT_add")
     assert menus.draw_add_menu in host.draw._draw_funcs
@@ -484,7 +484,7 @@ def test_add_menu_removed_on_disable(addon_module, hg):
 def test_asset_library_registration(hg, tmp_path):
     """register_asset_library adds the folder once (reusing an existing entry) and
     unregister removes it; a folder without the asset file registers nothing."""
-    menus = importlib.import_module(hg.__name__ + ".blender.menus")
+    menus = importlib.import_module(hg.__name__ + ".blender.ui.menus")
     libraries = bpy.context.preferences.filepaths.asset_libraries
     before = [(lib.name, lib.path) for lib in libraries]
     # Running from the source checkout: no assets/ folder, nothing registered.

@@ -37,12 +37,12 @@ def api(hg, clean_file):
 
 @pytest.fixture
 def ix(hg):
-    return importlib.import_module(hg.__name__ + ".blender.interchange")
+    return importlib.import_module(hg.__name__ + ".blender.actions.interchange")
 
 
 @pytest.fixture
 def fallback(hg):
-    return importlib.import_module(hg.__name__ + ".blender.fallback")
+    return importlib.import_module(hg.__name__ + ".blender.model.fallback")
 
 
 def _stdlib():
@@ -149,7 +149,7 @@ def test_map_driven_material_exports_image_nodes_with_raw_colour_space(api, hg, 
 
 
 def test_operator_exports_and_says_when_materialx_is_missing(api, hg, tmp_path, monkeypatch):
-    reports = importlib.import_module(hg.__name__ + ".blender.reports")
+    reports = importlib.import_module(hg.__name__ + ".blender.ui.reports")
     mx_mod = importlib.import_module(hg.__name__ + ".interchange.materialx")
     api.create_material("m", **CONDUCTOR)
     path = str(tmp_path / "op.mtlx")
@@ -167,7 +167,7 @@ def test_operator_exports_and_says_when_materialx_is_missing(api, hg, tmp_path, 
 
 
 def test_usd_operator_says_when_pxr_is_missing(api, hg, tmp_path, monkeypatch):
-    reports = importlib.import_module(hg.__name__ + ".blender.reports")
+    reports = importlib.import_module(hg.__name__ + ".blender.ui.reports")
     usd_mod = importlib.import_module(hg.__name__ + ".interchange.usd")
     api.create_material("m", **CONDUCTOR)
     monkeypatch.setattr(usd_mod, "available", lambda: False)
@@ -179,8 +179,8 @@ def test_usd_operator_says_when_pxr_is_missing(api, hg, tmp_path, monkeypatch):
 
 
 def test_menus_list_the_interchange_operators(hg):
-    menus = importlib.import_module(hg.__name__ + ".blender.menus")
-    ix = importlib.import_module(hg.__name__ + ".blender.interchange_ops")
+    menus = importlib.import_module(hg.__name__ + ".blender.ui.menus")
+    ix = importlib.import_module(hg.__name__ + ".blender.ui.interchange_ops")
     entries = {(m, f.__name__) for m, f in menus.ENTRIES}
     assert ("TOPBAR_MT_file_export", "draw_export_menu") in entries
     assert ("TOPBAR_MT_file_import", "draw_import_menu") in entries
@@ -360,7 +360,7 @@ def test_fallback_does_not_change_renders(api, engine):
 
 
 def test_recomposite_mode_takes_the_fallback_out(api, ix, fallback, hg):
-    composite = importlib.import_module(hg.__name__ + ".blender.composite")
+    composite = importlib.import_module(hg.__name__ + ".blender.model.recomposite")
     m = api.create_material("m", **CONDUCTOR)
     api.add_export_fallback(m)
     notes = composite.convert_material(m)

@@ -23,9 +23,9 @@ from measurements import record
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), make=mod("blender.make_hazy"),
-                           material=mod("blender.material"), exr=mod("exr"), core=mod("core"),
-                           lobes=mod("core.lobes"), reports=mod("blender.reports"), hg=hg)
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), make=mod("blender.actions.make_hazy"),
+                           material=mod("blender.model.material"), exr=mod("exr"), core=mod("core"),
+                           lobes=mod("core.lobes"), reports=mod("blender.ui.reports"), hg=hg)
 
 
 # --------------------------------------------------------------------------------------------

@@ -36,8 +36,8 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     from types import SimpleNamespace
-    return SimpleNamespace(api=mod("api"), ix=mod("blender.interchange"), layer=mod("blender.layer"),
-                           fallback=mod("blender.fallback"), doc=mod("interchange.document"), graph=mod("core.graph"),
+    return SimpleNamespace(api=mod("api"), ix=mod("blender.actions.interchange"), layer=mod("blender.model.layer"),
+                           fallback=mod("blender.model.fallback"), doc=mod("interchange.document"), graph=mod("core.graph"),
                            exr=mod("exr"), hg=hg)
 
 

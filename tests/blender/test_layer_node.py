@@ -23,9 +23,9 @@ from test_layer import car_paint, metallic_map, principled, rel_diff, render
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), exr=mod("exr"),
-                           reports=mod("blender.reports"), material=mod("blender.material"),
-                           E=mod("blender.eevee_layer"), hg=hg)
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("exr"),
+                           reports=mod("blender.ui.reports"), material=mod("blender.model.material"),
+                           E=mod("blender.actions.eevee_output"), hg=hg)
 
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")

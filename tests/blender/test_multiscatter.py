@@ -39,7 +39,7 @@ CASES = {
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return mod("api"), mod("core.multiscatter"), mod("blender.material")
+    return mod("api"), mod("core.multiscatter"), mod("blender.model.material")
 
 
 def peak(mat):

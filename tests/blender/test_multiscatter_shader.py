@@ -36,7 +36,7 @@ def mods(hg, clean_file):
     return SimpleNamespace(graph=mod("core.graph"), node_math=mod("core.node_math"),
                            emit=mod("blender.nodes.emit"), builder=mod("blender.nodes.builder"),
                            lobes=mod("blender.nodes.lobes"), compat=mod("blender.compat"),
-                           api=mod("api"), material=mod("blender.material"))
+                           api=mod("api"), material=mod("blender.model.material"))
 
 
 _math = scenes.math_node

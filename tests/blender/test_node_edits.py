@@ -19,7 +19,7 @@ F2 on the group) and then moves a slider in the panel.  What each group of tests
 - Renamed group: renaming the group's node tree (F2 on a group node) or the node keeps the
   panel attached: sliders still set the group's inputs, no second group datablock appears,
   a texture linked into a group input stays linked.
-- Handler: for a material an object uses, the depsgraph handler (blender.sync) reads an edit
+- Handler: for a material an object uses, the depsgraph handler (blender.actions.sync) reads an edit
   back as soon as it is made, with no panel change.
 """
 import importlib
@@ -35,10 +35,10 @@ import pytest
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), material=mod("blender.material"),
-                           edit=mod("blender.edit"), messages=mod("blender.messages"),
-                           panels=mod("blender.panels"),
-                           sync=mod("blender.sync"), K=mod("constants"), hg=hg)
+    return SimpleNamespace(api=mod("api"), material=mod("blender.model.material"),
+                           edit=mod("blender.actions.edit"), messages=mod("blender.actions.messages"),
+                           panels=mod("blender.ui.panels"),
+                           sync=mod("blender.actions.sync"), K=mod("constants"), hg=hg)
 
 
 def lean(env, name="Lean", **kw):
@@ -327,7 +327,7 @@ def test_outdated_group_is_rebuilt_in_place(env, changed):
     """A group saved by an older add-on (an older stamp version) is rebuilt on first use with
     its sockets kept: no duplicated interface, the user's links and typed values stay; when the
     interface itself differs, the group nodes' links and values are put back by name."""
-    groups = importlib.import_module(env.hg.__name__ + ".blender.nodes.groups")
+    groups = importlib.import_module(env.hg.__name__ + ".blender.model.groups")
     mat = in_shader(env)
     tree = mat.node_tree
     g = group(env, mat)
@@ -375,7 +375,7 @@ def test_handler_reads_edits_back(env, make, role, name, edited, key):
     mat = make(env)
     _in_use(mat)
     node(env, mat, role).inputs[name].default_value = edited
-    bpy.context.view_layer.update()  # the depsgraph handler (blender.sync.on_depsgraph_update)
+    bpy.context.view_layer.update()  # the depsgraph handler (blender.actions.sync.on_depsgraph_update)
     assert env.api.read_parameters(mat)[key] == pytest.approx(edited, abs=1e-6)
     assert env.material.node_edits(mat) == [] and env.panels.node_edit_notes(
         mat, env.api.read_parameters(mat)) == []

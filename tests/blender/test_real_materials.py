@@ -34,7 +34,7 @@ PARAMS = [pytest.param(name, dist, id=f"{name} [{dist}]")
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.layer"), exr=mod("exr"))
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("exr"))
 
 
 # --------------------------------------------------------------------------------------------

@@ -23,7 +23,7 @@ import scenes
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), props=mod("blender.properties"))
+    return SimpleNamespace(api=mod("api"), props=mod("blender.ui.properties"))
 
 
 def one_line(msg):

@@ -28,9 +28,9 @@ from test_ui import StandIn, fake_context
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), panels=mod("blender.panels"), ops=mod("blender.operators"),
-                           props=mod("blender.properties"), layer=mod("blender.layer"),
-                           composite=mod("blender.composite"),
+    return SimpleNamespace(api=mod("api"), panels=mod("blender.ui.panels"), ops=mod("blender.ui.operators"),
+                           props=mod("blender.ui.properties"), layer=mod("blender.model.layer"),
+                           composite=mod("blender.model.recomposite"),
                            hg=hg)
 
 

@@ -44,13 +44,13 @@ V5 = bpy.app.version >= (5, 0, 0)
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), messages=mod("blender.messages"),
-                           reports=mod("blender.reports"), edit=mod("blender.edit"),
-                           ops=mod("blender.operators"), panels=mod("blender.panels"),
-                           material=mod("blender.material"), make=mod("blender.make_hazy"),
-                           bplots=mod("blender.plots"),
-                           prefs=mod("blender.preferences"), presets=mod("utils.presets"),
-                           plots=mod("utils.plots"), core=mod("core"), layer=mod("blender.layer"),
+    return SimpleNamespace(api=mod("api"), messages=mod("blender.actions.messages"),
+                           reports=mod("blender.ui.reports"), edit=mod("blender.actions.edit"),
+                           ops=mod("blender.ui.operators"), panels=mod("blender.ui.panels"),
+                           material=mod("blender.model.material"), make=mod("blender.actions.make_hazy"),
+                           bplots=mod("blender.ui.plots"),
+                           prefs=mod("blender.ui.preferences"), presets=mod("utils.presets"),
+                           plots=mod("utils.plots"), core=mod("core"), layer=mod("blender.model.layer"),
                            hg=hg)
 
 
@@ -581,7 +581,7 @@ def test_slider_change_latency(env):
 
 @pytest.mark.parametrize("start", sorted(STARTS))
 def test_make_hazy_keeps_the_material(env, start):
-    """Make Hazy is a layer (blender.layer; the full checks are in test_layer.py): nothing of
+    """Make Hazy is a layer (blender.model.layer; the full checks are in test_layer.py): nothing of
     the user's is removed or changed at haziness 0, read_parameters reports the layer, a second
     Make Hazy is a no-op, and haze raised in the panel keeps the peak where every pixel is one."""
     build, kind = STARTS[start]

@@ -3,7 +3,7 @@
 
 The numbers docs/interchange.md cites for a layered export (scripts/layer_interchange_report.py)
 and the checks of tests/pure/test_layered_network.py: the layer's constants as
-blender/layer.py maps them, the Fresnel of each renderer, the peak drift MaterialX's energy
+blender/model/layer.py maps them, the Fresnel of each renderer, the peak drift MaterialX's energy
 compensation causes, OpenPBR's coat darkening and tint.  Measurement code, not shipped.
 """
 import math
@@ -39,7 +39,7 @@ def openpbr_fresnel(cos_d, eta, tint=(1.0, 1.0, 1.0)):
 
 def layer_part(rc, roughness=0.3, haziness=0.5, haze_extent=5.0, distribution="GGX", lobe=None,
                tint=None, anisotropy=0.0):
-    """One part of a layer as the layer maps its constants (blender/layer.py _mapping: kind
+    """One part of a layer as the layer maps its constants (blender/model/layer.py _mapping: kind
     DIELECTRIC for Principled parts, ``lobe`` "F82_TINT" for a metal part, "COAT" for the coat):
     dict(beta, alpha, alpha_wide, r, r_c)."""
     ms = None

@@ -270,7 +270,7 @@ def test_facing():
 
 
 def hazy(ior, roughness, haziness, extent=5.0, distribution="GGX"):
-    """(β, α_wide, IOR') of a Principled core as blender/layer.py computes them."""
+    """(β, α_wide, IOR') of a Principled core as blender/model/layer.py computes them."""
     f0 = _f0(ior)
     d = describe("DIELECTRIC", distribution, core_reflectivity=(f0,) * 3, roughness=roughness,
                  haziness=haziness, haze_extent=extent)

@@ -193,7 +193,7 @@ def test_the_checker_fails_on_made_up_names():
 def test_the_checker_finds_real_names():
     doc = ("`hazy_gloss.core.inverse_haze_mapping` (re-exported by core/__init__), "
            "`hazy_gloss.constants.EXIT_*`, `api.make_hazy(mat, haziness=0.1)`, "
-           "`convert.wire_material` (blender/convert.py), `hazy_gloss.convert_maps` (an "
+           "`convert_wiring.wire_material` (blender/model/convert_wiring.py), `hazy_gloss.convert_maps` (an "
            "operator), `bpy.ops.hazy_gloss.setup_recomposite()`, `hazy_gloss.core.lobes.HazyLobes`, "
            "`hazy_gloss/core/thin_film.py`, `blender/*_ops.py` (a pattern, not checked)")
     assert not problems(doc), problems(doc)

@@ -41,7 +41,7 @@ def test_unknown_blender_module_goes_in_other():
     finally:
         sys.path.remove(str(SCRIPT.parent))
     assert architecture.group_of("hazy_gloss.blender.brand_new")[1] == "other"
-    assert architecture.group_of("hazy_gloss.blender.layer")[1] == "model"
+    assert architecture.group_of("hazy_gloss.blender.model.layer")[1] == "model"
     assert architecture.group_of("hazy_gloss.newfolder.x", {"hazy_gloss.newfolder"})[1] == "newfolder"
 
 

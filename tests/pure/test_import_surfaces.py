@@ -404,7 +404,7 @@ def test_a_float_list_in_a_generated_library_is_read_and_said(tmp_path):
 
 def _layer_renders(spec, target):
     """(β, F(0) of the narrow lobe) the haze layer renders with the imported parameters, by the
-    paper's mapping as core.lobes.describe gives it (what blender/layer.py runs)."""
+    paper's mapping as core.lobes.describe gives it (what blender/model/layer.py runs)."""
     ins, haze = spec.inputs, spec.haze
     lam = haze["haze_extent"] if isinstance(haze["haze_extent"], tuple) else (haze["haze_extent"],) * 2
     if ins["Metallic"] >= 0.5:

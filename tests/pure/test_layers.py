@@ -21,5 +21,5 @@ def test_bpy_free_part_imports_neither_blender_nor_api():
 
 
 def test_the_check_sees_such_an_import():
-    fake = layout_graph.Import("hazy_gloss.core.mapping", "hazy_gloss.blender.material", 3, True, True)
-    assert offenders([fake]) == ["hazy_gloss.core.mapping:3 imports hazy_gloss.blender.material"]
+    fake = layout_graph.Import("hazy_gloss.core.mapping", "hazy_gloss.blender.model.material", 3, True, True)
+    assert offenders([fake]) == ["hazy_gloss.core.mapping:3 imports hazy_gloss.blender.model.material"]

@@ -3,7 +3,7 @@
 """The input sockets of the BSDF nodes a haze layer wraps, as Blender declares them
 (read through Make Group in each supported Blender): per version (major.minor) and node
 kind, {socket name: type, subtype, limits, default, hide_value, panel} and each panel's
-default_closed.  blender/layer_group.py builds the layer group's interface from it."""
+default_closed.  blender/model/layer_group.py builds the layer group's interface from it."""
 
 TABLES = {'4.5': {'GLOSSY': {'panels': {},
                     'sockets': {'Anisotropy': {'default': 0.0,

@@ -1,0 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What the operators and the API do, as plain functions: Make Hazy (make_hazy), edits (edit,
+sync), texture conversion (convert, convert_pbr), MaterialX/USD (interchange), looks, the
+EEVEE-only output (eevee_output), the command line's needs (cli), messages to the user."""

@@ -1,0 +1,35 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What the command line (``python -m hazy_gloss``, bpy-free) needs from Blender: importing this
+module imports bpy, so ``from .blender import cli`` failing with ImportError is "bpy is not
+importable" (exit 3)."""
+import os
+
+import bpy
+
+from ..model import material
+
+
+def open_blend(path):
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+
+
+def empty_file():
+    bpy.ops.wm.read_homefile(use_empty=True)
+
+
+def save_blend(path, keep=()):
+    """Save the open file as ``path``; datablocks in ``keep`` get a fake user (kept without an
+    object using them).  Blender keeps the previous version as <name>.blend1."""
+    for idblock in keep:
+        idblock.use_fake_user = True
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path))
+
+
+def hazy_parameters():
+    """{material name: perceptual parameters} of the open file's hazy materials."""
+    out = {}
+    for m in bpy.data.materials:
+        p = material.read_parameters(m)
+        if p is not None:
+            out[m.name] = p
+    return out

@@ -1,0 +1,551 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Make Hazy and Import Two-Lobe Mix as plain functions (the operators only call these).
+
+- :func:`make_hazy`: a haze layer on the material's own Principled / Metallic / Glossy BSDF
+  (blender.model.layer): the node and everything else in the tree stay as they are.
+- :func:`import_two_lobe_mix`: a Mix Shader of two Glossy or two Metallic lobes -> perceptual
+  parameters (core.inverse_haze_mapping), with a report of what is not exactly representable.
+
+Both return (status, message, notes): status "FINISHED", "NOOP" or "ERROR".
+"""
+import math
+
+import bpy
+import numpy as np
+
+from ... import constants as K
+from ...core import inverse_haze_mapping
+from ...core.conventions import lobe_alphas, metallic_anisotropy
+from ...core.parameters import normalise, normalise_haze
+from ..model import fallback, layer, material
+from . import messages, sync
+from ..model.material import edit_problem, maps_problem
+from .messages import plain_message
+
+
+def _is_live(mat):
+    return material.is_hazy(mat) and bool(material.ours(mat.node_tree))
+
+
+# --------------------------------------------------------------------------------------------
+# Reading existing BSDF nodes
+# --------------------------------------------------------------------------------------------
+
+# The Glossy BSDF node is created as "ShaderNodeBsdfGlossy" but reports bl_idname
+# "ShaderNodeBsdfAnisotropic" (Glossy and Anisotropic were merged in 4.0): accept both.
+GLOSSY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
+CORE_NODES = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfMetallic") + GLOSSY
+_SHADER_PASS = ("ShaderNodeMixShader", "ShaderNodeAddShader")
+
+
+def _source(sock):
+    """The output socket linked into ``sock`` (ignoring muted links), or None."""
+    if sock is None or not sock.is_linked:
+        return None
+    link = sock.links[0]
+    if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
+        return None
+    return link.from_socket
+
+
+def _value(node, name, default=None):
+    sock = node.inputs.get(name)
+    if sock is None or not hasattr(sock, "default_value"):
+        return default
+    v = sock.default_value
+    if hasattr(v, "__len__"):
+        return tuple(float(x) for x in v)
+    return float(v)
+
+
+def _rgb(v):
+    return tuple(float(np.clip(x, 0.0, 1.0)) for x in tuple(v)[:3])
+
+
+def active_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    return outs[0] if outs else None
+
+
+def surface_bsdfs(tree):
+    """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the active output's
+    Surface, directly or through Mix / Add Shader nodes and reroutes, closest to the output
+    first; and the node groups met on the way (their insides are not searched)."""
+    out = active_output(tree)
+    if out is None:
+        return [], []
+    queue = [_source(out.inputs["Surface"])]
+    seen, found, groups = set(), [], []
+    while queue:
+        sock = queue.pop(0)
+        if sock is None or sock.node.name in seen:
+            continue
+        node = sock.node
+        seen.add(node.name)
+        if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
+            found.append(node)
+        elif node.bl_idname == "ShaderNodeGroup":
+            groups.append(node)
+        elif node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
+            queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
+                         node.bl_idname == "NodeReroute")
+    return found, groups
+
+
+def find_core_bsdf(tree):
+    """The BSDF Make Hazy puts its layer on: the one closest to the Material Output."""
+    found, _ = surface_bsdfs(tree)
+    return found[0] if found else None
+
+
+# --------------------------------------------------------------------------------------------
+# Replacing nodes by the hazy nodes, in place
+# --------------------------------------------------------------------------------------------
+
+
+def _socket_ref(sock):
+    return (sock.node.name, sock.identifier, sock.is_output)
+
+
+def _resolve(tree, ref):
+    node = tree.nodes.get(ref[0])
+    if node is None:
+        return None
+    for s in (node.outputs if ref[2] else node.inputs):
+        if s.identifier == ref[1]:
+            return s
+    return None
+
+
+def replace_with_hazy(mat, replaced, p, links):
+    """Remove the nodes ``replaced`` (the first one's output is what the hazy BSDF replaces),
+    build the hazy nodes for ``p`` and wire them where that output went.  ``links`` maps group
+    input names to the output sockets to connect (textures, normal map).  Returns
+    (HazeMapping, names of inputs that could not be linked)."""
+    tree = mat.node_tree
+    head = replaced[0]
+    out = active_output(tree)
+    if out is None:
+        out = tree.nodes.new("ShaderNodeOutputMaterial")
+        out.location = (head.location.x + 300, head.location.y)
+    surf = out.inputs["Surface"]
+    src = _source(surf)
+    surf_src = _socket_ref(src) if src is not None and src.node.name != head.name else None
+    targets = [_socket_ref(l.to_socket) for l in head.outputs[0].links if l.to_socket != surf]
+    link_refs = {name: _socket_ref(s) for name, s in links.items()}
+    location = tuple(head.location)
+    material.map_parameters(p)  # raises before anything is touched
+    for node in replaced:
+        tree.nodes.remove(node)
+    m, _ = material.apply(mat, p, force_rebuild=True)
+    ours = material.hazy_output(tree)
+    if surf_src is not None:
+        s = _resolve(tree, surf_src)
+        if s is not None:
+            tree.links.new(s, surf)
+    for ref in targets:
+        s = _resolve(tree, ref)
+        if s is not None:
+            tree.links.new(ours, s)
+    dropped = []
+    group = material.ours(tree).get(material.GROUP_ROLE)
+    for name, ref in link_refs.items():
+        s = _resolve(tree, ref)
+        target = group.inputs.get(name) if group is not None else None
+        if s is None or target is None:
+            dropped.append(name)
+            continue
+        tree.links.new(s, target)
+    if "Tangent" in link_refs and group is not None:  # the api's own tangent node is unused now
+        for n in [n for n in tree.nodes if material.is_ours(n) and n.bl_idname == "ShaderNodeTangent"]:
+            if not any(o.is_linked for o in n.outputs):
+                tree.nodes.remove(n)
+    dx, dy = location[0] - ours.node.location.x, location[1] - ours.node.location.y
+    for n in tree.nodes:
+        if material.is_ours(n):
+            n.location = (n.location.x + dx, n.location.y + dy)
+    return m, dropped
+
+
+def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
+    """Put a haze layer on ``mat``'s own BSDF (blender.model.layer): ``node`` (a node or its name),
+    else the Principled, Metallic or Glossy BSDF closest to the Material Output (also inside
+    Mix / Add Shader trees) becomes the layer node, with every input, link and keyframe; at
+    haziness 0 the material renders as before.  On a material that has a layer already, the
+    haze values given are set on it.  Returns (status, message, notes): status "FINISHED"
+    (made hazy or updated) or "ERROR"."""
+    problem = edit_problem(mat)
+    if problem is not None and (mat is None or mat.library is not None
+                                or getattr(mat, "override_library", None) is not None):
+        return "ERROR", problem, []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
+    if not hasattr(mat, "node_tree") or mat.node_tree is None:
+        return "ERROR", f"“{mat.name}” has no node tree", []
+    given = dict(haze, haziness=haziness, haze_extent=haze_extent)
+    if layer.is_layered(mat):
+        return _update_layer(mat, given, node)
+    if material.is_hazy(mat):
+        return ("ERROR", f"“{mat.name}” is a hazy material of its own (New Hazy Material): "
+                f"change it with its panel or api.update_material", [])
+    found, groups = surface_bsdfs(mat.node_tree)
+    if node is not None:
+        name = node if isinstance(node, str) else node.name
+        node = mat.node_tree.nodes.get(name)
+        if node is None or node.bl_idname not in CORE_NODES or material.is_ours(node):
+            return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF named "
+                    f"“{name}”", [])
+    elif found:
+        node = found[0]
+    elif groups:
+        return ("ERROR", f"The BSDF of “{mat.name}” is inside the node group “{groups[0].name}” "
+                f"(“{groups[0].node_tree.name if groups[0].node_tree else '?'}”), which other "
+                f"materials may share: ungroup it (Ctrl+Alt+G) to add haze to this material", [])
+    else:
+        return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF connected to its "
+                "Material Output: nothing to make hazy (use New Hazy Material instead)", [])
+    try:
+        h = normalise_haze(given)
+        layer.apply(mat, h, core=node)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), []
+    notes = []
+    others = [n.name for n in found if n != node]
+    if others:
+        notes.append(f"also found {', '.join('“' + n + '”' for n in others)}, not hazed (one "
+                     f"layer per material: pick the BSDF with the operator's Node option)")
+    lnode = layer.layer_node(mat)
+    r = lnode.inputs.get("Roughness") if lnode is not None else None
+    if r is not None and not r.is_linked and r.default_value < K.MIN_ROUGHNESS:
+        notes.append(f"roughness {r.default_value:.4g} is below {K.MIN_ROUGHNESS}: haze needs a "
+                     f"rough core (a perfect mirror cannot carry a halo)")
+    notes += layer.notes(mat)
+    msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
+           f"(every input, link and keyframe kept; haziness {h['haziness']:g})")
+    return "FINISHED", msg, notes
+
+
+def apply_imported_haze(mat, node, haze):
+    """The haze layer of an imported material (interchange.import_materialx's ``apply_haze``):
+    Make Hazy on its BSDF ``node``; ValueError (one line) when it cannot."""
+    status, msg, _ = make_hazy(mat, node=node, **haze)
+    if status == "ERROR":
+        raise ValueError(msg)
+
+
+def _update_layer(mat, given, node):
+    """make_hazy on a material that has a layer: its haze values set (the BSDF stays)."""
+    if node is not None:
+        name = node if isinstance(node, str) else node.name
+        have = layer.layer_node(mat)
+        if have is not None and name != have.name and not layer.is_legacy(mat):
+            return ("ERROR", f"“{mat.name}” has a haze layer on “{have.name}” already (one layer per "
+                    f"material): Remove Haze first to put it on “{name}”", [])
+    try:
+        h = normalise_haze(given, layer.haze_of(mat))
+        layer.apply(mat, h)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), []
+    sync.refresh_derived(mat)  # the EEVEE-only output and the export fallback follow
+    return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness {h['haziness']:g})",
+            layer.notes(mat))
+
+
+def remove_haze(mat):
+    """Take a haze layer off: the user's BSDF gets its own values and links back and the
+    layer's nodes go.  Returns (status, message, notes)."""
+    if not layer.is_layered(mat):
+        return "NOOP", f"“{mat.name}” has no haze layer: nothing to remove", []
+    problem = edit_problem(mat)
+    if problem is not None:
+        return "ERROR", problem, []
+    state = layer.layer_state(mat) or {}
+    notes = []
+    if any(keys is None and (".base" in why or why.startswith("layer is"))
+           for why, keys in state.get("problems", [])):
+        notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
+                     "could not restore keep the values the layer gave them")
+    if not state.get("legacy") and layer.original_node(mat) is None:
+        notes.append("the BSDF kept beside the layer node is gone: the layer node stays, as "
+                     "an ordinary node group")
+    if fallback.remove_export_fallback(mat):  # the user's output active again, as before
+        notes.append("the export fallback was removed too (the material is no longer hazy)")
+    core = (layer.find_core(mat.node_tree, state.get("core")) if state.get("legacy")
+            else layer.original_node(mat))
+    label = core.bl_label if core is not None else ""
+    layer.remove(mat)
+    where = f" from its {label} “{core.name}”" if core is not None else ""
+    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes
+
+
+# --------------------------------------------------------------------------------------------
+# Two-lobe mix -> perceptual parameters
+# --------------------------------------------------------------------------------------------
+
+_LOBE_NODES = GLOSSY + ("ShaderNodeBsdfMetallic",)
+
+
+def find_two_lobe_mix(tree):
+    """(mix node, lobe A, lobe B) for a Mix / Add Shader of two Glossy or two Metallic BSDFs
+    that feeds the active output's Surface (directly or through other Mix / Add Shaders)."""
+    out = active_output(tree)
+    if out is None:
+        return None
+    queue = [_source(out.inputs["Surface"])]
+    while queue:
+        sock = queue.pop(0)
+        if sock is None:
+            continue
+        node = sock.node
+        if node.bl_idname in _SHADER_PASS:
+            shaders = [s for s in node.inputs if s.type == "SHADER"]
+            srcs = [_source(s) for s in shaders]
+            nodes = [s.node if s is not None else None for s in srcs]
+            if len(nodes) == 2 and all(n is not None and n.bl_idname in _LOBE_NODES and not n.mute
+                                       and not material.is_ours(n) for n in nodes) and nodes[0].bl_idname == nodes[1].bl_idname \
+                    and nodes[0] != nodes[1]:
+                return node, nodes[0], nodes[1]
+            queue.extend(srcs)
+    return None
+
+
+def _lobe_alpha(node):
+    """(α_x, α_y, rotation in turns) of a Glossy / Metallic lobe in its node's convention,
+    rotated so that α_x >= α_y."""
+    return lobe_alphas(_value(node, "Roughness", 0.5), float(_value(node, "Anisotropy", 0.0)),
+                       float(_value(node, "Rotation", 0.0)), glossy=node.bl_idname in GLOSSY)
+
+
+def _rot_diff(a, b):
+    """Difference of two lobe orientations in turns, modulo a half turn, in [0, 0.25]."""
+    d = (a - b) % 0.5
+    return min(d, 0.5 - d)
+
+
+def import_two_lobe_mix(mat):
+    """Convert a two-lobe mix to a hazy material in place.  Returns (status, message, notes)."""
+    problem = edit_problem(mat)
+    if mat is None or mat.library is not None or getattr(mat, "override_library", None) is not None:
+        return "ERROR", problem, []
+    if _is_live(mat):
+        return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
+    if maps_problem(mat):
+        return "ERROR", maps_problem(mat), []
+    found = find_two_lobe_mix(mat.node_tree)
+    if found is None:
+        return ("ERROR", f"“{mat.name}” has no Mix Shader of two Glossy or two Metallic BSDFs "
+                "connected to its Material Output", [])
+    mix, a, b = found
+    notes = []
+    if mix.bl_idname == "ShaderNodeMixShader":
+        if _source(mix.inputs[0]) is not None:
+            notes.append("the mix factor is textured: its value at conversion was used")
+        fac = float(np.clip(mix.inputs[0].default_value, 0.0, 1.0))
+        w_a, w_b = 1.0 - fac, fac
+    else:
+        w_a = w_b = 1.0
+    la, lb = _lobe_alpha(a), _lobe_alpha(b)
+    if la[0] * la[1] <= lb[0] * lb[1]:
+        (n_node, n_w, (nx, ny, n_rot)), (w_node, w_w, (wx, wy, w_rot)) = (a, w_a, la), (b, w_b, lb)
+    else:
+        (n_node, n_w, (nx, ny, n_rot)), (w_node, w_w, (wx, wy, w_rot)) = (b, w_b, lb), (a, w_a, la)
+    if n_node.distribution != w_node.distribution:
+        notes.append(f"the lobes use {n_node.distribution} and {w_node.distribution}: "
+                     f"{n_node.distribution} used for both")
+    dist = n_node.distribution
+    # express the wide lobe in the narrow lobe's frame (x along its long axis)
+    n_iso = abs(nx - ny) <= 1e-9 * nx
+    w_iso = abs(wx - wy) <= 1e-9 * wx
+    if n_iso and not w_iso:
+        n_rot = w_rot
+    elif not w_iso:
+        d = _rot_diff(w_rot, n_rot)
+        if abs(d - 0.25) < 1e-4:
+            wx, wy = wy, wx
+        elif d > 1e-4:
+            notes.append("the lobes are rotated against each other: the halo's orientation "
+                         "follows the core's")
+    kind = "LEGACY" if n_node.bl_idname in GLOSSY else "CONDUCTOR"
+    total_w = n_w + w_w if kind == "CONDUCTOR" else None
+    edge_tint = None
+    if kind == "CONDUCTOR":
+        if mix.bl_idname == "ShaderNodeAddShader":
+            notes.append("two added metallic lobes reflect more than 1: scaled to a mix")
+        beta = w_w / total_w if total_w > 0 else 0.0
+        fresnel = []
+        for node in (n_node, w_node):
+            if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+                fresnel.append(("P", np.asarray(_value(node, "IOR")[:3]),
+                                np.asarray(_value(node, "Extinction")[:3])))
+            else:
+                fresnel.append(("F", np.asarray(_value(node, "Base Color")[:3]),
+                                np.asarray(_value(node, "Edge Tint")[:3])))
+        (ft, x0, y0), (ft1, x1, y1) = fresnel
+        if ft != ft1 or not (np.allclose(x0, x1, rtol=1e-5, atol=1e-7)
+                             and np.allclose(y0, y1, rtol=1e-5, atol=1e-7)):
+            notes.append("the two lobes have different Fresnel settings: the core lobe's are used "
+                         "(Eq. 1 shares one Fresnel term)")
+        if ft == "P":
+            kw = dict(ior=np.maximum(x0, 0.0), extinction=np.maximum(y0, 0.0))
+        else:
+            kw = dict(reflectivity=np.clip(x0, 0.0, 1.0))
+            edge_tint = _rgb(y0)
+            notes.append("F82 lobes became Gulbrandsen's conductor Fresnel (identical at normal "
+                         "incidence)")
+    else:
+        c_n = n_w * np.asarray(_value(n_node, "Color")[:3])
+        c_w = w_w * np.asarray(_value(w_node, "Color")[:3])
+        refl = c_n + c_w
+        ch = int(np.argmax(refl))
+        beta = float(c_w[ch] / refl[ch]) if refl[ch] > 0 else 0.0
+        if not np.allclose(c_w, beta * refl, rtol=1e-4, atol=1e-6):
+            notes.append("the two lobes have different colours: Eq. 1 needs one colour (the "
+                         "brightest channel's ratio is used)")
+        kw = dict(reflectivity=np.clip(refl, 0.0, 1.0))
+        if np.any(refl > 1.0):
+            notes.append("the lobes reflect more than 1 in total: clamped")
+    inv = inverse_haze_mapping(beta, (nx, ny), (wx, wy), distribution=dist, alpha_max=1.0, **kw)
+    notes.extend(inv.warnings)
+    rough = math.sqrt(math.sqrt(nx * ny))
+    ratio = ny / nx if nx > 0 else 1.0
+    aniso = float(metallic_anisotropy(ratio))
+    if ratio < 0.1 - 1e-9:
+        notes.append("core anisotropy beyond 10:1 limited")
+    params = dict(kind=kind, distribution=dist if dist in K.NODE_DISTRIBUTIONS[kind] else "GGX",
+                  core_reflectivity=tuple(float(x) for x in inv.core_reflectivity),
+                  edge_tint=edge_tint if edge_tint is not None else
+                  tuple(float(x) for x in inv.edge_tint),
+                  roughness=rough, anisotropy=aniso, rotation=n_rot,
+                  haziness=float(inv.haziness),
+                  haze_extent=(float(inv.haze_extent[0]), float(inv.haze_extent[1])),
+                  shader_mapping=False)
+    links = {}
+    normals = {_socket_ref(s) if s is not None else None
+               for s in (_source(n_node.inputs.get("Normal")), _source(w_node.inputs.get("Normal")))}
+    if len(normals) == 1 and None not in normals:
+        links["Normal"] = _source(n_node.inputs["Normal"])
+    elif len(normals) > 1:
+        notes.append("the lobes use different normals: the core lobe's is used")
+        if _source(n_node.inputs.get("Normal")) is not None:
+            links["Normal"] = _source(n_node.inputs["Normal"])
+    if aniso > 0 or not w_iso:
+        t = _source(n_node.inputs.get("Tangent"))
+        if t is not None:
+            links["Tangent"] = t
+        else:
+            params["tangent"] = "RADIAL_Z"
+    for node in (n_node, w_node):
+        for name in ("Roughness", "Color", "Base Color", "Edge Tint", "IOR", "Extinction",
+                     "Anisotropy", "Rotation"):
+            if _source(node.inputs.get(name)) is not None:
+                notes.append(f"the texture on {node.name}'s {name} was not carried over")
+    if links:
+        params["shader_mapping"] = True
+    lobe_label = n_node.bl_label  # the nodes are removed below
+    try:
+        p = normalise(params)
+        m = material.map_parameters(p)
+        m, dropped = replace_with_hazy(mat, [mix, n_node, w_node], p, links)
+    except ValueError as exc:
+        return "ERROR", plain_message(exc), notes
+    # how close is the result to the original two lobes?
+    dev = abs(float(m.beta) - beta)
+    for got, want in zip((float(v) for v in m.alpha_wide), (wx, wy)):
+        dev = max(dev, abs(got - want) / max(want, 1e-12))
+    if not bool(np.all(inv.exact)) or dev > 1e-3:
+        notes.append(f"not exactly representable (largest relative difference {dev:.2g})")
+    msg = (f"Imported the two {lobe_label} lobes of “{mat.name}”: haziness "
+           f"{params['haziness']:.3g}, haze extent {params['haze_extent'][0]:.3g}"
+           + (f" x {params['haze_extent'][1]:.3g}" if params['haze_extent'][0] != params['haze_extent'][1] else ""))
+    return "FINISHED", msg, notes
+
+
+# --------------------------------------------------------------------------------------------
+# Haze layers: upgrade, paintable haziness
+# --------------------------------------------------------------------------------------------
+
+
+def materials_or_all(materials):
+    """``materials`` as a list, or every material of the file when it is None."""
+    return list(bpy.data.materials if materials is None else materials)
+
+
+def upgrade_layers(materials):
+    """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node.
+    Returns (status, message, notes)."""
+    done, notes = [], []
+    for mat in materials:
+        if not layer.is_legacy(mat):
+            continue
+        problem = edit_problem(mat)
+        if problem is not None:
+            notes.append(problem)
+            continue
+        try:
+            layer.upgrade(mat)
+        except ValueError as exc:
+            notes.append(f"“{mat.name}”: {plain_message(exc)}")
+            continue
+        messages.clear_error(mat)
+        sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
+        error = messages.error_for(mat)
+        if error:
+            notes.append(f"“{mat.name}”: upgraded, but {error[:1].lower()}{error[1:]}")
+        done.append(mat.name)
+    if not done and not notes:
+        return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []
+    msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to the layer node"
+           + (f": {', '.join('“' + n + '”' for n in done)}" if done else ""))
+    return ("FINISHED" if done else "ERROR"), msg, notes
+
+
+def add_haziness_map(mat, *, size=1024, param="haziness"):
+    """A paintable image linked to the layer node's haziness (or ``param``: coat_haziness):
+    an Image Texture with a new float, Non-Color image filled with the current value, made the
+    active paint slot.  The image is packed into the file (farm-safe).  Returns
+    (status, message, notes)."""
+    problem = edit_problem(mat)
+    if problem is not None:
+        return "ERROR", problem, []
+    if layer.is_legacy(mat):
+        layer.upgrade(mat)
+        sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
+    node = layer.layer_node(mat)
+    if node is None:
+        return "ERROR", f"“{mat.name}” has no haze layer node: Make Hazy first", []
+    if param not in ("haziness", "coat_haziness"):
+        return "ERROR", f"param must be haziness or coat_haziness, got {param!r}", []
+    sock = node.inputs.get(K.HAZE_SOCKETS[param][0])
+    if sock is None:
+        return "ERROR", f"the layer of “{mat.name}” has no {K.HAZE_SOCKETS[param][0]} input", []
+    if sock.is_linked:
+        return ("ERROR", f"{sock.name} of “{node.name}” is linked to “{sock.links[0].from_node.name}” "
+                f"already: disconnect it first to paint a map instead", [])
+    size = int(size)
+    if not 16 <= size <= 16384:
+        return "ERROR", f"size must be 16 to 16384 pixels, got {size}", []
+    value = float(sock.default_value)
+    img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
+                              float_buffer=True, is_data=True)
+    px = np.full(size * size * 4, value, np.float32)
+    px[3::4] = 1.0
+    img.pixels.foreach_set(px)
+    img.pack()  # (a generated image is packed only once it has pixels: as OpenEXR)
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = tex_image = img
+    tex.label = f"{sock.name} Map"
+    tex.location = (node.location.x - 320.0, node.location.y - 120.0)
+    tex.parent = node.parent
+    tree.links.new(tex.outputs["Color"], sock)
+    tree.nodes.active = tex
+    notes = []
+    objs = [o for o in bpy.data.objects if o.type == "MESH" and
+            any(s.material == mat for s in o.material_slots)]
+    if objs and not any(o.data.uv_layers for o in objs):
+        notes.append("the objects using it have no UV map: add one to paint the map")
+    return ("FINISHED", f"Linked a paintable {size}x{size} map “{tex_image.name}” to {sock.name} "
+            f"of “{node.name}” (Texture Paint: it is the active paint slot)", notes)

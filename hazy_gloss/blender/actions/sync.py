@@ -1,0 +1,156 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Node-editor edits of the add-on's own materials, read back.
+
+A haze layer (blender.model.layer) needs nothing here: its node group computes everything from the
+layer node's inputs, whatever changes them.  A ``depsgraph_update_post`` handler (persistent
+across file loads) sees which materials were updated; for a lean or in-shader one it reads the
+user's node-editor edits of the add-on's nodes back into the stamp (material.adopt_node_edits);
+a layer of the form before (blender.model.legacy_layer: copies of the core that had to follow it) is
+upgraded to the layer node on the first edit of its core after the file was opened.  Scripts
+that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
+"""
+import bpy
+from bpy.app.handlers import persistent
+
+from ... import constants as K
+from . import eevee_output, messages
+from ..model import fallback, layer, legacy_layer, material, stamp
+from .messages import plain_message
+
+_fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
+_busy = False
+
+
+def sync(mat, *, force=False):
+    """For a lean / in-shader material: read the user's node-editor edits of the add-on's nodes
+    back into its parameters (material.adopt_node_edits); returns whether there were any.  For
+    a legacy haze layer whose core was edited since it was first seen (or ``force``): upgrade it
+    to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
+    if mat is None or mat.library is not None:
+        return False
+    if _todays_layer(mat):  # its group computes everything: only a fallback to follow
+        return _follow_fallback(mat, force)
+    if not layer.is_layered(mat):
+        if not material.is_hazy(mat):
+            return False
+        adopted, _ = material.adopt_node_edits(mat)
+        return bool(adopted)
+    if not layer.is_legacy(mat):
+        return _follow_fallback(mat, force)
+    state = layer.layer_state(mat) or {}
+    problem = stamp.layer_problem(mat, state.get("problems", []))
+    if problem is not None:  # upgrading would take the damaged values for the user's
+        messages.last_error[mat.session_uid] = problem
+        return False
+    core = legacy_layer.find_core(mat.node_tree, state.get("core"))
+    if core is None:
+        messages.last_error[mat.session_uid] = (
+            "The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
+        return False
+    key = mat.session_uid
+    now = legacy_layer.fingerprint(core)
+    seen = _fingerprints.get(key)
+    _fingerprints[key] = now
+    if not force and (seen is None or seen == now):
+        return False
+    try:
+        layer.upgrade(mat)
+    except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
+        messages.last_error[key] = plain_message(exc)
+        return False
+    _fingerprints.pop(key, None)
+    refresh_derived(mat)
+    return True
+
+
+def _todays_layer(mat):
+    """A cheap look at the stamp (every edit of a layered material asks): a record of today's
+    layer node.  Anything else (damaged, legacy, no layer) takes the full reading."""
+    try:
+        rec = mat.get(K.STAMP, {}).get("layer")
+        return rec is not None and rec.get("version") == layer.LAYER_VERSION
+    except (AttributeError, TypeError):
+        return False
+
+
+def _follow_fallback(mat, force):
+    """A layer's export fallback (a copy of the user's BSDF for glTF / USD, not rendered)
+    follows edits of the layer node's inputs.  Returns whether it was refreshed."""
+    if fallback.FALLBACK_STAMP not in mat:
+        return False
+    node = layer.layer_node(mat)
+    if node is None:
+        return False
+    key = ("fallback", mat.session_uid)
+    now = legacy_layer.fingerprint(node)
+    if not force and _fingerprints.get(key) == now:
+        return False
+    _fingerprints[key] = now
+    refresh_fallback(mat)
+    return True
+
+
+def refresh_derived(mat):
+    """What is built from a layer follows it after every layer.apply: the export fallback
+    (blender/model/fallback.py, the user's BSDF at haziness 0) and the EEVEE-only output
+    (blender/eevee_output.py, when one was asked for).  Problems go to the panel, never up."""
+    try:
+        if eevee_output.requested_mode(mat) is not None:
+            eevee_output.sync_eevee_output(mat)
+    except ValueError as exc:
+        messages.last_error[mat.session_uid] = plain_message(exc)
+    refresh_fallback(mat)
+
+
+def refresh_fallback(mat):
+    """The export fallback (if any) after the layer or its EEVEE output changed: its render
+    output for EEVEE gives way to the EEVEE-only output, and comes back without it."""
+    try:
+        fallback.refresh_stamped_fallback(mat)
+    except ValueError as exc:  # (a depsgraph handler: the panel shows it)
+        messages.last_error[mat.session_uid] = plain_message(exc)
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph):
+    global _busy
+    if _busy:
+        return
+    mats = []
+    for update in depsgraph.updates:
+        idd = getattr(update.id, "original", update.id)
+        if isinstance(idd, bpy.types.Material) and K.STAMP in idd and idd not in mats:
+            mats.append(idd)
+    if not mats:
+        return
+    _busy = True
+    try:
+        for mat in mats:
+            try:
+                sync(mat)
+            except Exception as exc:  # noqa: BLE001 (a handler must not raise on every update)
+                messages.last_error[mat.session_uid] = (
+                    f"Hazy Gloss could not update the haze layer of “{mat.name}”: "
+                    f"{plain_message(exc)}")
+    finally:
+        _busy = False
+
+
+@persistent
+def on_load(_dummy=None):
+    _fingerprints.clear()
+
+
+def register():
+    if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
+    if on_load not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(on_load)
+
+
+def unregister():
+    for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
+                         (bpy.app.handlers.load_post, on_load)):
+        while fn in handlers:
+            handlers.remove(fn)
+    _fingerprints.clear()

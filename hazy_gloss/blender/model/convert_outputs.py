@@ -1,0 +1,407 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The outputs of a texture conversion: physical maps written, verified, committed all or nothing.
+
+Float OpenEXR (default, lossless ZIP) or 16-bit PNG is written strip by strip; every map goes
+to a temporary name in the output folder and is proved by its bytes read back
+(:class:`_MapFile`); :class:`_Transaction` checks the folder, renames every map into place
+(backing up the ones it replaces) and, on any failure, interruption or cancel, removes the
+run's files and restores the maps it replaced (:func:`_undo`).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import uuid
+
+import bpy
+import numpy as np
+
+from ... import constants as K
+from ... import imagestream as stream
+from ...convert import ConversionError
+from .convert_inputs import (_DeferredSignals, _abspath, _one_line, _reason, _short,
+                             check_readable, openimageio)
+
+_EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
+
+# --------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------
+
+_CODECS = []
+
+
+def exr_codecs():
+    """The EXR codecs Blender offers for 32-bit float (measured once: the enum items a 32-bit
+    EXR format accepts; B44 is for half floats)."""
+    if _CODECS:
+        return _CODECS[0]
+    scene = bpy.data.scenes.new(".hazy_gloss_codecs")
+    try:
+        s = scene.render.image_settings
+        if hasattr(s, "media_type"):  # 5.0
+            s.media_type = "IMAGE"
+        s.file_format, s.color_mode, s.color_depth = "OPEN_EXR", "RGB", "32"
+        codecs = []
+        for item in s.bl_rna.properties["exr_codec"].enum_items:
+            try:
+                s.exr_codec = item.identifier
+                codecs.append(item.identifier)
+            except TypeError:
+                pass
+    finally:
+        bpy.data.scenes.remove(scene)
+    _CODECS.append(tuple(codecs))
+    return _CODECS[0]
+
+
+def _check_codec(file_format, exr_codec):
+    if file_format != "OPEN_EXR":
+        return "ZIP"
+    codecs = exr_codecs()
+    codec = exr_codec.upper() if isinstance(exr_codec, str) else exr_codec
+    if codec not in codecs:
+        lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
+        raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
+                              f"{', '.join(lossless)}); got {_short(exr_codec)}")
+    if codec not in stream.EXR_CODECS and openimageio() is None:
+        raise ConversionError(f"exr_codec {codec} needs Blender's OpenImageIO module, which is "
+                              f"not available here; use {', '.join(stream.EXR_CODECS)}")
+    return codec
+
+
+class _OiioExrWriter:
+    """Codecs the add-on does not encode itself (PIZ, RLE, PXR24, DWA, HTJ2K): written by
+    OpenImageIO strip by strip; the proof is then a decoded read-back (lossless codecs: the
+    sha256 of the floats read equals that of the floats written; lossy: every value finite)."""
+
+    def __init__(self, oiio, path, width, height, codec):
+        self.oiio, self.path, self.width, self.height = oiio, path, width, height
+        self.codec, self.row = codec, 0
+        self.exact = codec in K.LOSSLESS_EXR_CODECS
+        self._hash = hashlib.sha256()
+        spec = oiio.ImageSpec(width, height, 3, oiio.FLOAT)
+        spec.attribute("compression", codec.lower())
+        self.out = oiio.ImageOutput.create(path)
+        if self.out is None or not self.out.open(path, spec):
+            why = self.out.geterror() if self.out is not None else oiio.geterror()
+            raise ConversionError(f"could not write {path} with EXR codec {codec}: "
+                                  f"{_one_line(why)}")
+
+    def encode(self, y0, values):
+        v = np.asarray(values, np.float32)
+        if v.ndim == 2:
+            v = np.repeat(v[..., None], 3, axis=-1)
+        return y0, np.ascontiguousarray(v)
+
+    def append(self, encoded):
+        y0, v = encoded
+        if not self.out.write_scanlines(y0, y0 + v.shape[0], 0, v):
+            raise OSError(f"{_one_line(self.out.geterror())}")
+        self._hash.update(v.tobytes())
+        self.row += v.shape[0]
+
+    def close(self):
+        out, self.out = self.out, None
+        if out is not None and not out.close():
+            raise OSError(_one_line(out.geterror()))
+
+    def abort(self):
+        if self.out is not None:
+            self.out.close()
+            self.out = None
+
+    def verify(self, check):
+        check(self.path)
+        reader = stream.OiioStrips(self.oiio, self.path)
+        try:
+            if (reader.width, reader.height) != (self.width, self.height):
+                raise stream.StripError(f"{self.path} reads back as {reader.width}x"
+                                        f"{reader.height}, not {self.width}x{self.height}")
+            h = hashlib.sha256()
+            rows = stream.strip_rows(self.width)
+            for y0 in range(0, self.height, rows):
+                v = reader.rows(y0, min(self.height, y0 + rows), 3)
+                if not self.exact and not np.isfinite(v).all():
+                    raise stream.StripError(f"{self.path} reads back with non-finite values")
+                h.update(np.ascontiguousarray(v, np.float32).tobytes())
+        finally:
+            reader.close()
+        if self.exact and h.hexdigest() != self._hash.hexdigest():
+            raise stream.StripError(f"{self.path} reads back with other values than written "
+                                    "(disk full or a failing device?)")
+
+
+class _MapFile:
+    """One output map written to its temporary in strips (hazy_gloss.imagestream) and proved
+    complete at the end: the file read back as bytes hashes to the bytes encoded, and its
+    structure passes the file check.  I/O errors become one-line ConversionErrors naming
+    ``final``."""
+
+    def __init__(self, file_format, codec, tmp, final, width, height):
+        self.tmp, self.final = tmp, final
+        try:
+            if file_format == "PNG":
+                self.writer = stream.PngStripWriter(tmp, width, height)
+            elif codec in stream.EXR_CODECS:
+                self.writer = stream.ExrStripWriter(tmp, width, height, codec=codec)
+            else:
+                self.writer = _OiioExrWriter(openimageio(), tmp, width, height, codec)
+        except OSError as exc:
+            raise ConversionError(f"could not write {final}: {_reason(exc)}") from None
+
+    def encode(self, y0, values):
+        return self.writer.encode(y0, values)
+
+    def append(self, encoded):
+        try:
+            self.writer.append(encoded)
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+
+    def close_file(self):
+        """The one call that completes a file (a seam for the tests' full-disk simulation)."""
+        self.writer.close()
+
+    def finish(self):
+        try:
+            self.close_file()
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+        try:
+            self.writer.verify(lambda p: check_readable(p, "read back"))
+        except (stream.StripError, ConversionError) as exc:
+            raise ConversionError(f"could not write {self.final} (disk full?): {exc}") from None
+        except OSError as exc:
+            raise ConversionError(f"could not write {self.final}: it does not read back "
+                                  f"({_reason(exc)})") from None
+
+    def abort(self):
+        try:
+            self.writer.abort()
+        except OSError:
+            pass
+
+
+# --------------------------------------------------------------------------------------------
+# All or nothing: temporaries, backups, commit, undo
+# --------------------------------------------------------------------------------------------
+
+
+def _remove(path):
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return False
+    return True
+
+
+class _Transaction:
+    """The files of one conversion, all or nothing.
+
+    Maps are written to temporaries ``.<name>.<run>.tmp<ext>`` in the output folder (same file
+    system: renames are atomic) and verified; :meth:`commit` then backs up every map it replaces
+    (a hard link ``.<name>.<run>.bak<ext>``, a copy where links are not supported), renames the
+    temporaries into place and deletes the backups only once every map is in place.  On any
+    failure or interruption :meth:`rollback` restores the replaced maps from their backups,
+    deletes the maps new in this run and every temporary, and removes the folders the run
+    created.  Temporaries and backups left by a killed earlier run are deleted by
+    :meth:`clean_stale` (only names of this pattern, older than this run)."""
+
+    def __init__(self, out_dir, started):
+        self.out_dir = out_dir
+        self.started = started
+        self.run = uuid.uuid4().hex[:K.CONVERT_RUN_ID_HEX]
+        self.created = []  # folders made by this run, parents first
+        self.temps = {}  # final path -> temporary path
+        self.backups = {}  # final path -> backup of the file it replaces
+        self.renamed = []  # finals renamed into place by this run
+        self.retired = {}  # stale file moved aside at commit -> its backup
+        self.committed = False
+        self.problems = []
+
+    def side(self, final, tag):
+        folder, base = os.path.split(final)
+        stem, ext = os.path.splitext(base)
+        return os.path.join(folder, f".{stem}.{self.run}.{tag}{ext}")
+
+    def temp(self, final):
+        """The temporary for ``final``, recorded before it exists (a failure while it is being
+        written still removes it)."""
+        return self.temps.setdefault(final, self.side(final, "tmp"))
+
+    def make_folder(self):
+        """Create the output folder and its missing parents (recorded for the rollback), then
+        check that files can be created in it."""
+        missing, p = [], self.out_dir
+        while not os.path.isdir(p):
+            if os.path.lexists(p):
+                raise ConversionError(f"output folder {self.out_dir}: {p} is not a folder")
+            missing.append(p)
+            parent = os.path.dirname(p)
+            if parent == p:
+                break
+            p = parent
+        for d in reversed(missing):
+            try:
+                os.mkdir(d)
+            except FileExistsError:
+                if not os.path.isdir(d):
+                    raise ConversionError(f"output folder {self.out_dir}: {d} is not a folder") from None
+                continue
+            except OSError as exc:
+                raise ConversionError(f"cannot create the output folder {self.out_dir}: "
+                                      f"{_reason(exc)}") from None
+            self.created.append(d)
+        probe = self.side(os.path.join(self.out_dir, "hazy_gloss_probe.png"), "tmp")
+        try:
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except OSError as exc:
+            raise ConversionError(f"the output folder {self.out_dir} is not writable: "
+                                  f"{_reason(exc)}") from None
+        os.close(fd)
+        _remove(probe)
+
+    def clean_stale(self, names):
+        """Delete temporaries and backups of earlier runs: ``.<prefix><map>[.<tile>].<hex>.(tmp|
+        bak).<ext>`` for a map name in ``names``, last modified before this run started."""
+        rx = re.compile(r"\.(?P<stem>.+)\.(?P<run>[0-9a-f]{%d})\.(?:tmp|bak)(?:%s)\Z" % (
+            K.CONVERT_RUN_ID_HEX, "|".join(re.escape(e) for e in _EXT.values())))
+        removed = []
+        try:
+            entries = list(os.scandir(self.out_dir))
+        except OSError:
+            return removed
+        for entry in entries:
+            m = rx.match(entry.name)
+            if m is None or m["run"] == self.run:
+                continue
+            stem = re.sub(r"\.\d{4}\Z", "", m["stem"])
+            if stem != "hazy_gloss_probe" and not any(stem.endswith(n) for n in names):
+                continue
+            try:
+                if not entry.is_file(follow_symlinks=False) or \
+                        entry.stat(follow_symlinks=False).st_mtime >= self.started:
+                    continue
+            except OSError:
+                continue
+            if _remove(entry.path):
+                removed.append(entry.name)
+        return removed
+
+    def commit(self, retire=()):
+        """Move ``retire`` (stale files of an earlier set) aside, rename every temporary into
+        place, then delete the backups.  Interruptions are handled between renames (undone)."""
+        with _DeferredSignals() as sig:
+            try:
+                for path in retire:
+                    bak = self.side(path, "bak")
+                    os.replace(path, bak)
+                    self.retired[path] = bak
+                    sig.poll()
+                for final, tmp in self.temps.items():
+                    if os.path.lexists(final):
+                        bak = self.side(final, "bak")
+                        try:
+                            os.link(final, bak, follow_symlinks=False)
+                        except OSError:  # no hard links here: a copy
+                            shutil.copy2(final, bak, follow_symlinks=False)
+                        self.backups[final] = bak
+                    os.replace(tmp, final)
+                    self.renamed.append(final)
+                    sig.poll()
+                sig.poll()  # the last point where the whole set can still be undone
+            except BaseException:
+                self._undo()
+                raise
+            self.committed = True
+            for bak in [*self.backups.values(), *self.retired.values()]:
+                _remove(bak)
+
+    def rollback(self):
+        """Undo everything this run did to the folder; returns what could not be undone."""
+        with _DeferredSignals():
+            self._undo()
+        return self.problems
+
+    def _undo(self):
+        for final in reversed(self.renamed):
+            bak = self.backups.pop(final, None)
+            try:
+                if bak is not None:
+                    os.replace(bak, final)
+                else:
+                    os.remove(final)
+            except OSError as exc:
+                self.problems.append(f"could not restore {final} ({_reason(exc)})"
+                                     + (f"; its previous version is {bak}" if bak else ""))
+        self.renamed.clear()
+        for path, bak in list(self.retired.items()):
+            try:
+                os.replace(bak, path)
+                del self.retired[path]
+            except OSError as exc:
+                self.problems.append(f"could not restore {path} ({_reason(exc)}); it is {bak}")
+        for tmp in self.temps.values():
+            _remove(tmp)
+        self.temps.clear()
+        for bak in self.backups.values():  # backups of finals that were not replaced yet
+            _remove(bak)
+        self.backups.clear()
+        for d in reversed(self.created):
+            try:
+                os.rmdir(d)
+            except OSError:
+                break
+        self.created.clear()
+
+
+def _out_path(out_dir):
+    """Absolute output folder ('//' is relative to the saved .blend); not created here."""
+    if out_dir is None:
+        raise ConversionError("out_dir: no output folder given")
+    if not isinstance(out_dir, (str, bytes, os.PathLike)):
+        raise ConversionError(f"out_dir must be a folder path, got {type(out_dir).__name__} "
+                              f"{_short(out_dir)}")
+    text = os.fspath(out_dir)
+    text = os.fsdecode(text) if isinstance(text, bytes) else text
+    if not text.strip():
+        raise ConversionError(f"out_dir must name a folder, got {text!r}")
+    path = _abspath(text, what="out_dir")
+    p = path
+    while not os.path.isdir(p):  # the first existing ancestor must be a folder
+        if os.path.lexists(p):
+            raise ConversionError(f"output folder is a file: {p}" if p == path else
+                                  f"output folder {path}: {p} is a file, not a folder")
+        parent = os.path.dirname(p)
+        if parent == p:
+            break
+        p = parent
+    return path
+
+
+def _undo(txn, exc):
+    """After a failure or an interruption: undo the run's files; OSErrors and failed undos become
+    the one-line ConversionError (raised from here), anything else is re-raised by the caller."""
+    if txn.committed:  # a signal held during the last clean-up: the set is complete
+        exc.committed = True
+        return
+    problems = txn.rollback()
+    extra = ("; " + "; ".join(problems)) if problems else ""
+    if isinstance(exc, OSError):
+        where = getattr(exc, "filename2", None) or exc.filename
+        where = f"{where}: " if where else ""
+        raise ConversionError(f"could not write the maps ({where}{_reason(exc)}); "
+                              + (extra[2:] if extra else "the output folder is unchanged")) from None
+    if isinstance(exc, ConversionError) and extra:
+        raise ConversionError(f"{exc}{extra}") from None
+    if extra and hasattr(exc, "add_note"):
+        exc.add_note(extra[2:])
+
+
+def _final_path(out_dir, prefix, name, tile, ext):
+    return os.path.join(out_dir, f"{prefix}{name}{'.' + str(tile) if tile else ''}{ext}")

@@ -1,0 +1,966 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Haze as one node on the artist's own BSDF (Make Hazy): the *layer node*.
+
+Make Hazy puts a group node (blender.model.layer_group: one group per configuration, shared) where
+the artist's Principled, Metallic or Glossy BSDF (the *core*) was: it takes the core's name,
+label, place, frame and colour, every input value and link, every keyframe and driver of the
+inputs, and the links out of it.  Its inputs are the core's own, in the core's panels, and a
+Haze panel; the group computes everything haze needs from them (core.layer_graph), so the
+render depends on nothing Python writes after Make Hazy: keyframes, drivers and textures on any
+input, a haze input included, render right, with or without the add-on.
+
+The core itself is kept, untouched but for its name (" (before haze)") and its links, which
+the layer node now has: collapsed and muted, next to the layer node.  Remove Haze gives its
+name, place, links and animation back, with the layer node's current values (what the artist
+set since), and removes the layer node: the tree is the artist's again.
+
+The material's stamp (``mat["hazy_gloss"]["layer"]``) records only what the tree cannot tell:
+which nodes are the layer and the core, where the core was, and the layer's settings (the
+smooth haze curve, Keep Body Colour, the EEVEE-only output).  Values live in the sockets.
+A layer of the form before (LAYER_VERSION 1, loose nodes: blender.model.legacy_layer) is upgraded on
+its first edit, or by :func:`upgrade`.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ... import constants as K
+from ...core import body_colour, gulbrandsen_inverse, layer_graph, thin_film
+from ...core.graph import evaluate as evaluate_graph
+from ...core.parameters import HAZE_DEFAULTS
+from .. import compat
+from . import layer_group, legacy_layer, stamp
+from ..nodes import ownership
+from ..nodes.builder import set_if_changed, socket_value
+
+LAYER_VERSION = 2
+STAMP_VERSION = 3  # 3: the layer as one node
+PRINCIPLED = "ShaderNodeBsdfPrincipled"
+HAZE = HAZE_DEFAULTS
+#: A haze value fed by a link (a map, a procedural mask): its value is per shading point.
+TEXTURE = "texture"
+PARKED_SUFFIX = " (before haze)"
+#: constants.ROLE of the layer node (the add-on's node: it builds and removes it).
+LAYER_ROLE = "Haze layer"
+_PARKED_LABEL = " — before haze (Remove Haze restores it)"
+
+
+def core_type(node):
+    return layer_group.kind_of(node)
+
+
+# --------------------------------------------------------------------------------------------
+# Finding the layer
+# --------------------------------------------------------------------------------------------
+
+
+def _raw_state(mat):
+    """The layer's record from the stamp, sanitised (blender.model.stamp.check_layer_node: entries that
+    do not read are left out), or None."""
+    try:
+        d = stamp.group(mat, K.STAMP) if mat is not None else None
+    except (TypeError, ValueError):
+        return None
+    raw = d.get("layer") if d is not None else None
+    if isinstance(raw, dict) and raw.get("version") == LAYER_VERSION:
+        return stamp.check_layer_node(raw)
+    return None
+
+
+def _tagged(tree, key):
+    return next((n for n in tree.nodes if n.get(key)), None) if tree is not None else None
+
+
+def layer_state(mat):
+    """The layer's record (a dict with "node", "original", "restore", "problems"), the legacy
+    layer's state (blender.model.legacy_layer, with "legacy": True), or None.  A tree that holds a
+    layer node whose stamp lost its record is a damaged layer ("lost": True)."""
+    if mat is None:
+        return None
+    raw = _raw_state(mat)
+    if raw is not None:
+        state = dict(raw)
+        state["problems"] = _problems(mat, raw)
+        return state
+    tree = getattr(mat, "node_tree", None)
+    node = _tagged(tree, K.LAYER_NODE_KEY)
+    if node is not None and node.bl_idname == "ShaderNodeGroup" and \
+            layer_group.is_layer_group(node.node_tree):
+        what = stamp.describe(mat)
+        return {"version": LAYER_VERSION, "lost": True, "problems": [
+            (f"the stamp is {what}, but the tree holds the haze layer node “{node.name}”", None)]}
+    old = legacy_layer.layer_state(mat)
+    if old is not None:
+        old = dict(old)
+        old["legacy"] = True
+    return old
+
+
+def is_layered(mat):
+    """Whether ``mat`` has a haze layer (of today's form or the legacy one, damaged or not).
+    Cheap for the common case (a stamp without a "layer" entry and no tagged node), which
+    every slider change of a hazy material asks."""
+    if mat is None:
+        return False
+    try:
+        d = mat.get(K.STAMP)
+        has_entry = d is not None and hasattr(d, "keys") and "layer" in d
+    except (TypeError, AttributeError):
+        has_entry = False
+    if not has_entry:
+        tree = getattr(mat, "node_tree", None)
+        if tree is None or not any(n.get(K.LAYER_NODE_KEY) or n.get(legacy_layer.CORE_KEY)
+                                   for n in tree.nodes):
+            return False
+    return layer_state(mat) is not None
+
+
+def is_legacy(mat):
+    return bool((layer_state(mat) or {}).get("legacy"))
+
+
+def is_baked(mat):
+    """A layer whose haze comes from converted maps (texture conversion)."""
+    state = layer_state(mat) or {}
+    if state.get("legacy"):
+        return legacy_layer.is_baked(mat)
+    node = layer_node(mat)
+    return node is not None and bool(group_config(node).get("baked"))
+
+
+def group_config(node):
+    """What the layer node's group is built for (its stamp): bsdf, settings, smooth, baked."""
+    return stamp.group(node.node_tree, K.GROUP_STAMP) or {} if node.node_tree is not None else {}
+
+
+def _kept_node(mat, state_key, tag, accept=lambda node: True):
+    """The node the layer's record names under ``state_key``, else the first node carrying the
+    ``tag`` key (either only when ``accept``-ed), or None."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return None
+    name = (_raw_state(mat) or {}).get(state_key)
+    node = tree.nodes.get(name) if name else None
+    if node is not None and node.get(tag) and accept(node):
+        return node
+    return next((n for n in tree.nodes if n.get(tag) and accept(n)), None)
+
+
+def layer_node(mat):
+    """The layer's group node (by the stamp's name, else by its tag), or None."""
+    return _kept_node(mat, "node", K.LAYER_NODE_KEY,
+                      lambda n: n.bl_idname == "ShaderNodeGroup" and layer_group.is_layer_group(n.node_tree))
+
+
+def original_node(mat):
+    """The artist's BSDF kept beside the layer node (by the stamp's name, else its tag), or None."""
+    return _kept_node(mat, "original", K.ORIGINAL_NODE_KEY)
+
+
+def find_core(tree, name=None):
+    """The node whose inputs are the core's: the layer node (today's form) or the legacy core."""
+    mat = _material_of(tree)
+    node = layer_node(mat) if mat is not None else None
+    return node if node is not None else legacy_layer.find_core(tree, name)
+
+
+def _material_of(tree):
+    import bpy
+    for m in bpy.data.materials:
+        if m.node_tree is not None and m.node_tree == tree:
+            return m
+    return None
+
+
+def _problems(mat, raw):
+    """[(one line, haze parameters that fix it or None)] of a layer whose tree no longer fits
+    its record."""
+    out = []
+    node = layer_node(mat)
+    if node is None:
+        out.append(("its layer node is gone (deleted or ungrouped)", None))
+    elif node.node_tree is None or not layer_group.is_layer_group(node.node_tree):
+        out.append(("its layer node no longer uses a Hazy Gloss layer group", None))
+    return out
+
+
+def connection_problem(mat):
+    """Why the layer does not render (its node bypassed or disconnected), or None."""
+    node = layer_node(mat)
+    if node is None:
+        return None
+    tree = mat.node_tree
+    out = _active_output(tree)
+    if out is None:
+        return "the material has no Material Output"
+    reached = _upstream(out.inputs["Surface"])
+    if node.name in reached:
+        return None
+    original = original_node(mat)
+    if original is not None and original.name in reached:
+        return (f"“{original.name}” (the BSDF as it was before haze) is connected instead of the "
+                f"layer node “{node.name}”: no haze renders")
+    return f"the layer node “{node.name}” is not connected to the Material Output: no haze renders"
+
+
+def _active_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    return next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+
+
+def _upstream(sock):
+    """Names of the nodes whose closures reach ``sock`` (through shader links)."""
+    seen, queue = set(), [sock]
+    while queue:
+        s = queue.pop()
+        for link in s.links:
+            if link.is_muted or not link.is_valid:
+                continue
+            n = link.from_node
+            if n.name in seen:
+                continue
+            seen.add(n.name)
+            if n.mute:
+                queue.extend(n.inputs)  # a muted node passes its first matching input
+            else:
+                queue.extend(i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute")
+    return seen
+
+
+# --------------------------------------------------------------------------------------------
+# Making and removing
+# --------------------------------------------------------------------------------------------
+
+
+def _stamp(mat):
+    d = mat.get(K.STAMP)
+    return (d.to_dict() if hasattr(d, "to_dict") else dict(d)) if d is not None else {}
+
+
+def _write_state(mat, state):
+    d = _stamp(mat)
+    d["layer"] = state
+    d["version"] = STAMP_VERSION
+    mat[K.STAMP] = d
+
+
+def _plain(v):
+    if hasattr(v, "__len__") and not isinstance(v, str):
+        return [float(x) for x in v]
+    if isinstance(v, bool):
+        return v
+    return float(v) if isinstance(v, (int, float)) else v
+
+
+def _unique_name(tree, base):
+    name, i = base, 1
+    while tree.nodes.get(name) is not None:
+        i += 1
+        name = f"{base} {i}"
+    return name
+
+
+def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
+    """Put the layer node in ``core``'s place (see the module docstring).  ``haze``: haze
+    values (HAZE keys) for the Haze panel; ``baked``: the group that reads the haze mapping's
+    values from converted maps (texture conversion links them).  Returns the layer node."""
+    tree = mat.node_tree
+    kind = core_type(core)
+    if kind is None:
+        raise ValueError(f"“{core.name}” is a {core.bl_label} node: a haze layer wraps a "
+                         f"Principled, Metallic or Glossy BSDF")
+    settings = layer_group.settings_of(core)
+    use_smooth = haze.get("smoothness") is not None if smooth is None else smooth
+    ng = layer_group.ensure_group(kind, settings, use_smooth, baked,
+                                  bool(keep_body_colour) and kind == "PRINCIPLED" and not baked)
+    restore = {"name": core.name, "label": core.label, "location": list(core.location),
+               "width": float(core.width), "hide": bool(core.hide), "mute": bool(core.mute),
+               "parent": core.parent.name if core.parent is not None else "",
+               "use_custom_color": bool(core.use_custom_color), "color": list(core.color)}
+    name = core.name
+    parked = _unique_name(tree, name + PARKED_SUFFIX)
+    core.name = parked  # (Blender moves the animation of its inputs with the new name)
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = ng
+    node.name = name
+    node[K.LAYER_NODE_KEY] = True
+    node[K.ROLE] = LAYER_ROLE
+    node.label = core.label
+    node.parent = core.parent
+    node.location = core.location
+    node.width = max(core.width, 240.0)
+    node.use_custom_color, node.color = core.use_custom_color, core.color
+    _take_inputs(tree, core, node)
+    for dest in [link.to_socket for link in core.outputs[0].links]:
+        tree.links.new(node.outputs["BSDF"], dest)  # (replaces the link from the core)
+    _move_animation(tree, core, node)
+    set_haze(node, haze)
+    # the artist's node, kept as it was: collapsed and muted beside the layer node
+    core[K.ORIGINAL_NODE_KEY] = True
+    core.hide, core.mute = True, True
+    core.label = (core.label or name) + _PARKED_LABEL
+    core.location = (core.location.x, core.location.y + 60.0)
+    _write_state(mat, {"version": LAYER_VERSION, "node": node.name, "original": core.name,
+                       "restore": restore})
+    return node
+
+
+def _take_inputs(tree, src, dst):
+    """``dst``'s inputs get ``src``'s values and links (by name); ``src`` keeps both (muted and
+    off the output it renders nothing; its links show what the layer started from, and
+    leaving them halves the link edits, each of which updates the whole tree)."""
+    into = _links_into(tree, src)
+    for sock in layer_group.bsdf_inputs(src):
+        target = dst.inputs.get(sock.name)
+        if target is None:
+            continue
+        if hasattr(sock, "default_value") and hasattr(target, "default_value"):
+            set_if_changed(target, _plain(sock.default_value))
+        for link in into.get(sock.identifier, ()):
+            # a new group node's input has no link to replace: no limit to verify
+            tree.links.new(link.from_socket, target, verify_limits=False)
+
+
+def _links_into(tree, node):
+    """{input identifier: [links]} of ``node`` (one pass over the tree's links: a socket's
+    ``links`` scans them all)."""
+    out = {}
+    for link in tree.links:
+        if link.to_node == node:
+            out.setdefault(link.to_socket.identifier, []).append(link)
+    return out
+
+
+def _give_back(tree, src, dst):
+    """The core ``dst`` gets the layer node ``src``'s current values and links, by name (a
+    link the core kept from before the haze goes where the layer node's input is unlinked)."""
+    into_src, into_dst = _links_into(tree, src), _links_into(tree, dst)
+    for sock in layer_group.bsdf_inputs(dst):
+        have = src.inputs.get(sock.name)
+        if have is None:
+            continue
+        if hasattr(sock, "default_value") and hasattr(have, "default_value"):
+            sock.default_value = socket_value(sock, _plain(have.default_value))
+        now = into_src.get(have.identifier, [])
+        kept = into_dst.get(sock.identifier, [])
+        if [l.from_socket for l in now] == [l.from_socket for l in kept]:
+            continue
+        for link in kept:
+            tree.links.remove(link)
+        for link in now:
+            tree.links.new(link.from_socket, sock)
+
+
+# -- animation: keyframes and drivers of the core's inputs follow the sockets -------------------
+
+_INPUT_PATH = re.compile(r'^nodes\["((?:[^"\\]|\\.)*)"\]\.inputs\[(\d+)\](.*)$')
+
+
+def _fcurves(idblock):
+    anim = getattr(idblock, "animation_data", None)
+    if anim is None:
+        return []
+    curves = list(anim.drivers)
+    actions = [anim.action] if anim.action is not None else []
+    for track in anim.nla_tracks:
+        actions += [s.action for s in track.strips if s.action is not None]
+    for action in actions:
+        legacy = getattr(action, "fcurves", None)
+        if legacy is not None and len(legacy):
+            curves += list(legacy)
+            continue
+        for layer in getattr(action, "layers", ()):
+            for strip in layer.strips:
+                for bag in getattr(strip, "channelbags", ()):
+                    curves += list(bag.fcurves)
+    return curves
+
+
+def _move_animation(tree, src, dst):
+    """Keyframes and drivers on ``src``'s inputs drive ``dst``'s inputs of the same name."""
+    index = {s.name: i for i, s in enumerate(dst.inputs)}
+    for fc in _fcurves(tree):
+        m = _INPUT_PATH.match(fc.data_path)
+        if m is None or m.group(1).replace('\\"', '"') != src.name:
+            continue
+        i = int(m.group(2))
+        if i >= len(src.inputs) or src.inputs[i].name not in index:
+            continue
+        fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
+
+
+def animated_inputs(node):
+    """Names of ``node``'s inputs driven by keyframes or drivers."""
+    tree = node.id_data
+    paths = compat.animated_paths(tree)
+    return [s.name for s in node.inputs if s.path_from_id() + ".default_value" in paths]
+
+
+def remove(mat):
+    """Take the layer off: the artist's BSDF is where it was with the layer node's values, links
+    and animation; the layer node and what was built for it go.  A legacy layer is taken off
+    as that code did."""
+    if is_legacy(mat):
+        legacy_layer.remove(mat)
+        return
+    tree = mat.node_tree
+    raw = _raw_state(mat) or {}
+    node, core = layer_node(mat), original_node(mat)
+    _remove_eevee_nodes(mat)
+    if core is not None:
+        if node is not None:
+            _give_back(tree, node, core)
+            for dest in [link.to_socket for link in node.outputs["BSDF"].links]:
+                tree.links.new(core.outputs[0], dest)
+            _move_animation(tree, node, core)
+        restore = raw.get("restore", {})
+        if K.ORIGINAL_NODE_KEY in core:
+            del core[K.ORIGINAL_NODE_KEY]
+        if node is not None:
+            tree.nodes.remove(node)
+            node = None
+        _restore_node(tree, core, restore)
+    elif node is not None:  # the artist's node is gone: keep the layer node as it is
+        del node[K.LAYER_NODE_KEY]
+    if K.STAMP in mat:
+        del mat[K.STAMP]
+
+
+def _remove_eevee_nodes(mat):
+    """The EEVEE-only output (blender/actions/eevee_output.py) goes with the layer."""
+    ownership.remove_roles(mat.node_tree, K.EEVEE_ROLE)
+
+
+def _restore_node(tree, core, restore):
+    name = restore.get("name")
+    if not name and core.name.endswith(PARKED_SUFFIX):  # (a damaged record: the name it had)
+        name = core.name[:-len(PARKED_SUFFIX)]
+    if isinstance(name, str) and name and (tree.nodes.get(name) is None or tree.nodes.get(name) == core):
+        core.name = name
+    if "label" not in restore and core.label.endswith(_PARKED_LABEL):
+        core.label = core.label[:-len(_PARKED_LABEL)]
+        if core.label == (name or core.name):
+            core.label = ""
+    if "mute" not in restore:
+        core.mute = False
+    if "hide" not in restore:
+        core.hide = False
+    for key in ("label", "hide", "mute", "use_custom_color"):
+        if key in restore:
+            try:
+                setattr(core, key, restore[key])
+            except (TypeError, ValueError):
+                pass
+    for key in ("width", "color"):
+        if key in restore:
+            try:
+                setattr(core, key, restore[key])
+            except (TypeError, ValueError):
+                pass
+    parent = tree.nodes.get(restore.get("parent", "")) if restore.get("parent") else None
+    core.parent = parent
+    if "location" in restore:
+        try:
+            core.location = restore["location"]
+        except (TypeError, ValueError):
+            pass
+
+
+# --------------------------------------------------------------------------------------------
+# Haze values (the Haze panel's sockets)
+# --------------------------------------------------------------------------------------------
+
+
+def _haze_socket(node, param):
+    return node.inputs.get(K.HAZE_SOCKETS[param][0])
+
+
+def set_haze(node, haze):
+    """Write haze values (HAZE keys; haze_extent a pair) into the layer node's sockets: a link
+    into one of them stays (the map feeds it), its value is set beneath."""
+    values = {}
+    for key, v in haze.items():
+        if key == "haze_extent" and v is not None:
+            ext = tuple(v) if isinstance(v, (tuple, list)) else (v, v)
+            values["haze_extent_x"], values["haze_extent_y"] = ext
+        elif key in K.HAZE_SOCKETS and v is not None and v != TEXTURE:
+            values[key] = v
+    for key, v in values.items():
+        sock = _haze_socket(node, key)
+        if sock is not None:
+            set_if_changed(sock, v)
+
+
+def haze_of(mat):
+    """The haze parameters a layer renders with (HAZE keys; a linked socket gives TEXTURE)."""
+    if is_legacy(mat):
+        return legacy_layer.haze_of(mat)
+    node = layer_node(mat)
+    h = dict(HAZE)
+    h["smoothness"] = None
+    if node is None:
+        return h
+    cfg = group_config(node)
+    h["keep_body_colour"] = bool(cfg.get("body", False))
+    vals = {}
+    for param in K.HAZE_SOCKETS:
+        sock = _haze_socket(node, param)
+        if sock is not None:
+            vals[param] = TEXTURE if sock.is_linked else float(sock.default_value)
+    h["haziness"] = vals.get("haziness", h["haziness"])
+    h["haze_extent"] = (vals.get("haze_extent_x", 5.0), vals.get("haze_extent_y", 5.0))
+    for key in ("reflectivity_cap", "coat_haziness", "coat_haze_extent"):
+        if key in vals:
+            h[key] = vals[key]
+    if cfg.get("smooth") and "smoothness" in vals:
+        h["smoothness"] = vals["smoothness"]
+    return h
+
+
+# --------------------------------------------------------------------------------------------
+# apply: make, update, upgrade
+# --------------------------------------------------------------------------------------------
+
+
+def apply(mat, haze, *, core=None):
+    """Make ``mat``'s layer render ``haze``: a new layer on ``core`` (or the legacy layer's
+    core, upgraded), else the layer node's haze sockets set — and its group swapped when the
+    haze curve changes (smooth or Eq. 7) or Keep Body Colour is switched.  Returns {}."""
+    if is_legacy(mat):
+        core = upgrade(mat)
+    node = layer_node(mat)
+    if node is None:
+        if core is None:
+            raise ValueError(f"the layer node of {mat.name!r} is gone: Remove Haze and Make Hazy "
+                             f"again")
+        wrap(mat, core, haze, keep_body_colour=bool(haze.get("keep_body_colour")))
+        return {}
+    cfg = group_config(node)
+    smooth = haze.get("smoothness") is not None
+    kind = cfg.get("bsdf", "PRINCIPLED")
+    body = bool(haze.get("keep_body_colour", cfg.get("body"))) and kind == "PRINCIPLED"
+    if (smooth != bool(cfg.get("smooth")) or body != bool(cfg.get("body"))) and \
+            not cfg.get("baked"):
+        ng = layer_group.ensure_group(kind, dict(cfg.get("settings", {})), smooth, False, body)
+        swap_group(node, ng)
+    set_haze(node, haze)
+    return {}
+
+
+def swap_group(node, ng):
+    """Give the layer node the group ``ng``, keeping every value and link by socket name."""
+    tree = node.id_data
+    vals = {s.name: _plain(s.default_value) for s in node.inputs
+            if hasattr(s, "default_value") and not s.is_linked}
+    ins = [(s.name, l.from_socket) for s in node.inputs for l in s.links]
+    outs = [(s.name, l.to_socket) for s in node.outputs for l in s.links]
+    node.node_tree = ng
+    for name, v in vals.items():
+        s = node.inputs.get(name)
+        if s is not None and hasattr(s, "default_value"):
+            s.default_value = socket_value(s, v)
+    for name, src in ins:
+        s = node.inputs.get(name)
+        if s is not None and not s.is_linked:
+            tree.links.new(src, s)
+    for name, dst in outs:
+        s = node.outputs.get(name)
+        if s is not None:
+            tree.links.new(s, dst)
+
+
+def upgrade(mat):
+    """A legacy layer (loose nodes) becomes today's layer node, with its haze values.  Returns
+    the layer node.  A request for the EEVEE-only output is kept; the caller rebuilds what is
+    built from a layer (sync.refresh_derived: that output, the export fallback)."""
+    haze = legacy_layer.haze_of(mat)
+    tree = mat.node_tree
+    state = legacy_layer.layer_state(mat) or {}
+    core = legacy_layer.find_core(tree, state.get("core"))
+    eevee = (_stamp(mat).get("eevee") or {}).get("mode")
+    legacy_layer.remove(mat)
+    if core is None:
+        raise ValueError(f"the core node of {mat.name!r}'s haze layer is gone: Make Hazy again")
+    node = wrap(mat, core, {k: v for k, v in haze.items() if v != TEXTURE},
+                keep_body_colour=bool(haze.get("keep_body_colour")))
+    if eevee:
+        d = _stamp(mat)
+        d["eevee"] = {"mode": eevee}
+        mat[K.STAMP] = d
+    return node
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------------------------
+
+
+def inputs_of(node):
+    """{graph input name: value} of the layer node's unlinked inputs and the names linked."""
+    vals, linked = {}, []
+    for s in node.inputs:
+        if not s.name or not hasattr(s, "default_value"):
+            continue
+        if s.is_linked:
+            linked.append(s.name)
+        v = s.default_value
+        v = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
+        vals[layer_graph.input_name(s.name)] = v
+    for param, (sname, *_rest) in K.HAZE_SOCKETS.items():
+        key = layer_graph.input_name(sname)
+        if key in vals:
+            vals[layer_graph.haze_name(param)] = vals.pop(key)
+    for bkey, (sname, _) in layer_graph.BAKED.items():
+        key = layer_graph.input_name(sname)
+        if key in vals:
+            vals[layer_graph.baked_name(bkey)] = vals.pop(key)
+    return vals, linked
+
+
+_LAYERS = {}
+
+
+def graph_of(node):
+    """The core.layer_graph.Layer of a layer node's group (cached per configuration)."""
+    st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
+    cfg = layer_group.config_for(st.get("bsdf", "PRINCIPLED"), st.get("settings", {}),
+                                 smooth=bool(st.get("smooth")), baked=bool(st.get("baked")),
+                                 body=bool(st.get("body")))
+    lay = _LAYERS.get(cfg.key())
+    if lay is None:
+        lay = _LAYERS[cfg.key()] = layer_graph.build(cfg)
+    return lay
+
+
+_NEEDED = {}
+
+
+def evaluate(node, outputs, lazy=False):
+    """({name: value} of the graph ``outputs`` of the layer node's group for the node's
+    unlinked input values, the names of its linked inputs)."""
+    lay = graph_of(node)
+    vals, linked = inputs_of(node)
+    key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
+    needed = _NEEDED.get(key)
+    if needed is None:
+        needed = _NEEDED[key] = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
+    inputs = {}
+    for name in needed:
+        v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
+        vector = lay.graph.inputs[name].vector
+        inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
+    out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
+    return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
+            for k, v in out.items()}, linked
+
+
+def values(node):
+    """What the layer's group computes from the node's unlinked input values (the panel's
+    Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
+    return evaluate(node, graph_of(node).shown)
+
+
+def read(mat):
+    """The perceptual view of a layered material: the haze parameters and the core's own, as
+    the layer node holds them (linked inputs report their unlinked value and are listed in
+    ``textured``).  Raises ValueError (one line) when the layer is damaged."""
+    if is_legacy(mat):
+        return legacy_layer.read(mat)
+    state = layer_state(mat) or {}
+    if state.get("problems"):
+        raise stamp.StampError(f"The haze layer of “{mat.name}” is damaged: "
+                               f"{state['problems'][0][0]}; Remove Haze, then Make Hazy again")
+    node = layer_node(mat)
+    kind = (stamp.group(node.node_tree, K.GROUP_STAMP) or {}).get("bsdf", "PRINCIPLED")
+    h = haze_of(mat)
+    inp = {s.name: s for s in node.inputs}
+
+    def val(name, default=0.0):
+        s = inp.get(name)
+        if s is None or not hasattr(s, "default_value"):
+            return default
+        v = s.default_value
+        return tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
+
+    settings = group_config(node).get("settings", {})
+    aniso, rot = ("Anisotropic", "Anisotropic Rotation") if kind == "PRINCIPLED" else ("Anisotropy", "Rotation")
+    p = dict(layered=True, core=node.name, core_type=kind,
+             distribution=settings.get("distribution", "GGX"), roughness=val("Roughness"),
+             anisotropy=val(aniso), rotation=val(rot), edge_tint=(0.0, 0.0, 0.0),
+             base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP",
+             shader_mapping=False, **h)
+    _, linked = inputs_of(node)
+    p["textured"] = sorted(n for n in linked if n not in {v[0] for v in K.HAZE_SOCKETS.values()})
+    p["animated"] = animated_inputs(node)
+    p["notes"] = notes(mat)
+    if kind == "PRINCIPLED":
+        m = inp["Metallic"]
+        p["metallic"] = None if m.is_linked else float(m.default_value)
+        mv = float(m.default_value)
+        p["kind"] = ("DIELECTRIC" if not m.is_linked and mv <= 0.0 else
+                     "CONDUCTOR" if not m.is_linked and mv >= 1.0 else "MIXED")
+        ior = val("IOR", 1.5)
+        f0 = (((ior - 1.0) / (ior + 1.0)) ** 2 if ior != -1.0 else 1.0) * 2.0 * val("Specular IOR Level", 0.5)
+        dielectric = tuple(min(max(f0 * c, 0.0), 1.0) for c in val("Specular Tint", (1.0,) * 3))
+        metal = tuple(min(max(c, 0.0), 1.0) for c in val("Base Color", (0.8,) * 3))
+        p["core_reflectivity"] = metal if p["kind"] == "CONDUCTOR" else dielectric
+        p["dielectric_reflectivity"], p["metal_reflectivity"] = dielectric, metal
+        p["base_color"] = val("Base Color", (0.8,) * 3)
+        p["transmission"] = val("Transmission Weight")
+    elif kind == "METALLIC":
+        p["kind"] = "CONDUCTOR"
+        if settings.get("fresnel_type") == "PHYSICAL_CONDUCTOR":
+            r, g = gulbrandsen_inverse(np.maximum(np.asarray(val("IOR", (1.0,) * 3), float), 0.0),
+                                       np.maximum(np.asarray(val("Extinction", (0.0,) * 3), float), 0.0))
+            p["core_reflectivity"] = tuple(float(x) for x in np.clip(r, 0.0, 1.0))
+            p["edge_tint"] = tuple(float(x) for x in np.clip(np.nan_to_num(g), 0.0, 1.0))
+        else:
+            p["core_reflectivity"] = val("Base Color", (0.8,) * 3)
+            p["edge_tint"] = val("Edge Tint", (1.0,) * 3)
+    else:
+        p["kind"] = "LEGACY"
+        p["core_reflectivity"] = val("Color", (0.8,) * 3)
+    p["shader_mapping"] = bool(p["textured"])
+    p["notes"] = notes(mat)  # (a bypassed layer node, haze that cannot show, ...)
+    return p
+
+
+def input_record(node, names):
+    """{input name: {"link": node name} | {"value": v}} of ``node``'s inputs ``names``."""
+    out = {}
+    for name in names:
+        s = node.inputs.get(name)
+        if s is None:
+            continue
+        if s.is_linked:
+            out[name] = {"link": s.links[0].from_node.name}
+        elif hasattr(s, "default_value"):
+            out[name] = {"value": _plain(s.default_value)}
+    return out
+
+
+def record_baked_sources(mat, record):
+    raw = dict(_raw_state(mat) or {})
+    raw["baked_from"] = record
+    _write_state(mat, raw)
+
+
+def _baked_changes(mat, node):
+    """Inputs of a converted layer that no longer hold what its maps were computed from."""
+    raw = _raw_state(mat) or {}
+    was = raw.get("baked_from") or {}
+    now = input_record(node, list(was))
+    changed = []
+    for name, rec in was.items():
+        cur = now.get(name)
+        if cur is None or set(cur) != set(rec):
+            changed.append(name)
+        elif "link" in rec and cur["link"] != rec["link"]:
+            changed.append(name)
+        elif "value" in rec and not np.allclose(np.atleast_1d(cur["value"]),
+                                                np.atleast_1d(rec["value"]), rtol=1e-6, atol=1e-7):
+            changed.append(name)
+    return changed
+
+
+def notes(mat):
+    """What the panel, the operator and the API say about a layer, in plain words: a bypassed
+    or disconnected layer node; haze that cannot show (no room above the core's reflectivity);
+    what the layer only approximates for these values."""
+    out = []
+    problem = connection_problem(mat)
+    if problem:
+        out.append(problem)
+    node = layer_node(mat)
+    if node is None:
+        return out
+    if is_baked(mat):
+        changed = _baked_changes(mat, node)
+        if changed:
+            out.append(f"its haze comes from converted maps made for other {', '.join(changed)}: "
+                       f"convert the maps again (or Remove Haze, then Make Hazy for a live layer)")
+        return out
+    h = haze_of(mat)
+    if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
+        return out  # no haze set here: nothing it could not do
+    try:
+        vals, linked = evaluate(node, _note_outputs(node), lazy=True)
+    except (ValueError, TypeError, KeyError):
+        return out
+    if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
+        out += _room_notes(node, vals, linked, h)
+    if group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
+        note = _body_note(node, vals, linked)
+        if note:
+            out.append(note)
+    film = film_peak_change(node, vals, linked)
+    if film is not None and abs(film) > 1e-5:
+        out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
+                   f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
+    return out
+
+
+def _note_outputs(node):
+    """The shown values the notes read for this node (evaluating all of them costs ~10 ms: the
+    film and glass math is skipped where the node has neither)."""
+    shown = graph_of(node).shown
+    keys = {"beta dielectric", "beta metal", "beta", "reflectivity metal", "reflectivity"}
+    inp = node.inputs
+    tr, film = inp.get("Transmission Weight"), inp.get("Thin Film Thickness")
+    if (tr is not None and (tr.is_linked or tr.default_value > 0.0)) or \
+            (film is not None and (film.is_linked or film.default_value > 0.1)):
+        keys.add("tint narrow")
+    if group_config(node).get("body"):
+        keys |= {"roughness wide", "IOR dielectric"}
+    return {k: shown[k] for k in keys if k in shown}
+
+
+#: The Reflectivity Cap a note proposes where a colour at 1 leaves no room for haze.
+SUGGESTED_CAP = 0.98
+
+
+def _f0(ior):
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+def _parts(node, vals, linked):
+    """(β, the core reflectivity the user set (largest channel), what it is) of each part the
+    node renders, from its unlinked values (a linked reflectivity: not judged)."""
+    inp = node.inputs
+    cfg = group_config(node)
+    kind = cfg.get("bsdf")
+
+    def colour(name):
+        return None if name in linked else float(max(inp[name].default_value[:3]))
+    out = []
+    if kind == "PRINCIPLED":
+        m = None if "Metallic" in linked else float(inp["Metallic"].default_value)
+        if m is None or m > 0.0:
+            out.append((vals.get("beta metal", 0.0), colour("Base Color"), "Base Color"))
+        if (m is None or m < 1.0) and not {"IOR", "Specular IOR Level", "Specular Tint"} & set(linked):
+            tint = float(max(inp["Specular Tint"].default_value[:3]))
+            level = 2.0 * max(float(inp["Specular IOR Level"].default_value), 0.0)
+            if float(inp["Transmission Weight"].default_value) > 1e-5:
+                level = 1.0
+            out.append((vals.get("beta dielectric", 0.0),
+                        _f0(float(inp["IOR"].default_value)) * level * tint, "the specular F0"))
+    elif kind == "METALLIC" and cfg.get("settings", {}).get("fresnel_type") == "PHYSICAL_CONDUCTOR":
+        rc = None
+        if not {"IOR", "Extinction"} & set(linked):
+            n = np.asarray(inp["IOR"].default_value[:3], float)
+            k = np.asarray(inp["Extinction"].default_value[:3], float)
+            rc = float((((n - 1) ** 2 + k * k) / ((n + 1) ** 2 + k * k)).max())
+        out.append((vals.get("beta", 0.0), rc, "the F0 of its IOR and Extinction"))
+    elif kind == "METALLIC":
+        out.append((vals.get("beta", 0.0), colour("Base Color"), "Base Color"))
+    else:
+        out.append((vals.get("beta", 0.0), colour("Color"), "Color"))
+    return out
+
+
+def _room_notes(node, vals, linked, haze):
+    """Haze that cannot show or the peak it cannot keep, with the setting that fixes it."""
+    out = []
+    cap = float(haze.get("reflectivity_cap", 1.0))
+    for beta, rc, what in _parts(node, vals, linked):
+        if beta > 0.0 or rc is None:
+            continue
+        if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:
+            loss = 1.0 - SUGGESTED_CAP / min(rc, 1.0)
+            out.append(f"no haze shows: {what} reaches {rc:.3g}, which leaves no room for a halo; "
+                       f"set Reflectivity Cap to {SUGGESTED_CAP} to allow haze (the peak then drops "
+                       f"by {100 * loss:.1f}%)")
+        elif rc <= 1e-6:
+            out.append(f"no haze shows: {what} is 0, so there is no reflection to put a halo "
+                       f"around")
+        elif rc >= min(cap, 1.0) - 1e-6:
+            out.append(f"no haze shows: {what} ({rc:.3g}) leaves no room for a halo at this "
+                       f"Reflectivity Cap ({cap:g}): lower the cap")
+    tint = vals.get("tint narrow")
+    if tint is not None and "Specular Tint" not in linked and "IOR" not in linked and \
+            vals.get("beta dielectric", 0.0) > 0.0:
+        f0 = _f0(float(node.inputs["IOR"].default_value)) * max(tint)
+        if f0 > 1.0:
+            out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
+                       f"through the Specular Tint; lower Haziness")
+    return out
+
+
+def film_peak_change(node, vals=None, linked=None):
+    """How much a thin film moves the layer's peak on a metal part (hazy / haze-free - 1, the
+    channel that moves most), for the node's unlinked values, or None without a film on a hazy
+    metal: the layer raises the metal's F0 (Base Color) as without a film (Eq. 5), and the
+    film's interference on a conductor is not linear in F0 (core.thin_film: Cycles'
+    normal-incidence reflectance).  A dielectric's film is in the layer's node math (exact)."""
+    if vals is None:
+        vals, linked = values(node)
+    inp = node.inputs
+    d = inp.get("Thin Film Thickness")
+    if d is None or d.is_linked or not thin_film.film_active(d.default_value):
+        return None
+    film = (float(d.default_value), float(inp["Thin Film IOR"].default_value))
+    cfg = group_config(node)
+    changes = []
+    if cfg.get("bsdf") == "PRINCIPLED":  # (the dielectric part's film is node math: exact)
+        tint = np.asarray(inp["Specular Tint"].default_value, float)[:3]
+        m = float(inp["Metallic"].default_value)
+        if m > 0.0 and vals.get("beta metal", 0.0) > 0.0:
+            base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+            raised = np.clip(np.asarray(vals["reflectivity metal"], float), 1e-9, 1.0)
+            a = thin_film.metal_reflectance(base, tint, *film)
+            b = thin_film.metal_reflectance(raised, tint, *film)
+            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    elif cfg.get("bsdf") == "METALLIC" and vals.get("beta", 0.0) > 0.0 and \
+            cfg.get("settings", {}).get("fresnel_type") == "F82":
+        tint = np.asarray(inp["Edge Tint"].default_value, float)[:3]
+        base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+        raised = np.clip(np.asarray(vals["reflectivity"], float), 1e-9, 1.0)
+        a = thin_film.metal_reflectance(base, tint, *film)
+        b = thin_film.metal_reflectance(raised, tint, *film)
+        changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    if not changes:
+        return None
+    worst = np.concatenate([np.ravel(c) for c in changes])
+    return float(worst[np.argmax(np.abs(worst))])
+
+
+def _body_note(node, vals, linked):
+    """What Keep Body Colour cannot keep for the node's values (a base that would need a
+    colour above 1): core.body_colour's measure of it, for the panel (the shader computes the
+    compensation itself)."""
+    if {"Base Color", "Roughness", "IOR", "Specular Tint", "Specular IOR Level"} & set(linked):
+        return None
+    inp = node.inputs
+    r = float(inp["Roughness"].default_value)
+    rw = float(vals["roughness wide"])
+    try:
+        bc = body_colour.compensation(
+            r * r, float(inp["IOR"].default_value), float(vals["IOR dielectric"]),
+            float(vals["beta dielectric"]), rw * rw,
+            base_color=tuple(inp["Base Color"].default_value)[:3],
+            tint=tuple(inp["Specular Tint"].default_value)[:3],
+            level=float(inp["Specular IOR Level"].default_value),
+            distribution=group_config(node).get("settings", {}).get("distribution", "GGX"))
+    except (ValueError, FloatingPointError):
+        return None
+    warning = bc.warning()
+    if warning is None:
+        return None
+    most = 1.0 / max(float(np.max(bc.c_face_on)), 1.0)
+    return (f"{warning}: lower Haziness, or a Base Color of at most {most:.2f} keeps the body "
+            f"colour")
+
+
+def summary(mat):
+    """What the panel shows of a layer: its node, the values its group computes for the
+    node's unlinked inputs, which inputs are linked or animated, the notes."""
+    node = layer_node(mat)
+    if node is None:
+        state = layer_state(mat) or {}
+        raise ValueError(f"The haze layer of “{mat.name}” is damaged: "
+                         f"{(state.get('problems') or [('its layer node is gone', None)])[0][0]}")
+    vals, linked = values(node)
+    return dict(node=node, values=vals, textured=linked, animated=animated_inputs(node),
+                notes=notes(mat), group=node.node_tree.name)

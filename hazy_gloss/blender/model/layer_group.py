@@ -1,0 +1,555 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The haze layer's node group: one per configuration (BSDF type, distribution, subsurface
+method or Fresnel type, haze curve, Blender version), shared by every material that has it.
+
+Its interface is the wrapped BSDF's own inputs — names, types, limits, defaults and panels as
+Blender declares them (core.tables.bsdf_interfaces, read through Make Group) — and a Haze panel
+(constants.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
+mapping in frames, then the BSDF slots (copies of the wrapped node type whose inputs are the
+group's own, except those the mapping computes) and their Mix Shaders.  Two outputs: "BSDF"
+(the layer) and "EEVEE" (each layer's lobes folded into one, for the EEVEE-only output).
+"""
+from __future__ import annotations
+
+import sys
+
+import bpy
+
+from ... import constants as K
+from ...core import (body_colour, graph, layer_graph, multiscatter, node_body_colour, node_fresnel,
+                     node_math, node_multiscatter, node_thin_film, thin_film)
+from ...core.multiscatter import cycles_version
+from ...core.tables import bsdf_interfaces, cycles_albedo_tables
+from . import groups, stamp
+from ..nodes import builder
+from ..nodes import emit as emit_module
+from ..nodes.builder import TreeBuilder, socket_value
+from ..nodes.emit import emit
+from .groups import rebuild_interface
+
+#: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
+GROUP_VERSION = 2  # 2: transmission and thin films keep the IOR (the tint raises F0)
+
+BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
+              "GLOSSY": "ShaderNodeBsdfGlossy"}
+#: Node settings a configuration fixes (the group node has no enum properties).
+NODE_SETTINGS = {"PRINCIPLED": ("distribution", "subsurface_method"),
+                 "METALLIC": ("distribution", "fresnel_type"), "GLOSSY": ("distribution",)}
+_DIST_LABEL = {"GGX": "GGX", "MULTI_GGX": "Multiscatter GGX", "BECKMANN": "Beckmann",
+               "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
+_LABEL = {"PRINCIPLED": "Hazy Principled BSDF", "METALLIC": "Hazy Metallic BSDF",
+          "GLOSSY": "Hazy Glossy BSDF"}
+_SETTING_LABEL = {"RANDOM_WALK": "", "RANDOM_WALK_SKIN": "Skin", "BURLEY": "Christensen-Burley",
+                  "F82": "F82", "PHYSICAL_CONDUCTOR": "Physical"}
+
+
+def version_tag(version=None):
+    v = cycles_version(version)
+    return f"{v[0]}.{v[1]}"
+
+
+def settings_of(node):
+    """{setting: value} of a BSDF node (what a configuration fixes)."""
+    kind = kind_of(node)
+    return {p: getattr(node, p) for p in NODE_SETTINGS[kind]}
+
+
+def kind_of(node):
+    for kind, idname in BSDF_NODES.items():
+        if node.bl_idname == idname or (kind == "GLOSSY" and node.bl_idname == "ShaderNodeBsdfAnisotropic"):
+            return kind
+    return None
+
+
+def config_for(kind, settings, *, smooth=False, baked=False, body=False):
+    """The layer_graph.Config of a BSDF kind and its node settings."""
+    return layer_graph.Config(kind, settings.get("distribution", "GGX"),
+                              fresnel=settings.get("fresnel_type", ""), smooth=bool(smooth),
+                              version=cycles_version(None), baked=bool(baked), body=bool(body))
+
+
+def group_name(kind, settings, smooth=False, baked=False, body=False):
+    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth) 5.3" (< 64 bytes)."""
+    parts = [_DIST_LABEL.get(settings.get("distribution"), settings.get("distribution", ""))]
+    for key in ("subsurface_method", "fresnel_type"):
+        label = _SETTING_LABEL.get(settings.get(key), "")
+        if label:
+            parts.append(label)
+    if smooth:
+        parts.append("Smooth")
+    if baked:
+        parts.append("Converted")
+    if body:
+        parts.append("Body")
+    name = f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
+    for long, short in _SHORTER:  # Blender's ID names hold 63 bytes
+        if len(name.encode()) <= 63:
+            break
+        name = name.replace(long, short)
+    return name
+
+
+_SHORTER = (("Christensen-Burley", "Burley"), ("Multiscatter GGX", "MS GGX"),
+            ("Ashikhmin-Shirley", "AS"), (" BSDF (", " ("))
+
+
+def _stamp_of(kind, settings, smooth, baked=False, body=False):
+    d = {"kind": "layer", "version": GROUP_VERSION, "bsdf": kind, "settings": dict(settings),
+         "smooth": int(bool(smooth)), "blender": version_tag()}
+    if baked:
+        d["baked"] = 1
+    if body:
+        d["body"] = 1
+    return d
+
+
+def fits(ng, kind, settings, smooth, baked=False, body=False):
+    if ng is None or ng.library is not None:
+        return False
+    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked, body)
+
+
+def is_layer_group(ng):
+    return ng is not None and (stamp.group(ng, K.GROUP_STAMP) or {}).get("kind") == "layer"
+
+
+def ensure_group(kind, settings, smooth=False, baked=False, body=False):
+    """The group of this configuration: found by its stamp (a renamed group is taken), else
+    appended from the per-user cache, else built (and cached); an outdated group of the same
+    name is rebuilt in place (its users keep their links and values)."""
+    config = (kind, settings, smooth, baked, body)
+    name = group_name(*config)
+    ng = bpy.data.node_groups.get(name)
+    if fits(ng, *config):
+        return ng
+    found = next((g for g in bpy.data.node_groups if fits(g, *config)), None)
+    if found is not None:
+        return found
+    stale = ng is not None and ng.library is None and is_layer_group(ng)
+    if not stale:
+        cached = _from_cache(name, config)
+        if cached is not None:
+            return cached
+    if not stale:
+        ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    build(ng, *config)
+    ng[K.GROUP_STAMP] = _stamp_of(*config)
+    _to_cache(ng)
+    return ng
+
+
+# --------------------------------------------------------------------------------------------
+# The per-user cache: building a group takes seconds (every node edit in Blender updates the
+# whole tree), appending it from a .blend tens of milliseconds
+# --------------------------------------------------------------------------------------------
+
+#: The modules whose code builds the groups: their files are hashed (a module object, not a path,
+#: so a moved or renamed module cannot drop out of the hash unnoticed).
+_SOURCES = (sys.modules[__name__], emit_module, builder, groups, layer_graph, node_math,
+            node_fresnel, node_multiscatter, node_body_colour, body_colour, node_thin_film,
+            thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K)
+_digest = []
+
+
+def _code_digest():
+    """A hash of the code that builds groups (a cached group from other code is not taken)."""
+    if not _digest:
+        import hashlib
+        h = hashlib.sha256()
+        for module in _SOURCES:
+            with open(module.__file__, "rb") as fh:
+                h.update(fh.read())
+        _digest.append(h.hexdigest()[:16])
+    return _digest[0]
+
+
+def _cache_path(name):
+    import os
+    import re
+    try:
+        base = bpy.utils.extension_path_user(__package__.rpartition(".blender")[0],
+                                             path="layer_groups", create=True)
+    except (ValueError, TypeError, AttributeError, RuntimeError):
+        # registered by a script (import hazy_gloss; register()): a per-user temporary folder
+        import getpass
+        import tempfile
+        try:
+            user = re.sub(r"[^A-Za-z0-9]+", "_", getpass.getuser())
+        except (KeyError, OSError):
+            user = "user"
+        base = os.path.join(tempfile.gettempdir(), f"hazy_gloss_{user}", "layer_groups")
+        try:
+            os.makedirs(base, exist_ok=True)
+        except OSError:
+            return None
+    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
+    return os.path.join(base, f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend")
+
+
+def _from_cache(name, config):
+    import os
+    path = _cache_path(name)
+    if path is None or not os.path.isfile(path):
+        return None
+    before = set(bpy.data.node_groups)
+    try:
+        with bpy.data.libraries.load(path, link=False) as (src, dst):
+            if name not in src.node_groups:
+                return None
+            dst.node_groups = [name]
+    except (OSError, RuntimeError):
+        return None
+    new = [g for g in bpy.data.node_groups if g not in before]
+    ng = next((g for g in new if fits(g, *config)), None)
+    for g in new:
+        if g is not ng and g.users == 0:
+            bpy.data.node_groups.remove(g)
+    if ng is not None:
+        ng.use_fake_user = False  # (as a built one: dropped on save once nothing uses it)
+    return ng
+
+
+def _to_cache(ng):
+    import os
+    path = _cache_path(ng.name)
+    if path is None:
+        return
+    tmp = path + f".{os.getpid()}.tmp"
+    try:
+        bpy.data.libraries.write(tmp, {ng}, fake_user=True, compress=True)
+        os.replace(tmp, path)
+    except (OSError, RuntimeError):
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+
+
+# --------------------------------------------------------------------------------------------
+# Interface
+# --------------------------------------------------------------------------------------------
+
+
+def _declarations(kind):
+    tables = bsdf_interfaces.TABLES
+    tag = version_tag()
+    if tag not in tables:  # a newer Blender: its sockets, with the newest known declarations
+        tag = max(tables, key=lambda t: tuple(int(x) for x in t.split(".")))
+    return tables[tag][kind]
+
+
+def bsdf_inputs(node):
+    """The enabled inputs of a BSDF node, in order (what the group's interface mirrors)."""
+    return [s for s in node.inputs if s.enabled]
+
+
+def _new_socket(iface, name, decl, parent):
+    stype = decl.get("type", "NodeSocketFloat")
+    s = iface.new_socket(name=name, in_out="INPUT", socket_type=stype, parent=parent)
+    if decl.get("subtype") and hasattr(s, "subtype"):
+        try:
+            s.subtype = decl["subtype"]
+        except (TypeError, ValueError):
+            pass
+    for attr, key in (("min_value", "min_value"), ("max_value", "max_value"),
+                      ("default_value", "default")):
+        if key in decl and hasattr(s, attr):
+            try:
+                setattr(s, attr, decl[key])
+            except (TypeError, ValueError):
+                pass
+    s.hide_value = bool(decl.get("hide_value", False))
+    return s
+
+
+def _interface(ng, kind, template, smooth, baked=False):
+    """The wrapped BSDF's inputs (``template``: a node of that kind and configuration) in its
+    panels, then the Haze panel (or, converted, the Converted Maps); outputs BSDF and EEVEE."""
+    iface = ng.interface
+    iface.new_socket(name="BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    eevee = iface.new_socket(name="EEVEE", in_out="OUTPUT", socket_type="NodeSocketShader")
+    eevee.description = ("Each layer's narrow and wide lobes folded into one with the same peak: "
+                         "for the EEVEE-only output (Hazy Gloss panel, EEVEE setting)")
+    decl = _declarations(kind)
+    panels = {}
+    for sock in bsdf_inputs(template):
+        d = dict(decl["sockets"].get(sock.name, {}))
+        if not d:  # not declared in the table: the socket's own type
+            d = {"type": {"VALUE": "NodeSocketFloat", "RGBA": "NodeSocketColor",
+                          "VECTOR": "NodeSocketVector", "BOOLEAN": "NodeSocketBool",
+                          "INT": "NodeSocketInt"}.get(sock.type, "NodeSocketFloat"),
+                 "hide_value": sock.hide_value}
+        title = d.get("panel", "")
+        parent = None
+        if title:
+            parent = panels.get(title)
+            if parent is None:
+                parent = panels[title] = iface.new_panel(
+                    title, default_closed=decl["panels"].get(title, True))
+        _new_socket(iface, sock.name, d, parent)
+    if baked:
+        maps = iface.new_panel("Converted Maps", default_closed=False)
+        for key, (name, colour) in layer_graph.BAKED.items():
+            s = iface.new_socket(name=name, in_out="INPUT", parent=maps,
+                                 socket_type="NodeSocketColor" if colour else "NodeSocketFloat")
+            s.description = "Written by texture conversion (the haze mapping per texel)"
+        return
+    haze = iface.new_panel(K.HAZE_PANEL, default_closed=False)
+    for param in haze_params(kind, smooth):
+        name, default, lo, hi, desc = K.HAZE_SOCKETS[param]
+        s = iface.new_socket(name=name, in_out="INPUT", socket_type="NodeSocketFloat", parent=haze)
+        if param in ("haziness", "coat_haziness", "reflectivity_cap") and hasattr(s, "subtype"):
+            s.subtype = "FACTOR"
+        s.default_value, s.min_value, s.max_value, s.description = default, lo, hi, desc
+
+
+def haze_params(kind, smooth):
+    """The haze parameters a group of ``kind`` has, in panel order."""
+    out = ["haziness", "haze_extent_x", "haze_extent_y"]
+    if smooth:
+        out.append("smoothness")
+    out.append("reflectivity_cap")
+    if kind == "PRINCIPLED":
+        out += ["coat_haziness", "coat_haze_extent"]
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Inside
+# --------------------------------------------------------------------------------------------
+
+_COLUMN = 180.0
+_ROW = 160.0
+
+
+def _frame(ng, title, nodes, x0, y0):
+    """Put ``nodes`` (already laid out from (0, 0) down) in a labelled frame at (x0, y0)."""
+    frame = ng.nodes.new("NodeFrame")
+    frame.label = title
+    frame.label_size = 16
+    frame.shrink = True
+    frame.location = (x0, y0)
+    for n in nodes:
+        loc = n.location.copy()
+        n.parent = frame
+        n.location = (x0 + loc.x, y0 + loc.y)
+    return frame
+
+
+def build(ng, kind, settings, smooth, baked=False, body=False):
+    """(Re)build ``ng`` for this configuration.  An existing interface is kept when it is the
+    same (the group nodes' links and values stay)."""
+    ng.nodes.clear()
+    template = ng.nodes.new(BSDF_NODES[kind])
+    for p, v in settings.items():
+        setattr(template, p, v)
+    rebuild_interface(ng, lambda tree: _interface(tree, kind, template, smooth, baked),
+                      update_sockets=False)
+    ng.nodes.remove(template)
+    cfg = config_for(kind, settings, smooth=smooth, baked=baked, body=body)
+    lay = layer_graph.build(cfg)
+
+    gin = ng.nodes.new("NodeGroupInput")
+    gin.label = "Inputs (the BSDF's and the haze's)"
+    sources = {}
+    for sock in gin.outputs:
+        if sock.name:
+            sources[layer_graph.input_name(sock.name)] = sock
+    if baked:
+        for key, (name, _) in layer_graph.BAKED.items():
+            sources[layer_graph.baked_name(key)] = gin.outputs[name]
+    else:
+        for param in haze_params(kind, smooth):
+            sources[layer_graph.haze_name(param)] = gin.outputs[K.HAZE_SOCKETS[param][0]]
+    if body:  # the view cosine Keep Body Colour reads, on the BSDF's normal
+        lw = ng.nodes.new("ShaderNodeLayerWeight")
+        lw.label = "View cosine (Keep Body Colour)"
+        lw.inputs["Blend"].default_value = 0.5
+        ng.links.new(gin.outputs["Normal"], lw.inputs["Normal"])
+        lw.location = (-1.5 * _COLUMN, 300.0)
+        sources[node_body_colour.FACING] = lw.outputs["Facing"]
+
+    # -- the math: one node group per section (readable, and far quicker to build: every
+    #    node edit in Blender updates the whole tree it is in) ------------------------------
+    outs, part_nodes = _emit_sections(ng, lay, sources)
+    ys = [0.0, 0.0]  # two columns, each part in the shorter one
+    for n in part_nodes:
+        col = 0 if ys[0] >= ys[1] else 1
+        n.location = (col * 1.6 * _COLUMN, ys[col])
+        ys[col] -= 60.0 + 22.0 * (len(n.inputs) + len(n.outputs))
+    width = 3.2 * _COLUMN
+    _frame(ng, "Haze mapping (Eqs. 3-8, corrections): a group per part, Tab to open",
+           part_nodes, 0.0, 0.0)
+    gin.location = (-3.0 * _COLUMN, 0.0)
+
+    # -- the BSDF slots and their mixes ---------------------------------------------------
+    x_lobes = width + 3.0 * _COLUMN
+    gin2 = ng.nodes.new("NodeGroupInput")
+    gin2.label = "Inputs (passed to every BSDF)"
+    gin2.location = (x_lobes - 2.0 * _COLUMN, 0.0)
+    lobe_nodes = []
+    results = {}
+    for tree_name, tree in (("BSDF", lay.cycles), ("EEVEE", lay.eevee)):
+        results[tree_name] = _closures(ng, tree, kind, settings, outs, gin2, x_lobes, lobe_nodes)
+    gout = ng.nodes.new("NodeGroupOutput")
+    gout.location = (x_lobes + 7.0 * _COLUMN, 0.0)
+    for name, sock in results.items():
+        ng.links.new(sock, gout.inputs[name])
+    _frame(ng, "Lobes: copies of the BSDF with the haze's values, mixed by β", lobe_nodes, 0.0, 0.0)
+    for s in gin.outputs:  # each Group Input shows the sockets it feeds
+        s.hide = bool(s.name) and not s.is_linked
+    for s in gin2.outputs:
+        s.hide = bool(s.name) and not s.is_linked
+    return lay
+
+
+def _emit_sections(ng, lay, sources):
+    """Emit ``lay``'s graph into ``ng`` with each section (core.layer_graph's frames) in a node
+    group of its own: its inputs are the values it reads from the group's inputs and earlier
+    sections, its outputs what later sections and the BSDF slots read.  Returns (the slots'
+    and mixes' values: sockets of ``ng`` or constants, the section nodes)."""
+    g = lay.graph
+    wanted = lay.outputs()
+    order = g.used(wanted)
+    section = {e.index: lay.section_of(e) for e in order if e.op != "input"}
+    final = {e.index for e in _exprs(wanted) if not e.is_const}
+    readers = {}
+    for e in order:
+        for a in e.args:
+            if not a.is_const:
+                readers.setdefault(a.index, set()).add(section.get(e.index))
+    sockets = {e.index: sources[e.name] for e in order if e.op == "input"}
+    nodes = []
+    tag = _short_tag(lay.config)
+    for n_sec, (title, _) in enumerate(lay.sections):
+        members = [e for e in order if section.get(e.index) == title]
+        if not members:
+            continue
+        inside = {e.index for e in members}
+        ext = []
+        for e in members:
+            for a in e.args:
+                if not a.is_const and a.index not in inside and a not in ext:
+                    ext.append(a)
+        exported = [e for e in members if e.index in final or (readers.get(e.index, set()) - {title})]
+        sub = _section_group(f".HG {tag} {n_sec} {title.split(':')[0]}", title, g, ext, exported)
+        node = ng.nodes.new("ShaderNodeGroup")
+        node.node_tree = sub
+        node.label = title.split(":")[0]
+        node.width = 220.0
+        for i, a in enumerate(ext):
+            ng.links.new(sockets[a.index], node.inputs[i])
+        for i, e in enumerate(exported):
+            sockets[e.index] = node.outputs[i]
+        nodes.append(node)
+    values = {k: (sockets[e.index] if not e.is_const else
+                  (tuple(float(x) for x in e.value) if e.vector else float(e.value)))
+              for k, e in wanted.items() if e is not None}
+    return values, nodes
+
+
+def _exprs(outputs):
+    return [e for e in outputs.values() if e is not None]
+
+
+def _short_tag(cfg):
+    import hashlib
+    return hashlib.sha1(repr((cfg.key(), GROUP_VERSION)).encode()).hexdigest()[:6]
+
+
+def _socket_name(e):
+    return (e.label or e.name or f"value {e.index}")[:60]
+
+
+def _section_group(name, title, g, ext, exported):
+    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``)."""
+    old = bpy.data.node_groups.get(name)
+    if old is not None and old.users == 0:
+        bpy.data.node_groups.remove(old)
+    sub = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    sub[K.GROUP_STAMP] = {"kind": "layer part", "version": GROUP_VERSION}
+    iface = sub.interface
+    for a in ext:
+        iface.new_socket(name=_socket_name(a), in_out="INPUT",
+                         socket_type="NodeSocketVector" if a.vector else "NodeSocketFloat")
+    for e in exported:
+        iface.new_socket(name=_socket_name(e), in_out="OUTPUT",
+                         socket_type="NodeSocketVector" if e.vector else "NodeSocketFloat")
+    gin = sub.nodes.new("NodeGroupInput")
+    gout = sub.nodes.new("NodeGroupOutput")
+    known = {a.index: gin.outputs[i] for i, a in enumerate(ext)}
+    tb = TreeBuilder(sub, prefix="")
+    made = {}
+    out = emit(tb, g, exported, {}, known=known, nodes_by_expr=made)
+    for i, v in enumerate(out):
+        sub.links.new(v, gout.inputs[i])
+    nodes, seen = [], set()
+    for _, n in sorted(made.items()):
+        if n.name not in seen:
+            seen.add(n.name)
+            nodes.append(n)
+    if nodes:
+        _relayout(nodes)
+        _frame(sub, title, nodes, 0.0, 0.0)
+        right = max(n.location.x for n in nodes)
+        gout.location = (right + 2.0 * _COLUMN, 0.0)
+    gin.location = (-2.0 * _COLUMN, 0.0)
+    return sub
+
+
+def _relayout(nodes):
+    """Columns by the order of dependency within a frame (TreeBuilder placed them by global
+    depth): x from the smallest depth used, rows packed per column."""
+    xs = sorted({round(n.location.x) for n in nodes})
+    col = {x: i for i, x in enumerate(xs)}
+    rows = {}
+    for n in sorted(nodes, key=lambda n: (n.location.x, -n.location.y)):
+        c = col[round(n.location.x)]
+        r = rows.get(c, 0)
+        rows[c] = r + 1
+        n.location = (_COLUMN * c, -_ROW * r)
+
+
+def _closures(ng, tree, kind, settings, outs, gin, x0, made):
+    """Nodes of a layer_graph closure tree, below the BSDFs already ``made``; returns the
+    output socket of its root."""
+    count = [sum(n.bl_idname not in ("ShaderNodeMixShader", "ShaderNodeAddShader") for n in made)]
+
+    def visit(node, depth):
+        if isinstance(node, layer_graph.Slot):
+            bsdf = ng.nodes.new(BSDF_NODES[kind])
+            for p, v in settings.items():
+                setattr(bsdf, p, v)
+            bsdf.name = bsdf.label = node.role
+            bsdf.hide = False
+            bsdf.location = (x0, -count[0] * 700.0)
+            count[0] += 1
+            for sock in bsdf_inputs(bsdf):
+                key = (node.role, sock.name)
+                if sock.name in node.writes:
+                    value = outs[key]
+                    if hasattr(value, "node"):
+                        ng.links.new(value, sock)
+                    elif value is not None and hasattr(sock, "default_value"):
+                        sock.default_value = socket_value(sock, value)
+                elif sock.name in gin.outputs:
+                    ng.links.new(gin.outputs[sock.name], sock)
+            made.append(bsdf)
+            return bsdf.outputs[0]
+        a, b = visit(node.a, depth + 1), visit(node.b, depth + 1)
+        mix = ng.nodes.new("ShaderNodeAddShader" if node.add else "ShaderNodeMixShader")
+        mix.name = mix.label = node.role
+        first = 0 if node.add else 1
+        if not node.add:
+            fac = outs[(node.role, "factor")]
+            if hasattr(fac, "node"):
+                ng.links.new(fac, mix.inputs[0])
+            else:
+                mix.inputs[0].default_value = float(fac)
+        ng.links.new(a, mix.inputs[first])
+        ng.links.new(b, mix.inputs[first + 1])
+        mix.location = (x0 + (6 - depth) * _COLUMN, -(count[0] - 1) * 350.0)
+        made.append(mix)
+        return mix.outputs[0]
+
+    return visit(tree, 0)

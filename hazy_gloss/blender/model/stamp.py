@@ -1,0 +1,426 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Reading the stamps the add-on keeps on materials, whatever they hold.
+
+A stamp is an ID property (``mat["hazy_gloss"]``, a haze layer's ``mat["hazy_gloss"]["layer"]``,
+the recomposite and export-fallback stamps), so anyone can change it: the custom-properties
+panel, the Python console, another add-on, a damaged file.  Everything that reads one goes
+through here, so a damaged stamp gives one line naming the key and what would be valid, and a
+safe result, never a Python exception from deep inside:
+
+- :func:`read_material`: the parameters of a lean / in-shader material, each key checked on its
+  own (core.parameters.check_value) -> (valid values, {key: problem});
+- :func:`check_layer`: a haze layer's state sanitised (invalid entries left out, so removing
+  the layer restores what can be restored) and its problems, each tagged with the haze
+  parameter that fixes it (None: only Remove Haze does);
+- :func:`group`: any other stamp as a dict, or None when it is not one.
+
+bpy-free apart from reading the ID properties handed in (duck-typed ``to_dict``/``to_list``).
+"""
+from __future__ import annotations
+
+import ast
+import math
+
+from ... import constants as K
+from ...core.lobes import check_kind
+from ...core.parameters import HAZE_PARAMETERS, PARAMETERS, _short, check_value
+
+__all__ = ("StampError", "plain", "group", "read_material", "check_layer", "material_problem")
+
+#: Nesting beyond this is junk (the add-on's stamps are at most five levels deep).
+MAX_DEPTH = 12
+#: The haze layer's values that may be per-texel maps (texture conversion).
+TEXTURE = "texture"
+_TEXTURE_OK = ("haziness", "coat_haziness", "coat_haze_extent")
+_INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
+
+
+class StampError(ValueError):
+    """A stamp that cannot be read (one line: the material, the key, what is valid)."""
+
+
+def plain(value, depth=0):
+    """An ID property value as plain Python (dict, list, str, int, float), recursively."""
+    if depth > MAX_DEPTH:
+        raise StampError("nested too deeply")
+    if hasattr(value, "to_dict"):
+        value = value.to_dict()
+    elif hasattr(value, "to_list"):
+        value = value.to_list()
+    if isinstance(value, dict):
+        return {str(k): plain(v, depth + 1) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v, depth + 1) for v in value]
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    return value
+
+
+def _kind_of(value):
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return f"the number {_short(value)}"
+    if isinstance(value, str):
+        return f"the string {_short(value)}"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    return f"a {type(value).__name__}"
+
+
+def group(owner, key):
+    """``owner[key]`` as a dict; None when absent or not a group (a damaged stamp of a kind
+    that only ever holds a few names: callers treat it as absent)."""
+    try:
+        raw = owner.get(key)
+    except (AttributeError, TypeError):
+        return None
+    if raw is None:
+        return None
+    try:
+        d = plain(raw)
+    except StampError:
+        return None
+    return d if isinstance(d, dict) else None
+
+
+def _name(mat):
+    return f"“{getattr(mat, 'name', mat)}”"
+
+
+# --------------------------------------------------------------------------------------------
+# A lean / in-shader material: mat["hazy_gloss"]
+# --------------------------------------------------------------------------------------------
+
+
+def raw_material(mat):
+    """The stamp as plain Python: a dict, None (no stamp) or whatever else it holds."""
+    raw = mat.get(K.STAMP)
+    if raw is None:
+        return None
+    try:
+        return plain(raw)
+    except StampError:
+        return "<nested too deeply>"
+
+
+def read_material(mat):
+    """(values, problems) of a material's stamp: ``values`` {key: normalised value} of every
+    parameter that reads, ``problems`` {key: one-line reason} of those that do not ("*" when
+    the stamp is not a group at all).  (None, {}) without a stamp.  A haze layer's stamp
+    (``"layer"`` in it) is :func:`check_layer`'s."""
+    d = raw_material(mat)
+    if d is None:
+        return None, {}
+    if not isinstance(d, dict):
+        return {}, {"*": f"the Hazy Gloss stamp of {_name(mat)} (mat[{K.STAMP!r}]) is "
+                         f"{_kind_of(d)}, not a group of parameters"}
+    values, problems = {}, {}
+    for key in PARAMETERS:
+        if key == "smoothness":
+            use = d.get("use_smoothness", False)
+            if not isinstance(use, (bool, int)) or isinstance(use, int) and use not in (0, 1):
+                problems[key] = f"use_smoothness must be True or False, got {_short(use)}"
+                continue
+            if not use:
+                values[key] = None
+                continue
+            key_value = d.get("smoothness")
+        elif key not in d:
+            problems[key] = f"{key} is missing"
+            continue
+        else:
+            key_value = d[key]
+        try:
+            values[key] = check_value(key, key_value)
+        except ValueError as exc:
+            problems[key] = str(exc)
+    if "kind" in values and "distribution" in values:
+        try:
+            check_kind(values["kind"], values["distribution"])
+        except ValueError as exc:
+            problems["distribution"] = str(exc)
+            del values["distribution"]
+    return values, problems
+
+
+def material_problem(mat, problems):
+    """One line for the first of ``problems`` (read_material's), naming the material."""
+    key, why = next(iter(problems.items()))
+    if key == "*":
+        return f"{why[:1].upper()}{why[1:]}: apply a preset to reset it"
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    return (f"The stored Hazy Gloss parameters of {_name(mat)} are damaged: {why}{more}; "
+            f"apply a preset (or set it again) to reset it")
+
+
+# --------------------------------------------------------------------------------------------
+# A haze layer: mat["hazy_gloss"]["layer"]
+# --------------------------------------------------------------------------------------------
+
+
+def _finite_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _value_ok(value, sock):
+    """Whether a stored input value fits the core's socket (a number for a float socket, 3 or
+    4 numbers for a colour / vector)."""
+    if sock is None:
+        return False
+    vector = getattr(sock, "type", "VALUE") in ("RGBA", "VECTOR")
+    if isinstance(value, list):
+        return vector and len(value) in (3, 4) and all(_finite_number(x) for x in value)
+    return _finite_number(value)
+
+
+def _ref_ok(ref):
+    return isinstance(ref, list) and len(ref) == 2 and all(isinstance(x, str) for x in ref)
+
+
+def _core_node(mat, name):
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return None
+    tagged = [n for n in tree.nodes if n.get("hazy_gloss_core")]
+    return next((n for n in tagged if n.name == name), tagged[0] if tagged else None)
+
+
+def _inputs(core, entries, where, problems, fatal):
+    """The valid {input: {"value": ...} / {"link": [node, socket]}} of ``entries``."""
+    out = {}
+    if not isinstance(entries, dict):
+        if fatal:
+            problems.append((f"layer.{where} is {_kind_of(entries)}, not a group", None))
+        return out
+    for name, e in entries.items():
+        sock = core.inputs.get(name) if core is not None else None
+        bad = None
+        if core is not None and sock is None:
+            bad = f"layer.{where}.{name} names no input of “{core.name}”"
+        elif not isinstance(e, dict) or not ({"value", "link"} & set(e)):
+            bad = f"layer.{where}.{name} must hold a value or a link, got {_short(e)}"
+        elif "link" in e and not _ref_ok(e["link"]):
+            bad = f"layer.{where}.{name}.link must be [node, socket] names, got {_short(e['link'])}"
+        elif "value" in e and core is not None and not _value_ok(e["value"], sock):
+            want = "3 or 4 finite numbers" if sock.type in ("RGBA", "VECTOR") else "a finite number"
+            bad = f"layer.{where}.{name}.value must be {want}, got {_short(e['value'])}"
+        if bad is None:
+            out[name] = {k: (list(v) if isinstance(v, list) else v) for k, v in e.items()
+                         if k in ("value", "link")}
+        elif fatal:
+            problems.append((bad, None))
+    return out
+
+
+#: Haze keys a stamp may lack: smoothness (Eq. 7), and what layers saved before it existed
+#: could not hold (their reading is the default).
+_OPTIONAL_HAZE = ("smoothness", "reflectivity_cap")
+
+
+def _haze(raw, baked, problems):
+    """The layer's haze parameters that read (HAZE defaults for the missing optional ones)."""
+    out = {}
+    if not isinstance(raw, dict):
+        problems.append((f"layer.haze is {_kind_of(raw)}, not a group of haze parameters",
+                         tuple(k for k in HAZE_PARAMETERS if k not in _OPTIONAL_HAZE)))
+        return out
+    for key in HAZE_PARAMETERS:
+        if key not in raw:
+            if key not in _OPTIONAL_HAZE:
+                problems.append((f"layer.haze.{key} is missing", (key,)))
+            continue
+        v = raw[key]
+        if key == "haze_extent" and baked and isinstance(v, list) and len(v) == 2 \
+                and TEXTURE in v:
+            try:
+                out[key] = tuple(x if x == TEXTURE else check_value(key, x)[0] for x in v)
+            except ValueError as exc:
+                problems.append((f"layer.haze.{exc}", (key,)))
+            continue
+        if baked and v == TEXTURE and key in _TEXTURE_OK:
+            out[key] = v
+            continue
+        try:
+            out[key] = check_value(key, v)
+        except ValueError as exc:
+            text = str(exc)
+            problems.append((f"layer.haze.{text}" if text.startswith(key) else
+                             f"layer.haze.{key}: {text}", (key,)))
+    return out
+
+
+def _images():
+    try:
+        import bpy
+    except ImportError:
+        return None
+    return bpy.data.images
+
+
+def _baked(raw, problems):
+    images = _images()
+    if not isinstance(raw, dict):
+        problems.append((f"layer.baked is {_kind_of(raw)}, not a group", None))
+        return {"maps": {}}
+    out = {"maps": {}}
+    maps = raw.get("maps", {})
+    if not isinstance(maps, dict):
+        problems.append((f"layer.baked.maps is {_kind_of(maps)}, not a group", None))
+        maps = {}
+    for k, name in maps.items():
+        try:
+            key = ast.literal_eval(k)
+        except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+            key = None
+        if not isinstance(key, tuple) or not isinstance(name, str):
+            problems.append((f"layer.baked.maps[{_short(k, 40)}] must name an image, got "
+                             f"{_short(name)}", None))
+            continue
+        if images is not None and images.get(name) is None:
+            problems.append((f"layer.baked.maps names the image {_short(name)}, which is not in "
+                             f"this file (convert the maps again)", None))
+            continue
+        out["maps"][k] = name
+    interp = raw.get("interpolation", "Linear")
+    if interp not in _INTERPOLATIONS:
+        problems.append((f"layer.baked.interpolation must be one of {', '.join(_INTERPOLATIONS)}, "
+                         f"got {_short(interp)}", None))
+    else:
+        out["interpolation"] = interp
+    sources = raw.get("sources")
+    if isinstance(sources, list) and all(isinstance(n, str) for n in sources):
+        out["sources"] = list(sources)  # what the maps were computed from (stale-map check)
+    elif "sources" in raw:
+        problems.append((f"layer.baked.sources must list the inputs the maps were computed "
+                         f"from, got {_short(sources)} (convert the maps again)", None))
+    if "vector" in raw:
+        if _ref_ok(raw["vector"]):
+            out["vector"] = list(raw["vector"])
+        else:
+            problems.append((f"layer.baked.vector must be [node, socket] names, got "
+                             f"{_short(raw['vector'])}", None))
+    return out
+
+
+def check_layer(mat, raw):
+    """A haze layer's state (``raw``, the stamp's ``"layer"`` as plain Python) sanitised, with
+    ``"problems"``: [(one-line reason, haze parameters that fix it or None)].  Invalid entries
+    are left out; internal bookkeeping that does not read (structure, signature, math node
+    names, core name, the values last written) is dropped silently, which only makes the next
+    update rebuild the layer's own nodes."""
+    problems = []
+    if not isinstance(raw, dict):
+        problems.append((f"layer is {_kind_of(raw)}, not a group", None))
+        return {"problems": problems}
+    state = {}
+    core_name = raw.get("core")
+    state["core"] = core_name if isinstance(core_name, str) else None
+    core = _core_node(mat, state["core"])
+    rebuild = False
+    for key in ("structure", "signature"):
+        if isinstance(raw.get(key), str):
+            state[key] = raw[key]
+        else:
+            rebuild = True
+    math_nodes = raw.get("math", [])
+    if isinstance(math_nodes, list) and all(isinstance(n, str) for n in math_nodes):
+        state["math"] = list(math_nodes)
+    else:
+        state["math"] = []
+        rebuild = True
+    if rebuild:  # without them the next update cannot reuse the layer's nodes: it rebuilds
+        state.pop("structure", None)
+    if "version" in raw and isinstance(raw["version"], int) and not isinstance(raw["version"], bool):
+        state["version"] = raw["version"]
+    state["base"] = _inputs(core, raw.get("base", {}), "base", problems, fatal=True)
+    state["written"] = _inputs(core, raw.get("written", {}), "written", problems, fatal=False)
+    baked = "baked" in raw
+    if baked:
+        state["baked"] = _baked(raw["baked"], problems)
+    state["haze"] = _haze(raw.get("haze", {}), baked, problems)
+    state["problems"] = problems
+    return state
+
+
+def describe(mat):
+    """What the material's stamp is, in a few words (for "the stamp is ..., but ...")."""
+    try:
+        d = group(mat, K.STAMP)
+    except StampError:
+        d = None
+    if d is None:
+        return _kind_of(raw_material(mat)) if K.STAMP in mat else "missing"
+    return "a group without its \"layer\" entry" if "layer" not in d else \
+        "a group whose \"layer\" entry does not read"
+
+
+def _finite_list(v, n):
+    return isinstance(v, (list, tuple)) and len(v) == n and all(_finite_number(x) for x in v)
+
+
+def check_layer_node(raw):
+    """The record of a haze layer of today's form (blender.model.layer, LAYER_VERSION 2) with what
+    does not read left out: the layer node and the kept BSDF are then found by their tags, and
+    Remove Haze restores what the record still holds."""
+    out = {"version": raw.get("version")}
+    for key in ("node", "original"):
+        if isinstance(raw.get(key), str) and raw[key]:
+            out[key] = raw[key]
+    restore = raw.get("restore")
+    r = {}
+    if isinstance(restore, dict):
+        for key in ("name", "label", "parent"):
+            if isinstance(restore.get(key), str):
+                r[key] = restore[key]
+        for key in ("hide", "mute", "use_custom_color"):
+            if isinstance(restore.get(key), (bool, int)) and not isinstance(restore.get(key), float):
+                r[key] = bool(restore[key])
+        if _finite_list(restore.get("location"), 2):
+            r["location"] = [float(x) for x in restore["location"]]
+        if _finite_number(restore.get("width")) and 0.0 < float(restore["width"]) < 1e5:
+            r["width"] = float(restore["width"])
+        if _finite_list(restore.get("color"), 3):
+            r["color"] = [min(max(float(x), 0.0), 1.0) for x in restore["color"]]
+    out["restore"] = r
+    baked_from = raw.get("baked_from")
+    if isinstance(baked_from, dict):
+        out["baked_from"] = {k: v for k, v in baked_from.items() if isinstance(k, str)
+                             and isinstance(v, dict) and len(v) == 1
+                             and (isinstance(v.get("link"), str) or _finite_number(v.get("value"))
+                                  or any(_finite_list(v.get("value"), n) for n in (3, 4)))}
+    return out
+
+
+def lost_layer(mat, d):
+    """The state of a haze layer whose stamp no longer says so — the stamp is not a group, or
+    a group without ``"layer"`` nor ``"kind"`` — while the tree still has the layer's core
+    node (tagged): {"problems": [...]} (only Remove Haze helps), else None."""
+    try:
+        present = K.STAMP in mat
+    except TypeError:
+        return None
+    if not present or (d is not None and "kind" in d) or _core_node(mat, None) is None:
+        return None
+    what = _kind_of(raw_material(mat)) if d is None else "a group without its \"layer\" entry"
+    return {"problems": [(f"the stamp is {what}, but the tree holds a haze layer", None)]}
+
+
+def layer_problem(mat, problems, fixing=()):
+    """One line for the first problem not fixed by setting the haze parameters ``fixing``
+    (None when every problem is), naming the material and the way out."""
+    left = [(why, keys) for why, keys in problems
+            if keys is None or not set(keys) <= set(fixing)]
+    if not left:
+        return None
+    why, keys = left[0]
+    more = f" (and {len(left) - 1} more)" if len(left) > 1 else ""
+    way = ("apply a preset (or set it in the panel) to reset it, or Remove Haze" if keys else
+           "Remove Haze (it restores what it can), then Make Hazy again")
+    return f"The haze layer stamp of {_name(mat)} is damaged: {why}{more}; {way}"
+
+
+def damaged_haze(problems):
+    """The haze parameters whose stored values do not read."""
+    return sorted({k for _, keys in problems if keys for k in keys})
+
