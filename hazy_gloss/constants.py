@@ -102,25 +102,7 @@ GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups
 #: Node custom property naming a node's role in a hazy material (survives renaming).
 ROLE = "hazy_gloss_role"
 
-#: The haze layer's own inputs (the group node's Haze panel): parameter -> (socket name,
-#: default, min, max, paper symbol and meaning).  Extents are in units of the core's roughness.
-HAZE_SOCKETS = {
-    "haziness": ("Haziness", 0.0, 0.0, MAX_HAZINESS,
-                 "β_h: how much of the halo energy conservation allows (Eq. 7); the peak stays"),
-    "haze_extent_x": ("Haze Extent X", 5.0, 0.0, 1000.0,
-                      "λ_h^x: halo width along the tangent, in units of the core's roughness (Eq. 8)"),
-    "haze_extent_y": ("Haze Extent Y", 5.0, 0.0, 1000.0,
-                      "λ_h^y: halo width along the bitangent, in units of the core's roughness (Eq. 8)"),
-    "smoothness": ("Smoothness", 2.0, MIN_SMOOTHNESS, 1e6,
-                   "w: weight of the smooth haze curve (rational Bézier, Eqs. 12-15)"),
-    "reflectivity_cap": ("Reflectivity Cap", 1.0, 0.0, 1.0,
-                         "r_c at most this where haze is on (1: off): room for a halo on a colour "
-                         "at or near 1, which otherwise has none, at the cost of that much peak"),
-    "coat_haziness": ("Coat Haziness", 0.0, 0.0, MAX_HAZINESS,
-                      "β_h of the clear coat: a halo of its own, on the Coat IOR's Fresnel"),
-    "coat_haze_extent": ("Coat Haze Extent", 5.0, 0.0, 1000.0,
-                         "λ_h of the coat, in units of the Coat Roughness"),
-}
+#: (The haze layer's own inputs, the group node's Haze panel: schema.HAZE_SOCKETS.)
 #: The Haze panel's name on a layer group node.
 HAZE_PANEL = "Haze"
 #: Node custom property on a layer's group node and on the artist's BSDF it wraps (kept aside).

@@ -20,7 +20,8 @@ from . import constants as K
 
 __all__ = ("Parameter", "SCHEMA", "SCHEMA_BY_NAME", "PARAMETERS", "DEFAULTS", "HAZE_PARAMETERS",
            "HAZE_DEFAULTS", "RANGES", "HAZE_SOCKETS", "HAZE_MAP_INPUTS", "LAYER_MAP_INPUTS",
-           "map_inputs", "property_names", "preset_properties")
+           "map_inputs", "property_names", "preset_properties", "property_specs", "socket_keys",
+           "layer_sockets", "STAMP_OPTIONAL", "TEXTURE_OK")
 
 MATERIAL, LAYER, BOTH = "material", "layer", "both"
 _SAME = object()  # Parameter.layer_default: as ``default``
@@ -37,7 +38,10 @@ class Parameter:
     the slider's (soft_min, soft_max), None for Blender's.  A default of None makes it optional
     (a "use_" toggle in the panel; ``placeholder`` is the value shown and socketed while off).
     ``more``: the panel's other properties of it, (property, label, tooltip).  ``sockets``: the
-    haze layer's inputs, (socket name, tooltip) (an extent: X then Y).  ``maps``: a map (or a
+    haze layer's inputs, (socket name, tooltip) (an extent: X then Y), on the layers of the
+    ``bsdfs`` (blender/model/layer_group.BSDF_NODES; () all) — an optional one on smooth
+    layers only.  ``old_stamps_lack``: stamps written before it existed do not hold it (they
+    read as the default).  ``maps``: a map (or a
     constant) in texture conversion and on the command line.  ``configures``: picks the node
     configuration (a preset sets it first).  ``doc``, ``doc_layer``, ``range_note``: the
     columns of docs/parameters.md."""
@@ -60,7 +64,9 @@ class Parameter:
     placeholder: float = None
     panel: bool = True
     sockets: tuple = ()
+    bsdfs: tuple = ()
     maps: bool = False
+    old_stamps_lack: bool = False
     configures: bool = False
     why: str = ""
     doc: str = ""
@@ -187,7 +193,7 @@ SCHEMA = (
     # the haze layer's own (Make Hazy on the artist's BSDF; r_c and α_n are the BSDF's)
     Parameter(
         "reflectivity_cap", "Reflectivity Cap", "a bound on r_c", "float", 1.0, where=LAYER,
-        range=(0.0, 1.0), factor=True, panel=False,
+        range=(0.0, 1.0), factor=True, panel=False, old_stamps_lack=True,
         sockets=(("Reflectivity Cap", "r_c at most this where haze is on (1: off): room for a "
                   "halo on a colour at or near 1, which otherwise has none, at the cost of that "
                   "much peak"),),
@@ -202,6 +208,7 @@ SCHEMA = (
         description="β_h of the coat: a halo around the clear coat's reflection (lacquer, "
                     "varnish, car paint), mapped on the coat's own Fresnel (Coat IOR); the "
                     "coat's peak stays",
+        bsdfs=("PRINCIPLED",),
         sockets=(("Coat Haziness", "β_h of the clear coat: a halo of its own, on the Coat "
                                    "IOR's Fresnel"),),
         doc="a halo around the coat's reflection, on r_c = F0(Coat IOR)"),
@@ -209,6 +216,7 @@ SCHEMA = (
         "coat_haze_extent", "Coat Haze Extent", "λ_h of the coat", "float", 5.0, where=LAYER,
         range=(0.0, None), ui=(0.0, 1000.0), soft=(None, 20.0), maps=True,
         description="λ_h of the coat: width of the coat's halo in units of the coat roughness",
+        bsdfs=("PRINCIPLED",),
         sockets=(("Coat Haze Extent", "λ_h of the coat, in units of the Coat Roughness"),),
         doc="the coat halo's width (isotropic: Cycles' coat is)"),
     Parameter(
@@ -251,6 +259,28 @@ def _sockets():
 #: The haze layer's own inputs (the group node's Haze panel): socket key -> (socket name,
 #: default, min, max, paper symbol and meaning); an extent has an _x and a _y socket.
 HAZE_SOCKETS = _sockets()
+
+
+def socket_keys(p):
+    """The HAZE_SOCKETS keys of parameter ``p``."""
+    if not p.sockets:
+        return ()
+    return (f"{p.name}_x", f"{p.name}_y") if p.type == "extent" else (p.name,)
+
+
+def layer_sockets(bsdf, smooth):
+    """The HAZE_SOCKETS keys a layer group on a ``bsdf`` (PRINCIPLED, METALLIC, GLOSSY) has,
+    in panel order; an optional parameter's only when ``smooth`` (its value selects the curve)."""
+    return [k for p in SCHEMA if (not p.bsdfs or bsdf in p.bsdfs)
+            and (p.haze_default is not None or smooth) for k in socket_keys(p)]
+
+
+#: Haze keys a stamp may lack: the optional ones (smoothness: Eq. 7) and those layers saved
+#: before they existed could not hold (their reading is the default).
+STAMP_OPTIONAL = tuple(p.name for p in SCHEMA if p.on_layer and
+                       (p.haze_default is None or p.old_stamps_lack))
+#: Haze values a converted (baked) layer may hold as "texture" (a map); an extent per axis.
+TEXTURE_OK = tuple(p.name for p in SCHEMA if p.on_layer and p.maps and p.type != "extent")
 def map_inputs(p):
     """The map inputs of parameter ``p`` in texture conversion and on the command line (an
     extent: also one per axis), () when it takes no map."""

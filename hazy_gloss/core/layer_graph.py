@@ -4,7 +4,7 @@ computes, written once against :class:`hazy_gloss.core.graph.Graph`.
 
 A layer wraps the artist's Principled, Metallic or Glossy BSDF (the *core*).  Every input of the
 core is a graph input ``"in:<socket name>"``, every haze parameter one ``"haze:<name>"``
-(constants.HAZE_SOCKETS), so the group computes the wide lobe, the raised Fresnel (Eq. 3-5), β,
+(schema.HAZE_SOCKETS), so the group computes the wide lobe, the raised Fresnel (Eq. 3-5), β,
 the metallic split, the coat's haze and the Multiscatter GGX correction per shading point, from
 whatever feeds the group node: values, keyframes, drivers, textures.  Cycles folds the math of
 constant inputs when it compiles the shader, and a Mix Shader whose factor folds to 0 or 1 drops
@@ -63,7 +63,7 @@ def input_name(socket):
 
 
 def haze_name(param):
-    """The graph input of a haze parameter (constants.HAZE_SOCKETS)."""
+    """The graph input of a haze parameter (schema.HAZE_SOCKETS)."""
     return "haze:" + param
 
 

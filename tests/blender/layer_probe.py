@@ -23,7 +23,7 @@ def rendered_slots(layer, node):
     lay = layer.graph_of(node)
     _, linked_names = layer.inputs_of(node)
     linked = {graph.input_name(n) for n in linked_names}
-    linked |= {graph.haze_name(p) for p, (n, *_r) in layer.K.HAZE_SOCKETS.items()
+    linked |= {graph.haze_name(p) for p, (n, *_r) in layer.HAZE_SOCKETS.items()
                if n in linked_names}
     exact = [True]
 

@@ -25,6 +25,7 @@ from ...convert import ConversionError, did_you_mean
 from ...core import layer_graph
 from ...core.graph import evaluate
 from ...core.parameters import HAZE_DEFAULTS, RANGES
+from ...schema import HAZE_MAP_INPUTS, HAZE_SOCKETS, LAYER_MAP_INPUTS
 from .. import compat
 from ..model import layer, layer_group
 from .convert import _check_prefix, _check_targets
@@ -44,17 +45,17 @@ PBR_MAPS = {
     "coat_roughness": ("Coat Roughness", "data", "Non-Color"),
     "alpha": ("Alpha", "data", "Non-Color"),
 }
-#: Haze maps (or constants) of the layer.
-HAZE_MAPS = ("haziness", "haze_extent", "haze_extent_x", "haze_extent_y", "coat_haziness",
-             "coat_haze_extent")
+#: Haze maps (or constants) of the layer (the schema's; an extent also per axis).
+HAZE_MAPS = HAZE_MAP_INPUTS
 #: Inputs that mark a conversion as a PBR set (api.convert_maps routes them here).
-PBR_KEYS = ("base_color", "metallic", "normal", "coat", "coat_roughness", "opacity",
-            "coat_haziness", "coat_haze_extent")
+PBR_KEYS = ("base_color", "metallic", "normal", "coat", "coat_roughness", "opacity") + \
+    LAYER_MAP_INPUTS
 _RANGE = {"base_color": (0.0, 1.0), "metallic": (0.0, 1.0), "roughness": (0.0, 1.0),
           "coat": (0.0, 1.0), "coat_roughness": (0.0, 1.0), "alpha": (0.0, 1.0),
-          "haziness": RANGES["haziness"], "coat_haziness": RANGES["coat_haziness"],
-          "haze_extent": (0.0, None), "haze_extent_x": (0.0, None), "haze_extent_y": (0.0, None),
-          "coat_haze_extent": (0.0, None)}
+          **{k: RANGES[k if k in RANGES else k[:-2]] for k in HAZE_MAPS}}
+#: The layer's scalar haze sockets (not an extent's axes, not the optional smoothness).
+_SCALAR_HAZE = tuple(k for k in HAZE_SOCKETS
+                     if k in HAZE_DEFAULTS and HAZE_DEFAULTS[k] is not None)
 
 
 def is_pbr(inputs):
@@ -266,7 +267,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
             if key in sources or "haze_extent" in sources:
                 ext[axis] = layer.TEXTURE
         haze["haze_extent"] = tuple(ext)
-        for key in ("haziness", "coat_haziness", "coat_haze_extent", "reflectivity_cap"):
+        for key in _SCALAR_HAZE:
             haze[key] = layer.TEXTURE if key in sources else constants.get(key, HAZE_DEFAULTS[key])
         if "haziness" not in sources and "haziness" not in constants and "coat_haziness" not in \
                 sources and "coat_haziness" not in constants:
@@ -278,13 +279,13 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         g = lay.graph
         feeds = {f"in:{PBR_MAPS[k][0]}": k for k in sources if k in PBR_MAPS}
         consts = {}
-        for key in ("haziness", "coat_haziness", "coat_haze_extent", "haze_extent_x", "haze_extent_y",
-                    "smoothness", "reflectivity_cap"):
+        for key in HAZE_SOCKETS:
             src = key if key in sources else "haze_extent" if key.startswith("haze_extent_") else None
             if src in sources:
                 feeds[f"haze:{key}"] = src
             elif key == "smoothness":
-                consts["haze:smoothness"] = 2.0 if smoothness is None else float(smoothness)
+                consts["haze:smoothness"] = HAZE_SOCKETS["smoothness"][1] if smoothness is None \
+                    else float(smoothness)
             else:
                 v = haze["haze_extent"]["xy".index(key[-1])] if key.startswith("haze_extent_") \
                     else haze[key]

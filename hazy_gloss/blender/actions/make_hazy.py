@@ -17,6 +17,7 @@ from ... import constants as K
 from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
+from ...schema import HAZE_SOCKETS
 from ..model import fallback, layer, material
 from . import messages, sync
 from ..model.material import edit_problem, maps_problem
@@ -518,9 +519,9 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
         return "ERROR", f"“{mat.name}” has no haze layer node: Make Hazy first", []
     if param not in ("haziness", "coat_haziness"):
         return "ERROR", f"param must be haziness or coat_haziness, got {param!r}", []
-    sock = node.inputs.get(K.HAZE_SOCKETS[param][0])
+    sock = node.inputs.get(HAZE_SOCKETS[param][0])
     if sock is None:
-        return "ERROR", f"the layer of “{mat.name}” has no {K.HAZE_SOCKETS[param][0]} input", []
+        return "ERROR", f"the layer of “{mat.name}” has no {HAZE_SOCKETS[param][0]} input", []
     if sock.is_linked:
         return ("ERROR", f"{sock.name} of “{node.name}” is linked to “{sock.links[0].from_node.name}” "
                 f"already: disconnect it first to paint a map instead", [])

@@ -19,9 +19,10 @@ from ..nodes.lobes import build_lobes
 GROUP_VERSION = 5  # 5: cheaper node kinds (docs/performance.md, "What a node costs")
 
 
-_KIND_LABEL = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
-_DIST_LABEL = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multi GGX",
-               "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
+# Labels from constants' vocabulary (earlier versions named it "Multi GGX": such a group is
+# found by its stamp, as a renamed one).
+_KIND_LABEL = {t.id: t.label for t in K.KIND_TERMS}
+_DIST_LABEL = {t.id: t.label for t in K.DISTRIBUTION_TERMS}
 
 
 def group_label(distribution="GGX", anisotropic=False, smooth=False):

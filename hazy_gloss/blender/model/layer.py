@@ -30,6 +30,7 @@ from ... import constants as K
 from ...core import body_colour, gulbrandsen_inverse, layer_graph, thin_film
 from ...core.graph import evaluate as evaluate_graph
 from ...core.parameters import HAZE_DEFAULTS
+from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
 from . import layer_group, legacy_layer, stamp
 from ..nodes import ownership
@@ -474,7 +475,7 @@ def _restore_node(tree, core, restore):
 
 
 def _haze_socket(node, param):
-    return node.inputs.get(K.HAZE_SOCKETS[param][0])
+    return node.inputs.get(HAZE_SOCKETS[param][0])
 
 
 def set_haze(node, haze):
@@ -485,7 +486,7 @@ def set_haze(node, haze):
         if key == "haze_extent" and v is not None:
             ext = tuple(v) if isinstance(v, (tuple, list)) else (v, v)
             values["haze_extent_x"], values["haze_extent_y"] = ext
-        elif key in K.HAZE_SOCKETS and v is not None and v != TEXTURE:
+        elif key in HAZE_SOCKETS and v is not None and v != TEXTURE:
             values[key] = v
     for key, v in values.items():
         sock = _haze_socket(node, key)
@@ -505,17 +506,17 @@ def haze_of(mat):
     cfg = group_config(node)
     h["keep_body_colour"] = bool(cfg.get("body", False))
     vals = {}
-    for param in K.HAZE_SOCKETS:
+    for param in HAZE_SOCKETS:
         sock = _haze_socket(node, param)
         if sock is not None:
             vals[param] = TEXTURE if sock.is_linked else float(sock.default_value)
-    h["haziness"] = vals.get("haziness", h["haziness"])
-    h["haze_extent"] = (vals.get("haze_extent_x", 5.0), vals.get("haze_extent_y", 5.0))
-    for key in ("reflectivity_cap", "coat_haziness", "coat_haze_extent"):
-        if key in vals:
-            h[key] = vals[key]
-    if cfg.get("smooth") and "smoothness" in vals:
-        h["smoothness"] = vals["smoothness"]
+    for p in SCHEMA:
+        if not p.sockets:
+            continue
+        if p.type == "extent":
+            h[p.name] = tuple(vals.get(f"{p.name}_{a}", d) for a, d in zip("xy", HAZE[p.name]))
+        elif p.name in vals and (p.haze_default is not None or cfg.get("smooth")):
+            h[p.name] = vals[p.name]  # an optional one (smoothness) only where it acts
     return h
 
 
@@ -608,7 +609,7 @@ def inputs_of(node):
         v = s.default_value
         v = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
         vals[layer_graph.input_name(s.name)] = v
-    for param, (sname, *_rest) in K.HAZE_SOCKETS.items():
+    for param, (sname, *_rest) in HAZE_SOCKETS.items():
         key = layer_graph.input_name(sname)
         if key in vals:
             vals[layer_graph.haze_name(param)] = vals.pop(key)
@@ -692,7 +693,7 @@ def read(mat):
              base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP",
              shader_mapping=False, **h)
     _, linked = inputs_of(node)
-    p["textured"] = sorted(n for n in linked if n not in {v[0] for v in K.HAZE_SOCKETS.values()})
+    p["textured"] = sorted(n for n in linked if n not in {v[0] for v in HAZE_SOCKETS.values()})
     p["animated"] = animated_inputs(node)
     p["notes"] = notes(mat)
     if kind == "PRINCIPLED":

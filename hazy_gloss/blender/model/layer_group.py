@@ -4,7 +4,7 @@ method or Fresnel type, haze curve, Blender version), shared by every material t
 
 Its interface is the wrapped BSDF's own inputs — names, types, limits, defaults and panels as
 Blender declares them (core.tables.bsdf_interfaces, read through Make Group) — and a Haze panel
-(constants.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
+(schema.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
 mapping in frames, then the BSDF slots (copies of the wrapped node type whose inputs are the
 group's own, except those the mapping computes) and their Mix Shaders.  Two outputs: "BSDF"
 (the layer) and "EEVEE" (each layer's lobes folded into one, for the EEVEE-only output).
@@ -20,6 +20,7 @@ from ...core import (body_colour, graph, layer_graph, multiscatter, node_body_co
                      node_math, node_multiscatter, node_thin_film, thin_film)
 from ...core.multiscatter import cycles_version
 from ...core.tables import bsdf_interfaces, cycles_albedo_tables
+from ... import schema
 from . import groups, stamp
 from ..nodes import builder
 from ..nodes import emit as emit_module
@@ -35,8 +36,6 @@ BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeB
 #: Node settings a configuration fixes (the group node has no enum properties).
 NODE_SETTINGS = {"PRINCIPLED": ("distribution", "subsurface_method"),
                  "METALLIC": ("distribution", "fresnel_type"), "GLOSSY": ("distribution",)}
-_DIST_LABEL = {"GGX": "GGX", "MULTI_GGX": "Multiscatter GGX", "BECKMANN": "Beckmann",
-               "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
 _LABEL = {"PRINCIPLED": "Hazy Principled BSDF", "METALLIC": "Hazy Metallic BSDF",
           "GLOSSY": "Hazy Glossy BSDF"}
 _SETTING_LABEL = {"RANDOM_WALK": "", "RANDOM_WALK_SKIN": "Skin", "BURLEY": "Christensen-Burley",
@@ -70,7 +69,7 @@ def config_for(kind, settings, *, smooth=False, baked=False, body=False):
 
 def group_name(kind, settings, smooth=False, baked=False, body=False):
     """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth) 5.3" (< 64 bytes)."""
-    parts = [_DIST_LABEL.get(settings.get("distribution"), settings.get("distribution", ""))]
+    parts = [K.label(K.DISTRIBUTION_TERMS, settings.get("distribution", ""))]
     for key in ("subsurface_method", "fresnel_type"):
         label = _SETTING_LABEL.get(settings.get(key), "")
         if label:
@@ -89,8 +88,9 @@ def group_name(kind, settings, smooth=False, baked=False, body=False):
     return name
 
 
-_SHORTER = (("Christensen-Burley", "Burley"), ("Multiscatter GGX", "MS GGX"),
-            ("Ashikhmin-Shirley", "AS"), (" BSDF (", " ("))
+_SHORTER = (("Christensen-Burley", "Burley"),
+            (K.label(K.DISTRIBUTION_TERMS, "MULTI_GGX"), "MS GGX"),
+            (K.label(K.DISTRIBUTION_TERMS, "ASHIKHMIN_SHIRLEY"), "AS"), (" BSDF (", " ("))
 
 
 def _stamp_of(kind, settings, smooth, baked=False, body=False):
@@ -147,7 +147,7 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
 #: so a moved or renamed module cannot drop out of the hash unnoticed).
 _SOURCES = (sys.modules[__name__], emit_module, builder, groups, layer_graph, node_math,
             node_fresnel, node_multiscatter, node_body_colour, body_colour, node_thin_film,
-            thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K)
+            thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K, schema)
 _digest = []
 
 
@@ -296,22 +296,19 @@ def _interface(ng, kind, template, smooth, baked=False):
         return
     haze = iface.new_panel(K.HAZE_PANEL, default_closed=False)
     for param in haze_params(kind, smooth):
-        name, default, lo, hi, desc = K.HAZE_SOCKETS[param]
+        name, default, lo, hi, desc = schema.HAZE_SOCKETS[param]
         s = iface.new_socket(name=name, in_out="INPUT", socket_type="NodeSocketFloat", parent=haze)
-        if param in ("haziness", "coat_haziness", "reflectivity_cap") and hasattr(s, "subtype"):
+        if _SOCKET_PARAMETER[param].factor and hasattr(s, "subtype"):
             s.subtype = "FACTOR"
         s.default_value, s.min_value, s.max_value, s.description = default, lo, hi, desc
 
 
+_SOCKET_PARAMETER = {k: p for p in schema.SCHEMA for k in schema.socket_keys(p)}
+
+
 def haze_params(kind, smooth):
-    """The haze parameters a group of ``kind`` has, in panel order."""
-    out = ["haziness", "haze_extent_x", "haze_extent_y"]
-    if smooth:
-        out.append("smoothness")
-    out.append("reflectivity_cap")
-    if kind == "PRINCIPLED":
-        out += ["coat_haziness", "coat_haze_extent"]
-    return out
+    """The haze sockets (schema.HAZE_SOCKETS keys) a group of ``kind`` has, in panel order."""
+    return schema.layer_sockets(kind, smooth)
 
 
 # --------------------------------------------------------------------------------------------
@@ -360,7 +357,7 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
             sources[layer_graph.baked_name(key)] = gin.outputs[name]
     else:
         for param in haze_params(kind, smooth):
-            sources[layer_graph.haze_name(param)] = gin.outputs[K.HAZE_SOCKETS[param][0]]
+            sources[layer_graph.haze_name(param)] = gin.outputs[schema.HAZE_SOCKETS[param][0]]
     if body:  # the view cosine Keep Body Colour reads, on the BSDF's normal
         lw = ng.nodes.new("ShaderNodeLayerWeight")
         lw.label = "View cosine (Keep Body Colour)"

@@ -24,6 +24,7 @@ import math
 from ... import constants as K
 from ...core.lobes import check_kind
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS, _short, check_value
+from ...schema import STAMP_OPTIONAL, TEXTURE_OK
 
 __all__ = ("StampError", "plain", "group", "read_material", "check_layer", "material_problem")
 
@@ -31,7 +32,7 @@ __all__ = ("StampError", "plain", "group", "read_material", "check_layer", "mate
 MAX_DEPTH = 12
 #: The haze layer's values that may be per-texel maps (texture conversion).
 TEXTURE = "texture"
-_TEXTURE_OK = ("haziness", "coat_haziness", "coat_haze_extent")
+_TEXTURE_OK = TEXTURE_OK
 _INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
 
 
@@ -215,7 +216,7 @@ def _inputs(core, entries, where, problems, fatal):
 
 #: Haze keys a stamp may lack: smoothness (Eq. 7), and what layers saved before it existed
 #: could not hold (their reading is the default).
-_OPTIONAL_HAZE = ("smoothness", "reflectivity_cap")
+_OPTIONAL_HAZE = STAMP_OPTIONAL
 
 
 def _haze(raw, baked, problems):

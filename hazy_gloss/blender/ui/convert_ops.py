@@ -34,11 +34,12 @@ _MAPS = (
     ("haze_extent_y", "Haze Extent Y", "data"),
 )
 
-_KIND_ITEMS = [("CONDUCTOR", "Conductor", "Metallic BSDF lobes, η and κ maps"),
-               ("DIELECTRIC", "Dielectric", "Principled BSDF lobes, η and specular tint maps"),
-               ("LEGACY", "Legacy", "Glossy BSDF lobes (no Fresnel), weight maps")]
-_DIST_ITEMS = [("GGX", "GGX", ""), ("BECKMANN", "Beckmann", ""),
-               ("MULTI_GGX", "Multiscatter GGX", ""), ("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "")]
+#: What each kind's conversion writes (the labels are constants' vocabulary).
+_KIND_MAPS = {"CONDUCTOR": "Metallic BSDF lobes, η and κ maps",
+              "DIELECTRIC": "Principled BSDF lobes, η and specular tint maps",
+              "LEGACY": "Glossy BSDF lobes (no Fresnel), weight maps"}
+_KIND_ITEMS = [(t.id, t.label, _KIND_MAPS[t.id]) for t in K.KIND_TERMS]
+_DIST_ITEMS = [(t.id, t.label, "") for t in K.DISTRIBUTION_TERMS]
 
 
 def _fallback_dir(mat_name):

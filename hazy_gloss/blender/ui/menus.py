@@ -38,7 +38,7 @@ ASSET_BLEND = "hazy_gloss_nodes.blend"
 CATALOG_FILE = "blender_assets.cats.txt"
 CATALOG_ROOT = "Hazy Gloss"
 
-KIND_LABELS = {"CONDUCTOR": "Conductor", "DIELECTRIC": "Dielectric", "LEGACY": "Legacy"}
+KIND_LABELS = {t.id: t.label for t in K.KIND_TERMS}
 _KIND_TEXT = {
     "CONDUCTOR": "Metal: two Metallic BSDFs with physical-conductor Fresnel from Core "
                  "Reflectivity and Edge Tint",
@@ -48,8 +48,7 @@ _KIND_TEXT = {
               "reflectivity",
 }
 _DISTRIBUTIONS = K.DISTRIBUTIONS
-_DIST_LABELS = {"GGX": "GGX", "BECKMANN": "Beckmann", "MULTI_GGX": "Multiscatter GGX",
-                "ASHIKHMIN_SHIRLEY": "Ashikhmin-Shirley"}
+_DIST_LABELS = {t.id: t.label for t in K.DISTRIBUTION_TERMS}
 
 # Fixed namespace, so catalog UUIDs are the same in every build (files keep their catalogs).
 _CATALOG_NAMESPACE = uuid.UUID("5c1e3f0e-4a8b-4f6e-9d2a-6f3b1c0d9e71")

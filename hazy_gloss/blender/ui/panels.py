@@ -21,6 +21,7 @@ import numpy as np
 
 from ... import constants as K
 from ...core.parameters import is_anisotropic
+from ...schema import HAZE_SOCKETS, SCHEMA_BY_NAME
 from ..actions import eevee_output, messages
 from ..model import layer, material, stamp
 from . import plots, preferences, properties
@@ -405,7 +406,7 @@ def draw_layer(layout, context, mat, idname, hg, problem):
     haze.use_property_split = True
     haze.label(text="Haze", icon="LIGHT_SUN")
     for param in layer_group_params(node):
-        sock = node.inputs.get(K.HAZE_SOCKETS[param][0])
+        sock = node.inputs.get(HAZE_SOCKETS[param][0])
         if sock is None:
             continue
         row = haze.row()
@@ -413,7 +414,7 @@ def draw_layer(layout, context, mat, idname, hg, problem):
             row.label(text=f"{sock.name}: from “{sock.links[0].from_node.name}”", icon="TEXTURE")
         else:
             row.prop(sock, "default_value", text=sock.name,
-                     slider=param in ("haziness", "coat_haziness"))
+                     slider=_slider(param))
     row = haze.row(align=True)
     row.prop(hg, "use_smoothness", text="Smooth Haze Curve")
     if "Coat Weight" in node.inputs:
@@ -431,6 +432,12 @@ def draw_layer(layout, context, mat, idname, hg, problem):
             panel.label(text="For the unlinked values; linked inputs vary them per pixel",
                         icon="TEXTURE")
     col.operator("hazy_gloss.remove_haze", icon="X")
+
+
+def _slider(key):
+    """A haze socket drawn as a slider: a factor with a slider range (haziness, not the cap)."""
+    p = SCHEMA_BY_NAME.get(key)
+    return p is not None and p.factor and p.soft is not None
 
 
 def layer_group_params(node):

@@ -9,12 +9,14 @@ hazy_gloss.register()``) it is not an add-on, Blender stores no preferences for 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty
 
+from ... import constants as K
 from .. import compat
 
 ADDON_PACKAGE = compat.ADDON_PACKAGE
 
-_KINDS = (("CONDUCTOR", "Conductor", "Metal"), ("DIELECTRIC", "Dielectric", "Plastic, varnish"),
-          ("LEGACY", "Legacy", "Glossy BSDF lobes without Fresnel"))
+_KIND_TEXT = {"CONDUCTOR": "Metal", "DIELECTRIC": "Plastic, varnish",
+              "LEGACY": "Glossy BSDF lobes without Fresnel"}
+_KINDS = tuple((t.id, t.label, _KIND_TEXT[t.id]) for t in K.KIND_TERMS)
 
 
 class HAZY_GLOSS_AP_preferences(bpy.types.AddonPreferences):

@@ -34,6 +34,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ... import constants as K
 from ...core.parameters import HAZE_DEFAULTS, normalise
+from ...schema import SCHEMA, SCHEMA_BY_NAME, LAYER, MATERIAL, preset_properties, property_specs
 from ..actions import edit, eevee_output, messages
 from ..model import material
 from ..actions.messages import plain_message
@@ -42,30 +43,9 @@ PROPERTY_NAME = "hazy_gloss_settings"
 GROUP_NODE = material.GROUP_NODE
 NODE_DISTRIBUTIONS = K.NODE_DISTRIBUTIONS
 
-KIND_ITEMS = (
-    ("CONDUCTOR", "Conductor", "Metal: Metallic BSDF lobes with the physical conductor Fresnel "
-     "from core reflectivity and edge tint (Gulbrandsen 2014)", 0),
-    ("DIELECTRIC", "Dielectric", "Plastic, varnish, glass: Principled BSDF specular lobes over a "
-     "base colour; keep haziness small (about 0-0.1)", 1),
-    ("LEGACY", "Legacy", "Glossy BSDF lobes without Fresnel (colours only)", 2),
-)
-DISTRIBUTION_ITEMS = (
-    ("GGX", "GGX", "GGX microfacets (all kinds)", 0),
-    ("BECKMANN", "Beckmann", "Beckmann microfacets (conductor and legacy)", 1),
-    ("MULTI_GGX", "Multiscatter GGX", "GGX with multiple-scattering energy compensation "
-     "(β and r corrected so the peak stays invariant)", 2),
-    ("ASHIKHMIN_SHIRLEY", "Ashikhmin-Shirley", "Ashikhmin-Shirley lobes (legacy only)", 3),
-)
-TANGENT_ITEMS = (
-    ("UV_MAP", "UV Map", "Tangent from the object's UV map (the usual choice)", 0),
-    ("RADIAL_X", "Radial X", "Radial tangent around the object's X axis", 1),
-    ("RADIAL_Y", "Radial Y", "Radial tangent around the object's Y axis", 2),
-    ("RADIAL_Z", "Radial Z", "Radial tangent around the object's Z axis (Blender's default "
-     "for an unconnected Tangent)", 3),
-)
-_KIND_IDS = [i[0] for i in KIND_ITEMS]
-_DIST_IDS = [i[0] for i in DISTRIBUTION_ITEMS]
-_TANGENT_IDS = [i[0] for i in TANGENT_ITEMS]
+#: The kinds' enum items (constants' vocabulary; the property's are hazy_gloss.schema's).
+KIND_ITEMS = K.enum_items(K.KIND_TERMS)
+_KIND_IDS = list(K.KINDS)
 
 
 
@@ -204,81 +184,91 @@ def _set_kind(self, value):
     _set(self, **changes)
 
 
-def _get_distribution(self):
-    return _index(_DIST_IDS, parameters(self.id_data)["distribution"])
-
-
-def _set_distribution(self, value):
-    _set(self, distribution=_DIST_IDS[value])
-
-
-def _get_tangent(self):
-    return _index(_TANGENT_IDS, parameters(self.id_data)["tangent"])
-
-
-def _set_tangent(self, value):
-    _set(self, tangent=_TANGENT_IDS[value])
-
-
-def _get_extent(axis):
+def _get_enum(key, ids):
     def get(self):
-        return _finite(parameters(self.id_data)["haze_extent"][axis], 5.0)
+        return _index(ids, parameters(self.id_data)[key])
     return get
 
 
-def _set_extent(axis):
+def _set_enum(key, ids):
     def set_(self, value):
-        x, y = parameters(self.id_data)["haze_extent"]
-        if self.haze_extent_linked:
+        _set(self, **{key: ids[value]})
+    return set_
+
+
+def _get_extent(key, axis):
+    def get(self):
+        return _finite(parameters(self.id_data)[key][axis], HAZE_DEFAULTS[key][axis])
+    return get
+
+
+def _set_extent(key, axis):
+    def set_(self, value):
+        x, y = parameters(self.id_data)[key]
+        if getattr(self, f"{key}_linked"):
             x = y = float(value)
         elif axis == 0:
             x = float(value)
         else:
             y = float(value)
-        _set(self, haze_extent=(x, y))
+        _set(self, **{key: (x, y)})
     return set_
 
 
-def _set_linked(self, value):
-    self["haze_extent_linked_"] = bool(value)
-    if value:  # linking makes the halo isotropic: y follows x
-        x, y = parameters(self.id_data)["haze_extent"]
-        if x != y and material.is_hazy(self.id_data):
-            _set(self, haze_extent=(x, x))
+def _set_linked(key):
+    def set_(self, value):
+        self[f"{key}_linked_"] = bool(value)
+        if value:  # linking makes the halo isotropic: y follows x
+            x, y = parameters(self.id_data)[key]
+            if x != y and material.is_hazy(self.id_data):
+                _set(self, **{key: (x, x)})
+    return set_
 
 
-def _get_linked(self):
+def _get_linked(key):
     """Linked when the user linked them (the default) and the extents are equal: a preset or a
     script that makes the halo anisotropic shows as unlinked."""
-    x, y = parameters(self.id_data)["haze_extent"]
-    return bool(self.get("haze_extent_linked_", True)) and x == y
+    def get(self):
+        x, y = parameters(self.id_data)[key]
+        return bool(self.get(f"{key}_linked_", True)) and x == y
+    return get
 
 
-def _get_use_smooth(self):
-    return parameters(self.id_data)["smoothness"] is not None
+def _get_use(key):
+    """An optional parameter's toggle (smoothness: the Bézier on, None: Eq. 7)."""
+    def get(self):
+        return parameters(self.id_data)[key] is not None
+    return get
 
 
-def _set_use_smooth(self, value):
-    w = parameters(self.id_data)["smoothness"]
-    if bool(value) == (w is not None):
-        return
-    if value:
-        _set(self, smoothness=float(self.smoothness_memory))
-    else:
-        self.smoothness_memory = w
-        _set(self, smoothness=None)
+def _set_use(key):
+    def set_(self, value):
+        w = parameters(self.id_data)[key]
+        if bool(value) == (w is not None):
+            return
+        if value:
+            _set(self, **{key: float(getattr(self, f"{key}_memory"))})
+        else:
+            setattr(self, f"{key}_memory", w)
+            _set(self, **{key: None})
+    return set_
 
 
-def _get_smoothness(self):
-    w = parameters(self.id_data)["smoothness"]
-    return min(_finite(w, 1e6), 1e6) if w is not None else float(self.smoothness_memory)
+def _get_optional(key):
+    def get(self):
+        w = parameters(self.id_data)[key]
+        hi = SCHEMA_BY_NAME[key].limits[1]
+        return min(_finite(w, hi), hi) if w is not None else float(getattr(self, f"{key}_memory"))
+    return get
 
 
-def _set_smoothness(self, value):
-    if parameters(self.id_data)["smoothness"] is None:
-        self.smoothness_memory = float(value)
-    else:
-        _set(self, smoothness=float(value))
+def _set_optional(key):
+    def set_(self, value):
+        if parameters(self.id_data)[key] is None:
+            setattr(self, f"{key}_memory", float(value))
+        else:
+            _set(self, **{key: float(value)})
+    return set_
 
 
 def _get_bool(key):
@@ -323,117 +313,69 @@ _NO_ANIM = set()  # rebuilding node trees per frame is not what anyone wants (an
 #                   without the add-on would not do it): parameters are not animatable
 
 
-class HazyGlossMaterialSettings(bpy.types.PropertyGroup):
-    """Perceptual hazy-gloss parameters of a material (a view on mat["hazy_gloss"])"""
+_PROPS = {"EnumProperty": EnumProperty, "BoolProperty": BoolProperty,
+          "FloatProperty": FloatProperty, "FloatVectorProperty": FloatVectorProperty}
 
-    kind: EnumProperty(name="Kind", items=KIND_ITEMS, get=_get_kind, set=_set_kind,
-                       options=_NO_ANIM)
-    distribution: EnumProperty(name="Distribution", items=DISTRIBUTION_ITEMS,
-                               get=_get_distribution, set=_set_distribution, options=_NO_ANIM,
-                               description="Microfacet distribution of both lobes")
-    core_reflectivity: FloatVectorProperty(
-        name="Core Reflectivity", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
-        get=_get_rgb("core_reflectivity"), set=_set_rgb("core_reflectivity"), options=_NO_ANIM,
-        description="r_c: reflectivity of the sharp core at normal incidence (linear RGB). "
-                    "Haze never changes the brightness of the highlight's peak")
-    edge_tint: FloatVectorProperty(
-        name="Edge Tint", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
-        get=_get_rgb("edge_tint"), set=_set_rgb("edge_tint"), options=_NO_ANIM,
-        description="g: colour towards grazing angles (Gulbrandsen 2014); black = "
-                    "dielectric-like Fresnel")
-    roughness: FloatProperty(
-        name="Roughness", min=0.0, max=1.0, subtype="FACTOR", precision=3,
-        get=_get_float("roughness"), set=_set_float("roughness"), options=_NO_ANIM,
-        description="Core roughness, Blender's convention R = √α (the paper's α_n is R²)")
-    anisotropy: FloatProperty(
-        name="Anisotropy", min=0.0, max=1.0, subtype="FACTOR",
-        get=_get_float("anisotropy"), set=_set_float("anisotropy"), options=_NO_ANIM,
-        description="Stretch of the core along the tangent (Metallic BSDF convention, "
-                    "at most 10:1)")
-    rotation: FloatProperty(
-        name="Rotation", min=0.0, max=1.0, subtype="FACTOR",
-        get=_get_float("rotation"), set=_set_float("rotation"), options=_NO_ANIM,
-        description="Rotation of the tangent, in turns")
-    tangent: EnumProperty(name="Tangent", items=TANGENT_ITEMS, get=_get_tangent,
-                          set=_set_tangent, options=_NO_ANIM,
-                          description="Tangent used by anisotropic lobes")
-    haziness: FloatProperty(
-        name="Haziness", min=0.0, max=K.MAX_HAZINESS, soft_min=0.0, soft_max=0.99, subtype="FACTOR",
-        precision=3, get=_get_float("haziness"), set=_set_float("haziness"), options=_NO_ANIM,
-        description="β_h: proportion of the halo the energy and positivity bounds allow. "
-                    "About 0-0.1 for dielectrics, up to 0.99 for metals")
-    haze_extent_x: FloatProperty(
-        name="Haze Extent", min=0.0, max=1000.0, soft_max=20.0,
-        get=_get_extent(0), set=_set_extent(0), options=_NO_ANIM,
-        description="λ_h: width of the halo in units of the core's roughness "
-                    "(α_w = α_n + λ_h √(α_n^x α_n^y)); along the tangent when unlinked")
-    haze_extent_y: FloatProperty(
-        name="Haze Extent Y", min=0.0, max=1000.0, soft_max=20.0,
-        get=_get_extent(1), set=_set_extent(1), options=_NO_ANIM,
-        description="λ_h^y: width of the halo across the tangent")
-    haze_extent_linked: BoolProperty(
-        name="Link Haze Extents", get=_get_linked, set=_set_linked, options=_NO_ANIM,
-        description="One haze extent for both directions (isotropic halo)")
-    use_smoothness: BoolProperty(
-        name="Smooth Haze", get=_get_use_smooth, set=_set_use_smooth, options=_NO_ANIM,
-        description="Use the rational Bézier mapping (Eqs. 12-15) instead of the piecewise "
-                    "linear Eq. 7: no kink where r_c = p (useful with textured reflectivity)")
-    smoothness: FloatProperty(
-        name="Smoothness", min=K.MIN_SMOOTHNESS, max=1e6, soft_min=0.5, soft_max=16.0,
-        get=_get_smoothness, set=_set_smoothness, options=_NO_ANIM,
-        description="w: weight of the Bézier; larger is closer to Eq. 7, smaller is smoother "
-                    "but reaches less haze")
-    shader_mapping: BoolProperty(
-        name="In-Shader Mapping", get=_get_bool("shader_mapping"), set=_set_bool("shader_mapping"),
-        options=_NO_ANIM,
-        description="Compute the mapping in the shader (a node group whose inputs take "
-                    "textures) instead of constants computed here (leaner, faster to render)")
-    base_color: FloatVectorProperty(
-        name="Base Color", subtype="COLOR", size=3, soft_min=0.0, soft_max=1.0,
-        get=_get_rgb("base_color"), set=_set_rgb("base_color"), options=_NO_ANIM,
-        description="Diffuse colour under a dielectric's specular layer")
-    transmission: FloatProperty(
-        name="Transmission", min=0.0, max=1.0, subtype="FACTOR",
-        get=_get_float("transmission"), set=_set_float("transmission"), options=_NO_ANIM,
-        description="Transmission weight of a dielectric (the BTDF shares β, η and α)")
-    # a haze layer on the user's Principled BSDF (Make Hazy)
-    coat_haziness: FloatProperty(
-        name="Coat Haziness", min=0.0, max=K.MAX_HAZINESS, soft_max=0.99, subtype="FACTOR",
-        precision=3, get=_get_float("coat_haziness"), set=_set_float("coat_haziness"),
-        options=_NO_ANIM,
-        description="β_h of the coat: a halo around the clear coat's reflection (lacquer, "
-                    "varnish, car paint), mapped on the coat's own Fresnel (Coat IOR); the "
-                    "coat's peak stays")
-    coat_haze_extent: FloatProperty(
-        name="Coat Haze Extent", min=0.0, max=1000.0, soft_max=20.0,
-        get=_get_float("coat_haze_extent"), set=_set_float("coat_haze_extent"), options=_NO_ANIM,
-        description="λ_h of the coat: width of the coat's halo in units of the coat roughness")
-    keep_body_colour: BoolProperty(
-        name="Keep Body Colour", get=_get_bool("keep_body_colour"),
-        set=_set_bool("keep_body_colour"), options=_NO_ANIM,
-        description="Brighten the base colour under a hazy dielectric so that the diffuse "
-                    "colour stays what it was (haze raises the reflectivity, which lets less "
-                    "light reach the base); where a colour cannot get brighter, the rest is "
-                    "reported")
-    eevee_output: EnumProperty(
+
+def _accessors(name):
+    """(get, set) of the panel property ``name`` of the schema's parameters."""
+    if name == "kind":  # remembers the edge tint, picks a distribution the new kind's node has
+        return _get_kind, _set_kind
+    for p in SCHEMA:
+        if p.type == "extent" and name in (f"{p.name}_x", p.more[0][0], p.more[1][0]):
+            if name == p.more[1][0]:
+                return _get_linked(p.name), _set_linked(p.name)
+            axis = 0 if name == f"{p.name}_x" else 1
+            return _get_extent(p.name, axis), _set_extent(p.name, axis)
+        if p.default is None and p.more and name == p.more[0][0]:
+            return _get_use(p.name), _set_use(p.name)
+    p = SCHEMA_BY_NAME[name]
+    if p.type == "enum":
+        ids = [t.id for t in p.terms]
+        return _get_enum(name, ids), _set_enum(name, ids)
+    if p.type == "colour":
+        return _get_rgb(name), _set_rgb(name)
+    if p.type == "bool":
+        return _get_bool(name), _set_bool(name)
+    if p.default is None:
+        return _get_optional(name), _set_optional(name)
+    return _get_float(name), _set_float(name)
+
+
+def _annotations():
+    """The schema's properties (views on the stamp; hazy_gloss.schema.property_specs), the EEVEE
+    setting, and the stored UI state (what a switch remembers)."""
+    out = {}
+    specs = property_specs()
+    for name, ctor, kw in specs:
+        if name.endswith("_memory"):
+            continue
+        get, set_ = _accessors(name)
+        out[name] = _PROPS[ctor](**kw, get=get, set=set_, options=_NO_ANIM)
+    out["eevee_output"] = EnumProperty(
         name="EEVEE", items=EEVEE_ITEMS, get=_get_eevee, set=_set_eevee, options=_NO_ANIM,
         description="An EEVEE-only output with each layer's two lobes folded into one that keeps "
                     "its peak: noise-free EEVEE previews of a coated layer; Cycles renders the "
                     "full layer either way")
-    # plain stored UI state
-    edge_tint_memory: FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0), options={"HIDDEN"})
-    smoothness_memory: FloatProperty(default=2.0, min=K.MIN_SMOOTHNESS, options={"HIDDEN"})
+    out["edge_tint_memory"] = FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0),
+                                                  options={"HIDDEN"})
+    for name, ctor, kw in specs:
+        if name.endswith("_memory"):
+            out[name] = _PROPS[ctor](**kw, options={"HIDDEN"})
+    return out
+
+
+#: Perceptual hazy-gloss parameters of a material (a view on mat["hazy_gloss"]); built with
+#: type() so that the annotations Blender registers are the generated ones in every Python.
+HazyGlossMaterialSettings = type("HazyGlossMaterialSettings", (bpy.types.PropertyGroup,), {
+    "__doc__": 'Perceptual hazy-gloss parameters of a material (a view on mat["hazy_gloss"])',
+    "__module__": __name__, "__annotations__": _annotations()})
 
 
 #: Names of the parameter properties, in the order a preset sets them.
-PRESET_PROPERTIES = ("kind", "distribution", "shader_mapping", "core_reflectivity", "edge_tint",
-                     "roughness", "anisotropy", "rotation", "tangent", "haziness",
-                     "haze_extent_linked", "haze_extent_x", "haze_extent_y", "use_smoothness",
-                     "smoothness", "base_color", "transmission")
+PRESET_PROPERTIES = preset_properties(MATERIAL)
 #: The properties a preset sets on a haze layer (Make Hazy): the core is the user's node.
-LAYER_PRESET_PROPERTIES = ("haziness", "haze_extent_linked", "haze_extent_x", "haze_extent_y",
-                           "use_smoothness", "smoothness", "coat_haziness", "coat_haze_extent",
-                           "keep_body_colour")
+LAYER_PRESET_PROPERTIES = preset_properties(LAYER)
 
 classes = (HazyGlossMaterialSettings,)
 
