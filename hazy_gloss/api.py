@@ -60,9 +60,9 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     the Material Output, also inside Mix / Add Shader trees): every input and link of it and
     everything else in the tree stay; at haziness 0 the material renders exactly as before.
     On a material that has a layer already, the haze values given are set on it.
-    Haze keywords: haziness, haze_extent (a number or an (x, y) pair), smoothness,
-    reflectivity_cap, coat_haziness, coat_haze_extent, keep_body_colour; ``node`` (a node or its
-    name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
+    Haze keywords: those of ``hazy_gloss.schema.HAZE_PARAMETERS`` (docs/parameters.md's haze
+    layer table: haziness, haze_extent (a number or an (x, y) pair), smoothness, ...);
+    ``node`` (a node or its name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
     ValueError (one line, the reason) when it cannot, touching nothing."""
     from .blender.actions import make_hazy as _make
     _material.check_material(mat, "make_hazy")

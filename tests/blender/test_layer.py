@@ -777,3 +777,22 @@ def test_what_haze_does_not_touch_renders_as_before(env, name):
     alpha = float(np.abs(before["alpha"] - after["alpha"]).max())
     record("layer_untouched", {name: dict(emission=emission, alpha=alpha)})
     assert emission <= 1e-6 * max(1.0, float(before["emission"].max())) and alpha == 0.0
+
+
+def test_haze_panel_is_the_schemas(env):
+    """The layer group's Haze panel holds schema.layer_sockets of its BSDF, each socket with
+    the schema's name, default, limits and tooltip (hazy_gloss.schema.HAZE_SOCKETS)."""
+    schema = importlib.import_module(f"{env.hg.__name__}.schema")
+    for name in ("car paint (metal + coat)", "metal with thin film"):
+        mat = MATERIALS[name]()
+        make_hazy(env, mat)
+        node = env.layer.layer_node(mat)
+        kind = env.layer.group_config(node).get("bsdf")
+        want = [schema.HAZE_SOCKETS[k] for k in schema.layer_sockets(kind, False)]
+        got = [(it.name, it.default_value, it.min_value, it.max_value, it.description)
+               for it in node.node_tree.interface.items_tree
+               if it.item_type == "SOCKET" and it.in_out == "INPUT" and it.parent is not None
+               and it.parent.name == "Haze"]
+        f32 = np.float32
+        assert [(n, f32(d), f32(lo), f32(hi), t) for n, d, lo, hi, t in want] == \
+            [(n, f32(d), f32(lo), f32(hi), t) for n, d, lo, hi, t in got], kind

@@ -1280,3 +1280,30 @@ def test_operator_conventions(env):
         assert (cls.__doc__ or "").strip(), name
         mod, fn = cls.bl_idname.split(".")
         getattr(getattr(bpy.ops, mod), fn).get_rna_type()  # registered
+
+
+def test_registered_properties_are_the_schemas(env):
+    """Material.hazy_gloss_settings registers what hazy_gloss.schema derives: every parameter's
+    properties with its label, limits, slider range, subtype, precision and tooltip, and the
+    enums with constants' vocabulary (the same items as the docs' table)."""
+    schema = importlib.import_module(f"{env.hg.__name__}.schema")
+    rna = env.hg.blender.ui.properties.HazyGlossMaterialSettings.bl_rna.properties
+    f32 = lambda x: float(np.float32(x))  # noqa: E731  (RNA float limits are C floats)
+    for name, ctor, kw in schema.property_specs():
+        prop = rna[name]
+        assert prop.name == kw.get("name", name) and prop.description == kw.get("description", "")
+        if ctor == "EnumProperty":
+            got = [(i.identifier, i.name, i.description, i.value) for i in prop.enum_items]
+            assert got == [tuple(i) for i in kw["items"]], name
+            continue
+        if ctor == "BoolProperty":
+            assert prop.type == "BOOLEAN", name
+            continue
+        for key, attr in (("min", "hard_min"), ("max", "hard_max"), ("soft_min", "soft_min"),
+                          ("soft_max", "soft_max")):
+            if key in kw:
+                assert getattr(prop, attr) == f32(kw[key]), (name, key)
+        assert prop.subtype == kw.get("subtype", "NONE"), name
+        if "precision" in kw:
+            assert prop.precision == kw["precision"], name
+        assert not prop.is_animatable or name.endswith("_memory"), name

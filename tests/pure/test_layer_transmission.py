@@ -13,6 +13,7 @@ import pytest
 from hazy_gloss.core import layer_graph, node_thin_film, thin_film
 from hazy_gloss.core.tables import bsdf_interfaces
 from hazy_gloss.core.graph import Graph, evaluate
+from hazy_gloss.schema import HAZE_SOCKETS
 
 VERSIONS = ((4, 5), (5, 2), (5, 3))
 
@@ -21,8 +22,7 @@ def _inputs(lay, version, **values):
     """Every graph input of ``lay``: the Principled's declared defaults, the haze defaults,
     ``values`` by socket / haze name."""
     decl = bsdf_interfaces.TABLES[f"{version[0]}.{version[1]}"]["PRINCIPLED"]["sockets"]
-    haze = dict(haziness=0.0, haze_extent_x=5.0, haze_extent_y=5.0, smoothness=2.0,
-                reflectivity_cap=1.0, coat_haziness=0.0, coat_haze_extent=5.0)
+    haze = {key: socket[1] for key, socket in HAZE_SOCKETS.items()}
     out = {}
     for name, e in lay.graph.inputs.items():
         kind, _, key = name.partition(":")

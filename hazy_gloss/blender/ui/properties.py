@@ -34,7 +34,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ... import constants as K
 from ...core.parameters import HAZE_DEFAULTS, normalise
-from ...schema import SCHEMA, SCHEMA_BY_NAME, LAYER, MATERIAL, preset_properties, property_specs
+from ...schema import LAYER, MATERIAL, SCHEMA, SCHEMA_BY_NAME, preset_properties, property_specs
 from ..actions import edit, eevee_output, messages
 from ..model import material
 from ..actions.messages import plain_message
