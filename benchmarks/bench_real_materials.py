@@ -33,7 +33,7 @@ FURNACE = ("water", "N-BK7 crown glass", "diamond", "frosted window (Transmissio
 PEAK_NOTES = ("no haze shows", "thin film", "the peak cannot hold")
 
 
-def measure(api, layer, read_exr, R):
+def measure(api, layer, layer_notes, read_exr, R):
     import numpy as np
     out = {}
     cases = R.cases()
@@ -59,7 +59,7 @@ def measure(api, layer, read_exr, R):
                         row["transmitted"] = float(t.max() / max(t0.max(), 1e-30))
             if cls == "metal with film":
                 api.update_material(mat, haziness=0.6)
-                row["film_said"] = layer.film_peak_change(layer.layer_node(mat))
+                row["film_said"] = layer_notes.film_peak_change(layer.layer_node(mat))
             out[f"{name} [{dist}]"] = row
     furnace = {}
     for name in FURNACE:
@@ -82,9 +82,9 @@ def main():
     C.start_blender()
     import bpy
     from hazy_gloss import api, exr
-    from hazy_gloss.blender.model import layer
+    from hazy_gloss.blender.model import layer, layer_notes
     import real_materials as R
-    rows, furnace = measure(api, layer, exr.read_exr, R)
+    rows, furnace = measure(api, layer, layer_notes, exr.read_exr, R)
     res = {"rows": rows, "furnace": furnace, "blender": bpy.app.version_string,
            "machine": C.machine(), "seconds": time.perf_counter() - t0,
            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}

@@ -157,10 +157,10 @@ def hand_wired(bpy, layered):
     node's inputs and the values the group's math gives it, Mix Shaders with the factors it
     gives (layer_probe.slot_values / the group's graph evaluated: constant inputs only)."""
     import layer_probe
-    from hazy_gloss.blender.model import layer
+    from hazy_gloss.blender.model import layer, layer_values
     from hazy_gloss.core import layer_graph
     node = layer.layer_node(layered)
-    lay = layer.graph_of(node)
+    lay = layer_values.graph_of(node)
     core = layer.original_node(layered)
     mat = bpy.data.materials.new(layered.name + " hand-wired")
     if bpy.app.version < (5, 0, 0):
@@ -178,13 +178,13 @@ def hand_wired(bpy, layered):
                 if s.name in b.inputs and hasattr(s, "default_value"):
                     v = s.default_value
                     b.inputs[s.name].default_value = tuple(v) if hasattr(v, "__len__") else v
-            for k, v in layer_probe.slot_values(layer, node, t.role).items():
+            for k, v in layer_probe.slot_values(layer_values, node, t.role).items():
                 sock = b.inputs[k]
                 if isinstance(v, tuple) and len(sock.default_value) == 4:
                     v = v[:3] + (1.0,)
                 sock.default_value = v
             return b.outputs[0]
-        f = layer.evaluate(node, {"f": t.factor})[0]["f"] if not t.add else None
+        f = layer_values.evaluate(node, {"f": t.factor})[0]["f"] if not t.add else None
         if f == 0.0:
             return build(t.a)
         if f == 1.0:
@@ -204,8 +204,8 @@ def hand_wired(bpy, layered):
 def rendered_slots(layered):
     """(BSDF copies Cycles renders, exact?) of the layer node (layer_probe.rendered_slots)."""
     import layer_probe
-    from hazy_gloss.blender.model import layer
-    return layer_probe.rendered_slots(layer, layer.layer_node(layered))
+    from hazy_gloss.blender.model import layer, layer_values
+    return layer_probe.rendered_slots(layer_values, layer.layer_node(layered))
 
 
 def counts(mat):

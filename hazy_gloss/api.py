@@ -16,7 +16,7 @@ renders identically where the add-on is not installed (only built-in nodes are u
 Everything here delegates to ``hazy_gloss.blender`` (bpy) and ``hazy_gloss.core`` (numpy).
 """
 from . import constants as K
-from .blender.model import material as _material
+from .blender.model import layer as _layer, material as _material, material_read as _material_read
 from .core.parameters import DEFAULTS, PARAMETERS, is_anisotropic, normalise as normalise_parameters
 from .schema import HAZE_SOCKETS
 
@@ -26,8 +26,8 @@ KINDS = K.KINDS
 GROUP_NODE = _material.GROUP_NODE
 min_roughness = K.min_roughness
 is_ours = _material.is_ours
-is_hazy = _material.is_hazy
-read_parameters = _material.read_parameters
+is_hazy = _material_read.is_hazy
+read_parameters = _material_read.read_parameters
 map_parameters = _material.map_parameters
 lobes_for = _material.lobes_for
 
@@ -65,7 +65,7 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
     ``node`` (a node or its name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
     ValueError (one line, the reason) when it cannot, touching nothing."""
     from .blender.actions import make_hazy as _make
-    _material.check_material(mat, "make_hazy")
+    _material_read.check_material(mat, "make_hazy")
     status, msg, notes = _make.make_hazy(mat, haziness=haziness, haze_extent=haze_extent, **haze)
     if status == "ERROR":
         raise ValueError(msg)
@@ -81,7 +81,7 @@ def upgrade_layers(materials=None):
     from .blender.actions import make_hazy as _make
     mats = _make.materials_or_all(materials)
     for m in mats:
-        _material.check_material(m, "upgrade_layers")
+        _material_read.check_material(m, "upgrade_layers")
     old = [m for m in mats if layer.is_legacy(m)]
     status, msg, notes = _make.upgrade_layers(old)
     if status == "ERROR":
@@ -95,7 +95,7 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     Texture, made the active paint slot.  Returns the image; raises ValueError (one line)."""
     from .blender.model import layer
     from .blender.actions import make_hazy as _make
-    _material.check_material(mat, "add_haziness_map")
+    _material_read.check_material(mat, "add_haziness_map")
     status, msg, _ = _make.add_haziness_map(mat, size=size, param=param)
     if status == "ERROR":
         raise ValueError(msg)
@@ -115,7 +115,7 @@ def remove_haze(mat):
     """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
     the layer's nodes go.  Returns whether there was a layer."""
     from .blender.actions import make_hazy as _make
-    _material.check_material(mat, "remove_haze")
+    _material_read.check_material(mat, "remove_haze")
     status, msg, _ = _make.remove_haze(mat)
     if status == "ERROR":
         raise ValueError(msg)
@@ -130,7 +130,7 @@ def add_eevee_output(mat, mode="auto"):
     layer.  The request is kept: the output follows every later change of the layer.  Returns
     ``{"added": bool, "reason": str, "nodes": int}``; raises ValueError when ``mat`` has no layer."""
     from .blender.actions import eevee_output as _eevee
-    _material.check_material(mat, "add_eevee_output")
+    _material_read.check_material(mat, "add_eevee_output")
     return _eevee.add_eevee_output(mat, mode=mode)
 
 
@@ -138,7 +138,7 @@ def remove_eevee_output(mat):
     """Take the EEVEE-only output off ``mat`` (EEVEE renders the full layer again).  Returns
     whether there was one."""
     from .blender.actions import eevee_output as _eevee
-    _material.check_material(mat, "remove_eevee_output")
+    _material_read.check_material(mat, "remove_eevee_output")
     return _eevee.remove_eevee_output(mat)
 
 
@@ -149,7 +149,7 @@ def sync_haze(mat):
     object uses).  A haze layer itself needs nothing: its node computes from its inputs.
     Returns whether anything changed."""
     from .blender.actions import sync as _sync
-    _material.check_material(mat, "sync_haze")
+    _material_read.check_material(mat, "sync_haze")
     return _sync.sync(mat, force=True)
 
 
@@ -175,8 +175,8 @@ def update_material_links(mat, **changes):
 def _update(mat, changes):
     from .blender.actions import edit as _edit
     out = _edit.update_material(mat, **changes)
-    if out[0] is None and _material.layer.is_layered(mat):
-        out = (Notes(mat, _material.layer.notes(mat)), out[1])
+    if out[0] is None and _layer.is_layered(mat):
+        out = (Notes(mat, _layer.notes(mat)), out[1])
     replaced = _edit.REPLACED.get(mat.session_uid)
     if replaced:
         import warnings
@@ -248,7 +248,7 @@ def last_error(mat):
     refused (None after a change that went through).  Blender prints and swallows exceptions
     raised in property setters, so a script setting ``mat.hazy_gloss_settings.roughness = 2``
     learns of the refusal here, or raises with :func:`strict_settings`."""
-    _material.check_material(mat, "last_error")
+    _material_read.check_material(mat, "last_error")
     from .blender.actions import messages as _messages
     return _messages.error_for(mat)
 
@@ -323,14 +323,14 @@ def add_export_fallback(mat):
     A material with a haze layer gets the user's own BSDF at haziness 0 (its values and links,
     the metallic map included); the notes say when Blender's USD preview takes another node."""
     from .blender.model import fallback as _fallback
-    _material.check_material(mat, "add_export_fallback")
+    _material_read.check_material(mat, "add_export_fallback")
     return _fallback.add_export_fallback(mat)
 
 
 def remove_export_fallback(mat):
     """Undo :func:`add_export_fallback`; returns True when something was removed."""
     from .blender.model import fallback as _fallback
-    _material.check_material(mat, "remove_export_fallback")
+    _material_read.check_material(mat, "remove_export_fallback")
     return _fallback.remove_export_fallback(mat)
 
 

@@ -20,7 +20,6 @@ is wrong; I/O errors stay ``OSError``.
 from __future__ import annotations
 
 import math
-import mmap
 import os
 import struct
 import zlib
@@ -29,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import constants as K
+from .filebytes import FileBytes, FileShrankError
 
 __all__ = ("ExrError", "ExrPart", "read_exr", "exr_header_check", "MAX_DECODED_BYTES")
 
@@ -84,7 +84,8 @@ class ExrPart:
 
 
 class _Reader:
-    """Bounds-checked access to the file's bytes (``bytes`` or an mmap)."""
+    """Bounds-checked access to the file's bytes (``bytes`` or a
+    :class:`~hazy_gloss.filebytes.FileBytes`: both slice and ``find``)."""
 
     def __init__(self, buf, path):
         self.buf, self.path, self.n = buf, path, len(buf)
@@ -103,8 +104,9 @@ class _Reader:
             raise self.cut(f"{what} needs bytes {pos}..{pos + size} but the file has {self.n}")
 
     def unpack(self, fmt, pos, what):
-        self.need(pos, struct.calcsize(fmt), what)
-        return struct.unpack_from(fmt, self.buf, pos)
+        size = struct.calcsize(fmt)
+        self.need(pos, size, what)
+        return struct.unpack_from(fmt, self.buf[pos:pos + size])
 
     def cstring(self, pos, what, limit=K.MAX_EXR_NAME, end=None):
         """A NUL-terminated string of at most ``limit`` bytes starting at ``pos``."""
@@ -341,7 +343,7 @@ def _parse(rd, keep=False):
         if n * 8 > rd.n - pos:
             raise rd.cut(f"the offset table of part {part.index} ({n} entries) needs {n * 8} "
                          f"bytes at byte {pos}, the file has {rd.n}", sure=True)
-        tables.append(np.frombuffer(rd.buf, "<u8", n, pos).copy())  # no view into an mmap
+        tables.append(np.frombuffer(rd.buf[pos:pos + 8 * n], "<u8"))  # n <= MAX_EXR_CHUNKS
         pos += 8 * n
     table_end = pos
 
@@ -429,15 +431,19 @@ def exr_header_check(path):
 
     Returns a tuple of :class:`ExrPart`.  Raises :class:`ExrError` (a ``ValueError``, one
     line naming the file and the defect); ``OSError`` if the file cannot be opened.  Cost: the
-    headers plus a few bytes per chunk (the file is memory-mapped, not read)."""
+    headers plus a few bytes per chunk (read, not memory-mapped: a mapped file cut short by
+    another process meanwhile raises SIGBUS, which kills Blender; here it is "truncated")."""
     path = os.fspath(path)
     with open(path, "rb") as fh:
         if os.fstat(fh.fileno()).st_size == 0:
             err = ExrError(f"{path}: the file is empty")
             err.kind, err.detail = "truncated", "the file is empty"
             raise err
-        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-            parts, _, _ = _parse(_Reader(buf, path))
+        rd = _Reader(FileBytes(fh), path)
+        try:
+            parts, _, _ = _parse(rd)
+        except FileShrankError as exc:
+            raise rd.cut(str(exc), sure=True) from None
     return tuple(ExrPart(name=p.name, type=p.type, compression=p.comp_name,
                          data_window=p.window, width=p.width, height=p.height,
                          channels=tuple((n, _PIXEL_TYPE_NAMES[t], xs, ys)

@@ -16,15 +16,13 @@ names the file and what is wrong; I/O errors (missing file, no permission) stay 
 """
 from __future__ import annotations
 
-import mmap
 import os
 import stat
-import struct
-import zlib
 from typing import NamedTuple
 
 from . import constants as K
 from .exr import ExrError, exr_header_check
+from .filebytes import FileBytes, FileShrankError
 
 __all__ = ("ImageFileError", "ImageInfo", "FORMAT_NAMES", "check_image_file")
 
@@ -89,7 +87,7 @@ def _check_png(buf, path):
     at most ~1032 bytes into one), IEND present.  Returns (width, height).
 
     The zlib stream inside the IDATs is not decompressed (a cut-off file has no IEND, which is
-    what this catches)."""
+    what this catches).  ``buf``: a :class:`~hazy_gloss.filebytes.FileBytes`."""
     n = len(buf)
 
     def corrupt(what):
@@ -105,7 +103,7 @@ def _check_png(buf, path):
                                  f"byte {n})")
         if index >= limit:
             raise corrupt(f"more than {limit} chunks")
-        length, ctype = struct.unpack_from(">I4s", buf, pos)
+        length, ctype = buf.unpack_from(">I4s", pos)
         if not all(65 <= c <= 90 or 97 <= c <= 122 for c in ctype):
             raise corrupt(f"chunk {index} at byte {pos} has an invalid type {ctype!r}")
         name = ctype.decode("ascii")
@@ -116,16 +114,13 @@ def _check_png(buf, path):
             raise ImageFileError(f"{path} is a truncated PNG (chunk {name} at byte {pos} needs "
                                  f"{end} bytes, the file has {n})")
         if 65 <= ctype[0] <= 90:  # critical
-            (crc,) = struct.unpack_from(">I", buf, pos + 8 + length)
-            with memoryview(buf) as view:  # a slice of the view, not a copy of the chunk
-                found = zlib.crc32(view[pos + 4:pos + 8 + length])
-            if found != crc:
+            (crc,) = buf.unpack_from(">I", pos + 8 + length)
+            if buf.crc32(pos + 4, pos + 8 + length) != crc:
                 raise corrupt(f"CRC mismatch in chunk {name} at byte {pos}")
         if index == 0:
             if name != "IHDR" or length != 13:
                 raise corrupt("the first chunk is not a 13-byte IHDR")
-            w, h, depth, colour, comp, filt, interlace = struct.unpack_from(">IIBBBBB", buf,
-                                                                             pos + 8)
+            w, h, depth, colour, comp, filt, interlace = buf.unpack_from(">IIBBBBB", pos + 8)
             if not (1 <= w <= 0x7FFFFFFF and 1 <= h <= 0x7FFFFFFF):
                 raise corrupt(f"invalid size {w}x{h}")
             channels, depths = _PNG_TYPES.get(colour, (0, ()))
@@ -169,7 +164,8 @@ def _check_png(buf, path):
 def _check_jpeg(buf, path):
     """The marker segments up to the first scan (a frame header with the size among them), then
     an end-of-image marker after it (0xFF in the entropy-coded data is always escaped, so the
-    first FF D9 after the scan header is the end of the image).  Returns (width, height)."""
+    first FF D9 after the scan header is the end of the image).  Returns (width, height);
+    ``buf``: a :class:`~hazy_gloss.filebytes.FileBytes`."""
     n, pos, size, steps = len(buf), 2, None, 0
     while True:
         steps += 1
@@ -193,7 +189,7 @@ def _check_jpeg(buf, path):
         if pos + 4 > n:
             raise ImageFileError(f"{path} is a truncated JPEG (a marker segment at byte {pos} "
                                  "is cut off)")
-        (length,) = struct.unpack_from(">H", buf, pos + 2)
+        (length,) = buf.unpack_from(">H", pos + 2)
         if length < 2:
             raise ImageFileError(f"{path} is a corrupt JPEG (segment at byte {pos} has length "
                                  f"{length})")
@@ -201,7 +197,7 @@ def _check_jpeg(buf, path):
             raise ImageFileError(f"{path} is a truncated JPEG (segment at byte {pos} needs "
                                  f"{pos + 2 + length} bytes, the file has {n})")
         if m in _JPEG_FRAMES and length >= 7:
-            h, w = struct.unpack_from(">HH", buf, pos + 5)
+            h, w = buf.unpack_from(">HH", pos + 5)
             if w == 0 or h == 0 or w * h > K.MAX_IMAGE_PIXELS:
                 raise ImageFileError(f"{path} is a corrupt JPEG (frame header: {w}x{h} pixels)")
             size = (w, h)
@@ -271,5 +267,9 @@ def check_image_file(path):
             return ImageInfo(fmt, *_check_exr(path))
         if fmt not in ("PNG", "JPEG"):
             return ImageInfo(fmt, None, None)
-        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-            return ImageInfo(fmt, *(_check_png if fmt == "PNG" else _check_jpeg)(buf, path))
+        # read, not memory-mapped: a mapped file cut short meanwhile kills Blender (SIGBUS)
+        try:
+            size = (_check_png if fmt == "PNG" else _check_jpeg)(FileBytes(fh), path)
+        except FileShrankError as exc:
+            raise ImageFileError(f"{path} is a truncated {FORMAT_NAMES[fmt]} ({exc})") from None
+        return ImageInfo(fmt, *size)

@@ -118,27 +118,41 @@ def passes_from_exr(path, original=None, layers=LAYERS):
 # The recomposite itself (Eq. 7, 4, 5 per pixel, then Eq. 11), written once as node math
 # ============================================================================================
 
-#: Inputs of :func:`compositor_graph`: name -> (vector, compositor group socket, description).
+def _socket(key):
+    """A graph input's compositor group socket: its key in title case."""
+    return key.replace("_", " ").title()
+
+
+def _layer_description(layer):
+    lobe, fresnel = layer.removeprefix("HG ").lower().split()  # "narrow", "delta"
+    n = lobe[0]
+    term = f"F = Δ (L1_{n})" if fresnel == "delta" else f"F = 1 (L0_{n} + L1_{n})"
+    return f"Layer '{layer}': {lobe} lobe, {term}"
+
+
+#: What each AOV holds, for its socket's description.
+_AOV_MEANING = {"beta": "rendered β", "reflectivity": "rendered r", "peak_ratio": "p",
+                "peak_complement": "1 - p", "mask": "hazy coverage", "haziness": "rendered β_h",
+                "core_reflectivity": "rendered r_c"}
+#: The edit inputs: key, vector, description.
+_EDITS = (
+    ("new_haziness", False, "β_h to use (a value or a map)"),
+    ("haziness_factor", False,
+     "0 keeps the rendered β_h, 1 uses New Haziness (a mask edits part of the image)"),
+    ("new_core_reflectivity", True, "r_c to use"),
+    ("core_reflectivity_factor", False, "0 keeps the rendered r_c, 1 uses New Core Reflectivity"),
+)
+
+#: Inputs of :func:`compositor_graph`: name -> (vector, compositor group socket, description),
+#: in socket order: the renders (LAYERS), the AOVs (AOVS), then the edits.
 GRAPH_INPUTS = {
     "original": (True, "Original", "The ordinary render (the original view layer)"),
     "original_alpha": (False, None, None),
-    "narrow_delta": (True, "Narrow Delta", "Layer 'HG Narrow Delta': narrow lobe, F = Δ (L1_n)"),
-    "narrow_one": (True, "Narrow One", "Layer 'HG Narrow One': narrow lobe, F = 1 (L0_n + L1_n)"),
-    "wide_delta": (True, "Wide Delta", "Layer 'HG Wide Delta': wide lobe, F = Δ (L1_w)"),
-    "wide_one": (True, "Wide One", "Layer 'HG Wide One': wide lobe, F = 1 (L0_w + L1_w)"),
-    "beta": (False, "Beta", "AOV hg_beta: rendered β"),
-    "reflectivity": (True, "Reflectivity", "AOV hg_reflectivity: rendered r"),
-    "peak_ratio": (False, "Peak Ratio", "AOV hg_peak_ratio: p"),
-    "peak_complement": (False, "Peak Complement", "AOV hg_peak_complement: 1 - p"),
-    "mask": (False, "Mask", "AOV hg_mask: hazy coverage"),
-    "haziness": (False, "Haziness", "AOV hg_haziness: rendered β_h"),
-    "core_reflectivity": (True, "Core Reflectivity", "AOV hg_core_reflectivity: rendered r_c"),
-    "new_haziness": (False, "New Haziness", "β_h to use (a value or a map)"),
-    "haziness_factor": (False, "Haziness Factor",
-                        "0 keeps the rendered β_h, 1 uses New Haziness (a mask edits part of the image)"),
-    "new_core_reflectivity": (True, "New Core Reflectivity", "r_c to use"),
-    "core_reflectivity_factor": (False, "Core Reflectivity Factor",
-                                 "0 keeps the rendered r_c, 1 uses New Core Reflectivity"),
+    **{key: (True, _socket(key), _layer_description(layer))
+       for key, layer in zip(BUFFER_KEYS, LAYERS)},
+    **{key: (typ == "COLOR", _socket(key), f"AOV {aov}: {_AOV_MEANING[key]}")
+       for aov, typ, key in AOVS},
+    **{key: (vector, _socket(key), desc) for key, vector, desc in _EDITS},
 }
 
 

@@ -82,14 +82,14 @@ def layer_rows(api):
     mat, b = principled(distribution="MULTI_GGX", **{"Metallic": 1.0})
     texture(mat, b, "Roughness")
     cases.append(("metal, roughness map, Multiscatter GGX", mat, dict(haziness=0.5)))
-    from hazy_gloss.blender.model import layer
+    from hazy_gloss.blender.model import layer, layer_values
     for label, mat, haze in cases:
         top = len(mat.node_tree.nodes)
         api.make_hazy(mat, **haze)
         node = layer.layer_node(mat)
         from hazy_gloss.core import layer_graph
-        slots = len(layer_graph.slots_of(layer.graph_of(node).cycles))  # (and one for EEVEE)
-        kept, exact = layer_probe.rendered_slots(layer, node)
+        slots = len(layer_graph.slots_of(layer_values.graph_of(node).cycles))  # (and one for EEVEE)
+        kept, exact = layer_probe.rendered_slots(layer_values, node)
         rows.append(f"| {label} | {top} | {len(mat.node_tree.nodes) - top} | {node.node_tree.name} | "
                     f"{count_tree(node.node_tree)} | {slots} | {kept}{'' if exact else ' (at most)'} |")
     return rows

@@ -53,8 +53,9 @@ def extent(rough, aniso, rough_wide):
 
 def forward(part, dist, rc, rough, aniso, rot, haziness, lam, tint=(1.0, 1.0, 1.0)):
     """(β, r, wide roughness) a haze layer renders on a Principled part with core F(0) ``rc``:
-    the layer's constant path (blender/model/layer.py values(): describe, then the dielectric's F(0)
-    raised by the max-channel gain, the metal's Base Color set to the mapping's r)."""
+    the layer's constant path (blender/model/layer_values.py values(): describe, then the
+    dielectric's F(0) raised by the max-channel gain, the metal's Base Color set to the mapping's
+    r)."""
     anisotropic = aniso != 0.0 or lam[0] != lam[1]
     ms = dict(lobe="F82_TINT", tint=tuple(tint)) if part == "METAL" else None
     d = describe("DIELECTRIC", dist, core_reflectivity=tuple(rc), edge_tint=(0.0, 0.0, 0.0),

@@ -7,6 +7,7 @@ semantics, folding constants in float64.  interchange/layered.py's Writer adds t
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,17 +23,15 @@ from .layered_tree import _ADDRESS, _FILTER, _MX_TYPE, COLORSPACES, LUMA
 # --------------------------------------------------------------------------------------------
 
 
+@dataclass(slots=True, eq=False)  # eq=False: compared and hashed by identity, as before
 class V:
     """A MaterialX value: ``const`` (a float or a tuple) or ``node`` (a Node, with ``output``
     for multi-output nodes), of MaterialX ``type``."""
 
-    __slots__ = ("type", "const", "node", "output")
-
-    def __init__(self, type_, const=None, node=None, output=None):
-        self.type = type_
-        self.const = const
-        self.node = node
-        self.output = output
+    type: str
+    const: object = None
+    node: Node = None
+    output: str = None
 
     @property
     def is_const(self):

@@ -1,29 +1,29 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What a haze layer node's group gives its BSDF slots, for tests, benchmarks and scripts (not
-shipped: the add-on itself only renders the group).  ``layer`` is the add-on's module that
-evaluates a layer node's group (``hazy_gloss.blender.model.layer`` of whichever copy of the package
-the caller loaded: the test harness loads it as ``bl_ext.test_repo.hazy_gloss``)."""
+shipped: the add-on itself only renders the group).  ``layer_values`` is the add-on's module
+that evaluates a layer node's group (``hazy_gloss.blender.model.layer_values`` of whichever copy of
+the package the caller loaded: the test harness loads it as ``bl_ext.test_repo.hazy_gloss``)."""
 
 
-def slot_values(layer, node, role):
+def slot_values(layer_values, node, role):
     """{input: value} the group gives its BSDF slot ``role`` (core.layer_graph: "A narrow",
     ..., "EEVEE folded") for the node's unlinked input values (inputs it passes on are left
     out)."""
-    lay = layer.graph_of(node)
-    slot = next(s for tree in (lay.cycles, lay.eevee) for s in layer.layer_graph.slots_of(tree)
-                if s.role == role)
-    return layer.evaluate(node, slot.writes)[0]
+    lay = layer_values.graph_of(node)
+    slot = next(s for tree in (lay.cycles, lay.eevee)
+                for s in layer_values.layer_graph.slots_of(tree) if s.role == role)
+    return layer_values.evaluate(node, slot.writes)[0]
 
 
-def rendered_slots(layer, node):
+def rendered_slots(layer_values, node):
     """How many BSDF slots of the layer node Cycles keeps: a Mix whose factor reads no linked
     input folds, and at 0 or 1 drops its other side.  Returns (count, exact): not exact where a
     factor varies per shading point (both sides counted)."""
-    graph = layer.layer_graph
-    lay = layer.graph_of(node)
-    _, linked_names = layer.inputs_of(node)
+    graph = layer_values.layer_graph
+    lay = layer_values.graph_of(node)
+    _, linked_names = layer_values.inputs_of(node)
     linked = {graph.input_name(n) for n in linked_names}
-    linked |= {graph.haze_name(p) for p, (n, *_r) in layer.HAZE_SOCKETS.items()
+    linked |= {graph.haze_name(p) for p, (n, *_r) in layer_values.HAZE_SOCKETS.items()
                if n in linked_names}
     exact = [True]
 
@@ -33,7 +33,7 @@ def rendered_slots(layer, node):
         f = None
         if not t.add and not {e.name for e in lay.graph.used({"f": t.factor})
                               if e.op == "input"} & linked:
-            f = layer.evaluate(node, {"f": t.factor})[0]["f"]
+            f = layer_values.evaluate(node, {"f": t.factor})[0]["f"]
         if f is None and not t.add:
             exact[0] = False
         return count(t.a) if f == 0.0 else count(t.b) if f == 1.0 else count(t.a) + count(t.b)

@@ -24,6 +24,7 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), E=mod("blender.actions.eevee_output"),
+                           layer_values=mod("blender.model.layer_values"),
                            ownership=mod("blender.nodes.ownership"))
 
 
@@ -138,10 +139,10 @@ def test_folded_roughness_keeps_the_peak(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
     node = env.layer.layer_node(mat)
-    folded = layer_probe.slot_values(env.layer, node, "EEVEE folded")
-    wide = layer_probe.slot_values(env.layer, node, "A wide")  # metal under the narrow coat
-    under_wide_coat = layer_probe.slot_values(env.layer, node, "B narrow")  # (m = 1: B is A under the wide coat)
-    vals, _ = env.layer.values(node)
+    folded = layer_probe.slot_values(env.layer_values, node, "EEVEE folded")
+    wide = layer_probe.slot_values(env.layer_values, node, "A wide")  # metal under the narrow coat
+    under_wide_coat = layer_probe.slot_values(env.layer_values, node, "B narrow")  # (m = 1: B is A under the wide coat)
+    vals, _ = env.layer_values.values(node)
 
     def peak_alpha(beta, r_n, r_w):
         a_n, a_w = r_n ** 2, r_w ** 2
@@ -252,13 +253,13 @@ def test_the_output_follows_the_layer_and_the_panel(env, hg):
     env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
     assert env.api.add_eevee_output(mat)["added"]
     node = env.layer.layer_node(mat)
-    r0 = layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"]
+    r0 = layer_probe.slot_values(env.layer_values, node, "EEVEE folded")["Roughness"]
     env.api.update_material(mat, haziness=0.8)
     assert env.E.has_eevee_output(mat)
-    r1 = layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"]
+    r1 = layer_probe.slot_values(env.layer_values, node, "EEVEE folded")["Roughness"]
     assert r1 > r0 * 1.01  # more haze: a wider folded lobe
     node.inputs["Roughness"].default_value = 0.5  # the user edits the node
-    assert layer_probe.slot_values(env.layer, node, "EEVEE folded")["Roughness"] > r1 * 1.2
+    assert layer_probe.slot_values(env.layer_values, node, "EEVEE folded")["Roughness"] > r1 * 1.2
     settings = mat.hazy_gloss_settings
     assert settings.eevee_output == "AUTO"
     settings.eevee_output = "FULL"

@@ -24,7 +24,8 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), make=mod("blender.actions.make_hazy"),
-                           material=mod("blender.model.material"), exr=mod("exr"), core=mod("core"),
+                           layer_values=mod("blender.model.layer_values"),
+                           layer_notes=mod("blender.model.layer_notes"), material=mod("blender.model.material"), exr=mod("exr"), core=mod("core"),
                            lobes=mod("core.lobes"), reports=mod("blender.ui.reports"), hg=hg)
 
 
@@ -520,7 +521,7 @@ def test_peak_is_invariant(env, name):
     if "film" in name and "dielectric" not in name:
         # a film's interference on a metal is not linear in F0: the peak moves, by what the
         # layer says (a dielectric's film is in the node math: its peak holds below)
-        said = env.layer.film_peak_change(env.layer.layer_node(mat))
+        said = env.layer_notes.film_peak_change(env.layer.layer_node(mat))
         ch = np.abs(after[4, 4] - before[4, 4]).argmax()
         moved = float(after[4, 4, ch] / before[4, 4, ch] - 1.0)
         record("layer_film_peak", {name: dict(measured=moved, said=said)})
@@ -564,7 +565,7 @@ def test_metallic_map_is_exact_per_texel(env):
         pure[m] = mat
     betas = {}
     for m, mat in pure.items():
-        vals, _ = env.layer.values(env.layer.layer_node(mat))
+        vals, _ = env.layer_values.values(env.layer.layer_node(mat))
         betas[m] = vals["beta metal" if m else "beta dielectric"]
     assert abs(betas[0.0] - betas[1.0]) > 0.05, betas  # each part has its own haze mapping
     m = np.repeat(np.repeat(METALLIC_MAP, 2, 0), 2, 1)[..., None]
@@ -787,7 +788,7 @@ def test_haze_panel_is_the_schemas(env):
         mat = MATERIALS[name]()
         make_hazy(env, mat)
         node = env.layer.layer_node(mat)
-        kind = env.layer.group_config(node).get("bsdf")
+        kind = env.layer_values.group_config(node).get("bsdf")
         want = [schema.HAZE_SOCKETS[k] for k in schema.layer_sockets(kind, False)]
         got = [(it.name, it.default_value, it.min_value, it.max_value, it.description)
                for it in node.node_tree.interface.items_tree

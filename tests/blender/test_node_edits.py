@@ -36,6 +36,7 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), material=mod("blender.model.material"),
+                           material_edits=mod("blender.model.material_edits"),
                            edit=mod("blender.actions.edit"), messages=mod("blender.actions.messages"),
                            panels=mod("blender.ui.panels"),
                            sync=mod("blender.actions.sync"), K=mod("constants"), hg=hg)
@@ -91,7 +92,7 @@ def assert_holds_its_parameters(env, mat):
             assert got[key] == w, key
         else:
             np.testing.assert_allclose(got[key], w, rtol=2e-6, atol=1e-6, err_msg=str(key))
-    assert env.material.node_edits(mat) == []
+    assert env.material_edits.node_edits(mat) == []
     bpy.data.materials.remove(fresh)
 
 
@@ -377,7 +378,7 @@ def test_handler_reads_edits_back(env, make, role, name, edited, key):
     node(env, mat, role).inputs[name].default_value = edited
     bpy.context.view_layer.update()  # the depsgraph handler (blender.actions.sync.on_depsgraph_update)
     assert env.api.read_parameters(mat)[key] == pytest.approx(edited, abs=1e-6)
-    assert env.material.node_edits(mat) == [] and env.panels.node_edit_notes(
+    assert env.material_edits.node_edits(mat) == [] and env.panels.node_edit_notes(
         mat, env.api.read_parameters(mat)) == []
     assert_holds_its_parameters(env, mat)
     # a material no object uses: sync() (api.sync_haze) does what the handler does

@@ -34,7 +34,8 @@ PARAMS = [pytest.param(name, dist, id=f"{name} [{dist}]")
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("exr"))
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"),
+                           layer_notes=mod("blender.model.layer_notes"), exr=mod("exr"))
 
 
 # --------------------------------------------------------------------------------------------
@@ -73,7 +74,7 @@ def test_real_material(env, name, dist):
             env.api.update_material(mat, reflectivity_cap=1.0)
             continue
         if cls == "metal with film" and any("thin film" in n for n in notes):
-            said = env.layer.film_peak_change(env.layer.layer_node(mat))
+            said = env.layer_notes.film_peak_change(env.layer.layer_node(mat))
             ch = int(np.argmax(np.abs(after - before)))
             moved = float(after[ch] / before[ch] - 1.0)
             assert abs(moved - said) <= 0.05 * abs(said) + 2e-5, (moved, said)

@@ -127,7 +127,7 @@ def test_fuzz_exr_readers(workdir):
     assert not failures, "\n".join(failures[:20])
     assert totals["read_exr"]["rejected"] > 0.8 * n
     assert cpu < 30, f"fuzz run took {cpu:.0f} s of CPU ({elapsed:.0f} s wall)"
-    # read_exr's peak is traced per case; the check (mmap) and passes_from_exr (read_exr plus
+    # read_exr's peak is traced per case; the check (reads) and passes_from_exr (read_exr plus
     # stacking) are bounded by the process's high-water mark over the whole run
     assert _max_rss() - rss0 < PEAK_LIMIT
 

@@ -4,6 +4,7 @@ check, the PNG CRC rule (critical chunks only), deep OpenEXR refused, the texel 
 data window.  Every file is built here from the format's specification (ITU T.81 for JPEG, the
 PNG spec, the OpenEXR file layout), not from the checker's code; the Blender-written files are
 in tests/blender/test_imagecheck.py."""
+import re
 import struct
 import time
 import zlib
@@ -214,3 +215,133 @@ def test_jpeg_with_millions_of_fill_bytes_is_refused_quickly(tmp_path):
                                                         r"than 1048576 markers"):
         imagecheck.check_image_file(path)
     assert time.perf_counter() - t0 < 10.0
+
+
+# -- the file is read, never memory-mapped (a mapped file cut short raises SIGBUS) ----------
+
+def _valid_files(tmp_path):
+    """{name: path} of a valid PNG, JPEG, scanline (two-part) and tiled OpenEXR."""
+    rng = np.random.default_rng(3)
+    exr, _ = F.encode_exr([{"channels": {"R": rng.random((40, 30), np.float32)}, "name": "a"},
+                           {"channels": {"G": rng.random((9, 7), np.float32)}, "name": "b",
+                            "compression": "RLE"}])
+    tiled = F.encode_tiled_exr({"Y": rng.random((20, 24), np.float32)}, levels="MIPMAP")
+    files = {"a.png": F.encode_png(rng.integers(0, 256, (50, 40, 3)), idat_parts=3),
+             "a.jpg": _jpeg(33, 17), "a.exr": exr, "t.exr": tiled}
+    return {name: _write(tmp_path / name, data) for name, data in files.items()}
+
+
+def test_the_checker_never_memory_maps_the_file(tmp_path, monkeypatch):
+    import mmap
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("check_image_file memory-mapped a file")
+
+    monkeypatch.setattr(mmap, "mmap", refuse)
+    found = {name: imagecheck.check_image_file(path)
+             for name, path in _valid_files(tmp_path).items()}
+    assert found == {"a.png": ("PNG", 40, 50), "a.jpg": ("JPEG", 33, 17),
+                     "a.exr": ("OPEN_EXR", 30, 40), "t.exr": ("OPEN_EXR", 24, 20)}
+
+
+#: Runs check_image_file(argv[1]) with the file cut to argv[2] bytes at the checker's first
+#: header field (struct.unpack_from): after it opened the file and took its length.
+_CUT_WHILE_CHECKED = """
+import os, struct, sys
+from hazy_gloss import imagecheck
+path, keep = sys.argv[1], int(sys.argv[2])
+real = struct.unpack_from
+def cut_then_unpack(*args):
+    if os.path.getsize(path) > keep:
+        os.truncate(path, keep)
+    return real(*args)
+struct.unpack_from = cut_then_unpack
+try:
+    imagecheck.check_image_file(path)
+except imagecheck.ImageFileError as exc:
+    print("ImageFileError:", exc)
+else:
+    print("passed")
+"""
+
+
+@pytest.mark.parametrize("name, pattern", [
+    ("cut.png", r"is a truncated PNG \(the file was cut off while it was read: bytes \d+\.\.\d+ "),
+    ("cut.jpg", r"is a truncated JPEG \(the file was cut off while it was read: bytes \d+\.\.\d+ "),
+    ("cut.exr", r"is a truncated OpenEXR file \(the file was cut off while it was read: bytes "),
+])
+def test_a_file_cut_short_while_it_is_checked_is_refused_not_a_crash(tmp_path, name, pattern):
+    """Another process truncates the file after the checker opened it.  A memory-mapped file
+    then raises SIGBUS on the next touch of a page past the new end, killing the process (the
+    old checker: the child dies with -7); the reads here say "truncated" in one line."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    rng = np.random.default_rng(5)
+    if name.endswith(".png"):  # ~1 MB of incompressible pixels in 4 IDATs
+        data = F.encode_png(rng.integers(0, 256, (600, 600, 3)), idat_parts=4)
+    elif name.endswith(".jpg"):  # 1 MB of entropy-coded data (no FF) before EOI
+        data = _jpeg(data=rng.integers(0, 255, 1 << 20, np.uint8).tobytes())
+    else:  # 1.5 MB, uncompressed: chunk headers all through the file
+        data, _ = F.encode_exr([{"channels": {c: rng.random((512, 256), np.float32)
+                                              for c in "BGR"}, "compression": "NONE"}])
+    path = _write(tmp_path / name, data)
+    keep = len(data) // 3 & ~0xFFFF  # on a page boundary: the next page is wholly gone
+    root = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-c", _CUT_WHILE_CHECKED, path, str(keep)],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path,
+                         env=dict(os.environ, PYTHONPATH=str(root), PYTHONDONTWRITEBYTECODE="1"))
+    assert run.returncode == 0, f"the check died with {run.returncode}: {run.stderr[-500:]}"
+    assert os.path.getsize(path) == keep  # the cut happened during the check
+    out = run.stdout.strip()
+    assert out.startswith(f"ImageFileError: {path} ") and "\n" not in out, out
+    assert re.search(pattern, out), out
+
+
+def test_file_bytes_reads_like_bytes_and_refuses_a_range_cut_off(tmp_path, monkeypatch):
+    """FileBytes (tiny windows and pieces, so every boundary is crossed) gives what ``bytes``
+    gives over a real file and over BytesIO; after the file is cut short, a range that is
+    gone raises FileShrankError instead of short data, a range still there reads."""
+    import io
+    import os
+    import random
+
+    from hazy_gloss import filebytes
+
+    monkeypatch.setattr(filebytes, "WINDOW", 7)
+    monkeypatch.setattr(filebytes, "JUMP", 3)
+    monkeypatch.setattr(filebytes, "PIECE", 5)
+    rnd = random.Random(1)
+    data = bytes(rnd.choice(b"ab\xff\xd9") for _ in range(300))
+    path = _write(tmp_path / "b.bin", data)
+    with open(path, "rb") as fh:
+        for fb in (filebytes.FileBytes(fh), filebytes.FileBytes(io.BytesIO(data))):
+            assert len(fb) == len(data)
+            for _ in range(400):
+                a, b = rnd.randrange(-5, 310), rnd.randrange(-5, 310)
+                sub = bytes(rnd.choice(b"ab\xff\xd9") for _ in range(rnd.randrange(1, 4)))
+                assert fb[a:b] == data[a:b]
+                assert fb.find(sub, a, b) == data.find(sub, a, b)
+                assert fb.find(sub, a) == data.find(sub, a)
+                if 0 <= a < len(data):
+                    assert fb[a] == data[a]
+                    if a + 2 <= len(data):
+                        assert fb.unpack_from(">H", a) == struct.unpack_from(">H", data, a)
+                    else:
+                        with pytest.raises(struct.error):
+                            fb.unpack_from(">H", a)
+                if 0 <= a <= b <= len(data):
+                    assert fb.crc32(a, b) == zlib.crc32(data[a:b])
+    with open(path, "rb") as fh:
+        fb = filebytes.FileBytes(fh)
+        assert fb[0:4] == data[:4]
+        os.truncate(path, 100)
+        assert fb[90:100] == data[90:100]
+        for read in (lambda: fb[95:105], lambda: fb[200], lambda: fb.unpack_from("<I", 98),
+                     lambda: fb.find(b"\xff\xd9\xd9\xd9", 50), lambda: fb.crc32(0, 300)):
+            with pytest.raises(filebytes.FileShrankError, match=r"the file was cut off while "
+                                                                r"it was read: bytes \d+\.\.\d+ "
+                                                                r"are gone, it had 300$"):
+                read()

@@ -6,7 +6,7 @@ import os
 
 import bpy
 
-from ..model import material
+from ..model import material_read
 
 
 def open_blend(path):
@@ -29,7 +29,7 @@ def hazy_parameters():
     """{material name: perceptual parameters} of the open file's hazy materials."""
     out = {}
     for m in bpy.data.materials:
-        p = material.read_parameters(m)
+        p = material_read.read_parameters(m)
         if p is not None:
             out[m.name] = p
     return out

@@ -5,12 +5,12 @@
 Above both kinds of hazy material: a haze layer (blender.model.layer) gets its haze values and then
 what is built from it follows (sync.refresh_derived: the EEVEE-only output, the export
 fallback); a material of the add-on's own (blender.model.material) adopts the user's node-editor edits
-it can read back and is rebuilt.
+it can read back (blender.model.material_edits) and is rebuilt.
 """
 from ...core.parameters import DEFAULTS, PARAMETERS, normalise, normalise_haze
-from ..model import layer, material, stamp
+from ..model import layer, material, material_edits, material_read, stamp
 from . import messages, sync
-from ..model.material import edit_problem
+from ..model.material_read import edit_problem
 from .messages import plain_message
 
 #: material session_uid -> the node-editor edits (as "node: input") the last update_material
@@ -22,7 +22,7 @@ _busy = set()  # as_pointer() of the materials edit_material is rebuilding
 def update_material(mat, **changes):
     """Change some perceptual parameters of a hazy material.  Returns (HazeMapping, group
     inputs whose links had to be dropped because the new configuration has no such input)."""
-    material.check_material(mat, "update_material")
+    material_read.check_material(mat, "update_material")
     REPLACED.pop(mat.session_uid, None)
     if mat.library is not None:
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
@@ -54,7 +54,7 @@ def update_material(mat, **changes):
     merged.update(values)
     replaced = []
     if not problems:  # node-editor edits: read back where they can be, else replaced (said)
-        read_back, replaced = material.adopt_edits(mat, normalise(dict(merged), explicit=()))
+        read_back, replaced = material_edits.adopt_edits(mat, normalise(dict(merged), explicit=()))
         merged.update(read_back)
     REPLACED[mat.session_uid] = [str(e) for e in replaced]
     merged.update(changes)

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from ... import constants as K
 from ..model import fallback, layer
-from ..model.material import edit_problem
+from ..model.material_read import edit_problem
 from ..nodes import ownership
 
 ROLE = K.EEVEE_ROLE

@@ -16,7 +16,7 @@ from ... import constants as K
 from ...convert import ConversionReport, ConversionResult, output_specs
 from ...interchange import layered_tree, materialx, usd
 from .. import compat
-from ..model import fallback, layer, layer_group, material, stamp, surface_build
+from ..model import fallback, layer, layer_group, material, material_read, stamp, surface_build
 from ..model.convert_wiring import wire_material
 from .messages import plain_message
 from ..nodes.builder import default_value_of
@@ -240,7 +240,7 @@ def tree_snapshot(mat):
 
 def source_of(mat):
     """(materialx.Source or None, reason) for one Blender material."""
-    p = material.read_parameters(mat)
+    p = material_read.read_parameters(mat)
     if p is not None and p.get("layered"):
         if mat.node_tree is None:
             return None, f"“{mat.name}” has no node tree"
@@ -285,7 +285,7 @@ def source_of(mat):
 
 def _materials(materials):
     if materials is None:
-        return [m for m in bpy.data.materials if material.is_hazy(m) or K.MAPS_STAMP in m]
+        return [m for m in bpy.data.materials if material_read.is_hazy(m) or K.MAPS_STAMP in m]
     if isinstance(materials, (bpy.types.Material, str)):
         materials = [materials]
     out = []

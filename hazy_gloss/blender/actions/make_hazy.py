@@ -18,14 +18,14 @@ from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
-from ..model import fallback, layer, material
+from ..model import fallback, layer, material, material_read
 from . import messages, sync
-from ..model.material import edit_problem, maps_problem
+from ..model.material_read import edit_problem, maps_problem
 from .messages import plain_message
 
 
 def _is_live(mat):
-    return material.is_hazy(mat) and bool(material.ours(mat.node_tree))
+    return material_read.is_hazy(mat) and bool(material.ours(mat.node_tree))
 
 
 # --------------------------------------------------------------------------------------------
@@ -189,7 +189,7 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
     given = dict(haze, haziness=haziness, haze_extent=haze_extent)
     if layer.is_layered(mat):
         return _update_layer(mat, given, node)
-    if material.is_hazy(mat):
+    if material_read.is_hazy(mat):
         return ("ERROR", f"“{mat.name}” is a hazy material of its own (New Hazy Material): "
                 f"change it with its panel or api.update_material", [])
     found, groups = surface_bsdfs(mat.node_tree)

@@ -4,9 +4,10 @@
 A haze layer (blender.model.layer) needs nothing here: its node group computes everything from the
 layer node's inputs, whatever changes them.  A ``depsgraph_update_post`` handler (persistent
 across file loads) sees which materials were updated; for a lean or in-shader one it reads the
-user's node-editor edits of the add-on's nodes back into the stamp (material.adopt_node_edits);
-a layer of the form before (blender.model.legacy_layer: copies of the core that had to follow it) is
-upgraded to the layer node on the first edit of its core after the file was opened.  Scripts
+user's node-editor edits of the add-on's nodes back into the stamp
+(blender.model.material_edits.adopt_node_edits); a layer of the form before
+(blender.model.legacy_layer: copies of the core that had to follow it) is upgraded to the layer
+node on the first edit of its core after the file was opened.  Scripts
 that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
 """
 import bpy
@@ -14,7 +15,7 @@ from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import fallback, layer, legacy_layer, material, stamp
+from ..model import fallback, layer, legacy_layer, material_edits, material_read, stamp
 from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
@@ -23,7 +24,7 @@ _busy = False
 
 def sync(mat, *, force=False):
     """For a lean / in-shader material: read the user's node-editor edits of the add-on's nodes
-    back into its parameters (material.adopt_node_edits); returns whether there were any.  For
+    back into its parameters (material_edits.adopt_node_edits); returns whether there were any.  For
     a legacy haze layer whose core was edited since it was first seen (or ``force``): upgrade it
     to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
     if mat is None or mat.library is not None:
@@ -31,9 +32,9 @@ def sync(mat, *, force=False):
     if _todays_layer(mat):  # its group computes everything: only a fallback to follow
         return _follow_fallback(mat, force)
     if not layer.is_layered(mat):
-        if not material.is_hazy(mat):
+        if not material_read.is_hazy(mat):
             return False
-        adopted, _ = material.adopt_node_edits(mat)
+        adopted, _ = material_edits.adopt_node_edits(mat)
         return bool(adopted)
     if not layer.is_legacy(mat):
         return _follow_fallback(mat, force)

@@ -33,7 +33,7 @@ from ... import constants as K
 from ...core import conventions, gulbrandsen_inverse
 from ...interchange import engines, materialx, openpbr_corrections
 from ...interchange.brdf import fresnel_conductor
-from . import layer, layer_group, legacy_layer, material, stamp
+from . import layer, layer_group, legacy_layer, material, material_read, stamp
 from ..nodes.builder import default_value_of, socket_value
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -243,7 +243,7 @@ def _check_fallback_material(mat):
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
     if K.RECOMPOSITE_STAMP in mat:
         raise ValueError(f"{mat.name!r} is in recomposite mode: leave it first")
-    p = material.read_parameters(mat)
+    p = material_read.read_parameters(mat)
     if p is None:
         if K.MAPS_STAMP in mat:
             raise ValueError(f"{mat.name!r} is driven by converted maps: the export fallback "

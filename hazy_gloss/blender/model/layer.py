@@ -19,6 +19,10 @@ which nodes are the layer and the core, where the core was, and the layer's sett
 smooth haze curve, Keep Body Colour, the EEVEE-only output).  Values live in the sockets.
 A layer of the form before (LAYER_VERSION 1, loose nodes: blender.model.legacy_layer) is upgraded on
 its first edit, or by :func:`upgrade`.
+
+Reading a layer back (:func:`read`, :func:`notes`, :func:`summary`) is here; what the layer node's
+group computes for its values is blender.model.layer_values, what the layer cannot do for them
+blender.model.layer_notes.
 """
 from __future__ import annotations
 
@@ -27,12 +31,11 @@ import re
 import numpy as np
 
 from ... import constants as K
-from ...core import body_colour, gulbrandsen_inverse, layer_graph, thin_film
-from ...core.graph import evaluate as evaluate_graph
+from ...core import gulbrandsen_inverse
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
-from . import layer_group, legacy_layer, stamp
+from . import layer_group, layer_notes, layer_values, legacy_layer, stamp
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
 
@@ -128,12 +131,7 @@ def is_baked(mat):
     if state.get("legacy"):
         return legacy_layer.is_baked(mat)
     node = layer_node(mat)
-    return node is not None and bool(group_config(node).get("baked"))
-
-
-def group_config(node):
-    """What the layer node's group is built for (its stamp): bsdf, settings, smooth, baked."""
-    return stamp.group(node.node_tree, K.GROUP_STAMP) or {} if node.node_tree is not None else {}
+    return node is not None and bool(layer_values.group_config(node).get("baked"))
 
 
 def _kept_node(mat, state_key, tag, accept=lambda node: True):
@@ -503,7 +501,7 @@ def haze_of(mat):
     h["smoothness"] = None
     if node is None:
         return h
-    cfg = group_config(node)
+    cfg = layer_values.group_config(node)
     h["keep_body_colour"] = bool(cfg.get("body", False))
     vals = {}
     for param in HAZE_SOCKETS:
@@ -538,7 +536,7 @@ def apply(mat, haze, *, core=None):
                              f"again")
         wrap(mat, core, haze, keep_body_colour=bool(haze.get("keep_body_colour")))
         return {}
-    cfg = group_config(node)
+    cfg = layer_values.group_config(node)
     smooth = haze.get("smoothness") is not None
     kind = cfg.get("bsdf", "PRINCIPLED")
     body = bool(haze.get("keep_body_colour", cfg.get("body"))) and kind == "PRINCIPLED"
@@ -598,71 +596,6 @@ def upgrade(mat):
 # --------------------------------------------------------------------------------------------
 
 
-def inputs_of(node):
-    """{graph input name: value} of the layer node's unlinked inputs and the names linked."""
-    vals, linked = {}, []
-    for s in node.inputs:
-        if not s.name or not hasattr(s, "default_value"):
-            continue
-        if s.is_linked:
-            linked.append(s.name)
-        v = s.default_value
-        v = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
-        vals[layer_graph.input_name(s.name)] = v
-    for param, (sname, *_rest) in HAZE_SOCKETS.items():
-        key = layer_graph.input_name(sname)
-        if key in vals:
-            vals[layer_graph.haze_name(param)] = vals.pop(key)
-    for bkey, (sname, _) in layer_graph.BAKED.items():
-        key = layer_graph.input_name(sname)
-        if key in vals:
-            vals[layer_graph.baked_name(bkey)] = vals.pop(key)
-    return vals, linked
-
-
-_LAYERS = {}
-
-
-def graph_of(node):
-    """The core.layer_graph.Layer of a layer node's group (cached per configuration)."""
-    st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
-    cfg = layer_group.config_for(st.get("bsdf", "PRINCIPLED"), st.get("settings", {}),
-                                 smooth=bool(st.get("smooth")), baked=bool(st.get("baked")),
-                                 body=bool(st.get("body")))
-    lay = _LAYERS.get(cfg.key())
-    if lay is None:
-        lay = _LAYERS[cfg.key()] = layer_graph.build(cfg)
-    return lay
-
-
-_NEEDED = {}
-
-
-def evaluate(node, outputs, lazy=False):
-    """({name: value} of the graph ``outputs`` of the layer node's group for the node's
-    unlinked input values, the names of its linked inputs)."""
-    lay = graph_of(node)
-    vals, linked = inputs_of(node)
-    key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
-    needed = _NEEDED.get(key)
-    if needed is None:
-        needed = _NEEDED[key] = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
-    inputs = {}
-    for name in needed:
-        v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
-        vector = lay.graph.inputs[name].vector
-        inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
-    out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
-    return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
-            for k, v in out.items()}, linked
-
-
-def values(node):
-    """What the layer's group computes from the node's unlinked input values (the panel's
-    Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
-    return evaluate(node, graph_of(node).shown)
-
-
 def read(mat):
     """The perceptual view of a layered material: the haze parameters and the core's own, as
     the layer node holds them (linked inputs report their unlinked value and are listed in
@@ -685,14 +618,14 @@ def read(mat):
         v = s.default_value
         return tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
 
-    settings = group_config(node).get("settings", {})
+    settings = layer_values.group_config(node).get("settings", {})
     aniso, rot = ("Anisotropic", "Anisotropic Rotation") if kind == "PRINCIPLED" else ("Anisotropy", "Rotation")
     p = dict(layered=True, core=node.name, core_type=kind,
              distribution=settings.get("distribution", "GGX"), roughness=val("Roughness"),
              anisotropy=val(aniso), rotation=val(rot), edge_tint=(0.0, 0.0, 0.0),
              base_color=(0.0, 0.0, 0.0), transmission=0.0, tangent="UV_MAP",
              shader_mapping=False, **h)
-    _, linked = inputs_of(node)
+    _, linked = layer_values.inputs_of(node)
     p["textured"] = sorted(n for n in linked if n not in {v[0] for v in HAZE_SOCKETS.values()})
     p["animated"] = animated_inputs(node)
     p["notes"] = notes(mat)
@@ -787,171 +720,20 @@ def notes(mat):
     if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
         return out  # no haze set here: nothing it could not do
     try:
-        vals, linked = evaluate(node, _note_outputs(node), lazy=True)
+        vals, linked = layer_values.evaluate(node, layer_notes.outputs_for_notes(node), lazy=True)
     except (ValueError, TypeError, KeyError):
         return out
     if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
-        out += _room_notes(node, vals, linked, h)
-    if group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
-        note = _body_note(node, vals, linked)
+        out += layer_notes.room_notes(node, vals, linked, h)
+    if layer_values.group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
+        note = layer_notes.body_note(node, vals, linked)
         if note:
             out.append(note)
-    film = film_peak_change(node, vals, linked)
+    film = layer_notes.film_peak_change(node, vals, linked)
     if film is not None and abs(film) > 1e-5:
         out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
                    f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
     return out
-
-
-def _note_outputs(node):
-    """The shown values the notes read for this node (evaluating all of them costs ~10 ms: the
-    film and glass math is skipped where the node has neither)."""
-    shown = graph_of(node).shown
-    keys = {"beta dielectric", "beta metal", "beta", "reflectivity metal", "reflectivity"}
-    inp = node.inputs
-    tr, film = inp.get("Transmission Weight"), inp.get("Thin Film Thickness")
-    if (tr is not None and (tr.is_linked or tr.default_value > 0.0)) or \
-            (film is not None and (film.is_linked or film.default_value > 0.1)):
-        keys.add("tint narrow")
-    if group_config(node).get("body"):
-        keys |= {"roughness wide", "IOR dielectric"}
-    return {k: shown[k] for k in keys if k in shown}
-
-
-#: The Reflectivity Cap a note proposes where a colour at 1 leaves no room for haze.
-SUGGESTED_CAP = 0.98
-
-
-def _f0(ior):
-    return ((ior - 1.0) / (ior + 1.0)) ** 2
-
-
-def _parts(node, vals, linked):
-    """(β, the core reflectivity the user set (largest channel), what it is) of each part the
-    node renders, from its unlinked values (a linked reflectivity: not judged)."""
-    inp = node.inputs
-    cfg = group_config(node)
-    kind = cfg.get("bsdf")
-
-    def colour(name):
-        return None if name in linked else float(max(inp[name].default_value[:3]))
-    out = []
-    if kind == "PRINCIPLED":
-        m = None if "Metallic" in linked else float(inp["Metallic"].default_value)
-        if m is None or m > 0.0:
-            out.append((vals.get("beta metal", 0.0), colour("Base Color"), "Base Color"))
-        if (m is None or m < 1.0) and not {"IOR", "Specular IOR Level", "Specular Tint"} & set(linked):
-            tint = float(max(inp["Specular Tint"].default_value[:3]))
-            level = 2.0 * max(float(inp["Specular IOR Level"].default_value), 0.0)
-            if float(inp["Transmission Weight"].default_value) > 1e-5:
-                level = 1.0
-            out.append((vals.get("beta dielectric", 0.0),
-                        _f0(float(inp["IOR"].default_value)) * level * tint, "the specular F0"))
-    elif kind == "METALLIC" and cfg.get("settings", {}).get("fresnel_type") == "PHYSICAL_CONDUCTOR":
-        rc = None
-        if not {"IOR", "Extinction"} & set(linked):
-            n = np.asarray(inp["IOR"].default_value[:3], float)
-            k = np.asarray(inp["Extinction"].default_value[:3], float)
-            rc = float((((n - 1) ** 2 + k * k) / ((n + 1) ** 2 + k * k)).max())
-        out.append((vals.get("beta", 0.0), rc, "the F0 of its IOR and Extinction"))
-    elif kind == "METALLIC":
-        out.append((vals.get("beta", 0.0), colour("Base Color"), "Base Color"))
-    else:
-        out.append((vals.get("beta", 0.0), colour("Color"), "Color"))
-    return out
-
-
-def _room_notes(node, vals, linked, haze):
-    """Haze that cannot show or the peak it cannot keep, with the setting that fixes it."""
-    out = []
-    cap = float(haze.get("reflectivity_cap", 1.0))
-    for beta, rc, what in _parts(node, vals, linked):
-        if beta > 0.0 or rc is None:
-            continue
-        if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:
-            loss = 1.0 - SUGGESTED_CAP / min(rc, 1.0)
-            out.append(f"no haze shows: {what} reaches {rc:.3g}, which leaves no room for a halo; "
-                       f"set Reflectivity Cap to {SUGGESTED_CAP} to allow haze (the peak then drops "
-                       f"by {100 * loss:.1f}%)")
-        elif rc <= 1e-6:
-            out.append(f"no haze shows: {what} is 0, so there is no reflection to put a halo "
-                       f"around")
-        elif rc >= min(cap, 1.0) - 1e-6:
-            out.append(f"no haze shows: {what} ({rc:.3g}) leaves no room for a halo at this "
-                       f"Reflectivity Cap ({cap:g}): lower the cap")
-    tint = vals.get("tint narrow")
-    if tint is not None and "Specular Tint" not in linked and "IOR" not in linked and \
-            vals.get("beta dielectric", 0.0) > 0.0:
-        f0 = _f0(float(node.inputs["IOR"].default_value)) * max(tint)
-        if f0 > 1.0:
-            out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
-                       f"through the Specular Tint; lower Haziness")
-    return out
-
-
-def film_peak_change(node, vals=None, linked=None):
-    """How much a thin film moves the layer's peak on a metal part (hazy / haze-free - 1, the
-    channel that moves most), for the node's unlinked values, or None without a film on a hazy
-    metal: the layer raises the metal's F0 (Base Color) as without a film (Eq. 5), and the
-    film's interference on a conductor is not linear in F0 (core.thin_film: Cycles'
-    normal-incidence reflectance).  A dielectric's film is in the layer's node math (exact)."""
-    if vals is None:
-        vals, linked = values(node)
-    inp = node.inputs
-    d = inp.get("Thin Film Thickness")
-    if d is None or d.is_linked or not thin_film.film_active(d.default_value):
-        return None
-    film = (float(d.default_value), float(inp["Thin Film IOR"].default_value))
-    cfg = group_config(node)
-    changes = []
-    if cfg.get("bsdf") == "PRINCIPLED":  # (the dielectric part's film is node math: exact)
-        tint = np.asarray(inp["Specular Tint"].default_value, float)[:3]
-        m = float(inp["Metallic"].default_value)
-        if m > 0.0 and vals.get("beta metal", 0.0) > 0.0:
-            base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
-            raised = np.clip(np.asarray(vals["reflectivity metal"], float), 1e-9, 1.0)
-            a = thin_film.metal_reflectance(base, tint, *film)
-            b = thin_film.metal_reflectance(raised, tint, *film)
-            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
-    elif cfg.get("bsdf") == "METALLIC" and vals.get("beta", 0.0) > 0.0 and \
-            cfg.get("settings", {}).get("fresnel_type") == "F82":
-        tint = np.asarray(inp["Edge Tint"].default_value, float)[:3]
-        base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
-        raised = np.clip(np.asarray(vals["reflectivity"], float), 1e-9, 1.0)
-        a = thin_film.metal_reflectance(base, tint, *film)
-        b = thin_film.metal_reflectance(raised, tint, *film)
-        changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
-    if not changes:
-        return None
-    worst = np.concatenate([np.ravel(c) for c in changes])
-    return float(worst[np.argmax(np.abs(worst))])
-
-
-def _body_note(node, vals, linked):
-    """What Keep Body Colour cannot keep for the node's values (a base that would need a
-    colour above 1): core.body_colour's measure of it, for the panel (the shader computes the
-    compensation itself)."""
-    if {"Base Color", "Roughness", "IOR", "Specular Tint", "Specular IOR Level"} & set(linked):
-        return None
-    inp = node.inputs
-    r = float(inp["Roughness"].default_value)
-    rw = float(vals["roughness wide"])
-    try:
-        bc = body_colour.compensation(
-            r * r, float(inp["IOR"].default_value), float(vals["IOR dielectric"]),
-            float(vals["beta dielectric"]), rw * rw,
-            base_color=tuple(inp["Base Color"].default_value)[:3],
-            tint=tuple(inp["Specular Tint"].default_value)[:3],
-            level=float(inp["Specular IOR Level"].default_value),
-            distribution=group_config(node).get("settings", {}).get("distribution", "GGX"))
-    except (ValueError, FloatingPointError):
-        return None
-    warning = bc.warning()
-    if warning is None:
-        return None
-    most = 1.0 / max(float(np.max(bc.c_face_on)), 1.0)
-    return (f"{warning}: lower Haziness, or a Base Color of at most {most:.2f} keeps the body "
-            f"colour")
 
 
 def summary(mat):
@@ -962,6 +744,6 @@ def summary(mat):
         state = layer_state(mat) or {}
         raise ValueError(f"The haze layer of “{mat.name}” is damaged: "
                          f"{(state.get('problems') or [('its layer node is gone', None)])[0][0]}")
-    vals, linked = values(node)
+    vals, linked = layer_values.values(node)
     return dict(node=node, values=vals, textured=linked, animated=animated_inputs(node),
                 notes=notes(mat), group=node.node_tree.name)

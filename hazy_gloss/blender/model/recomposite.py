@@ -23,7 +23,7 @@ from ...recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDO
 from ...exr import read_exr
 from ...imagecheck import FORMAT_NAMES, check_image_file
 from .. import compat
-from . import fallback, material
+from . import fallback, material, material_read
 from . import stamp as _stamps
 from ..nodes.builder import TreeBuilder
 from ..nodes.emit import combine_compositor, emit
@@ -179,7 +179,7 @@ def _build_schlick(tree, p, v, tb):
 def convert_material(mat):
     """Switch one hazy material to recomposite mode (idempotent).  Raises Unsupported."""
     try:
-        p = material.read_parameters(mat)
+        p = material_read.read_parameters(mat)
     except ValueError as exc:  # a damaged stamp: skipped, with the reason
         raise Unsupported(str(exc)) from None
     if p is None:
@@ -341,14 +341,14 @@ def _scan(scene):
 
     if depsgraph is not None:
         for inst in depsgraph.object_instances:
-            hazy = [m for m in materials(inst.object) if material.is_hazy(m)]
+            hazy = [m for m in materials(inst.object) if material_read.is_hazy(m)]
             if hazy:
                 mats.update(hazy)
                 objects.add(inst.object.original.name)
                 if inst.is_instance and inst.parent is not None:
                     objects.add(inst.parent.original.name)
     for ob in scene.objects:  # unevaluated fallback (and objects hidden from the depsgraph)
-        hazy = [m for m in materials(ob) if material.is_hazy(m)]
+        hazy = [m for m in materials(ob) if material_read.is_hazy(m)]
         if hazy:
             mats.update(hazy)
             objects.add(ob.name)

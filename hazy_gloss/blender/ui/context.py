@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Which material the UI acts on (shared by operators, panels and properties, so none of them
-imports another); why a material cannot be edited is material.edit_problem."""
+imports another); why a material cannot be edited is material_read.edit_problem."""
 import bpy
 
 

@@ -9,7 +9,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ... import constants as K
 from ...interchange import usd
-from ..model import fallback, material
+from ..model import fallback, material_read
 from ..actions import interchange, make_hazy
 from .context import target_material
 from ..actions.messages import plain_message
@@ -174,7 +174,7 @@ class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
 
     def execute(self, context):
         if self.all_materials:
-            mats = [m for m in bpy.data.materials if material.is_hazy(m) and m.library is None
+            mats = [m for m in bpy.data.materials if material_read.is_hazy(m) and m.library is None
                     and K.RECOMPOSITE_STAMP not in m]
         else:
             mats = [target_material(context, self.material)]

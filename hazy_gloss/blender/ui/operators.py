@@ -25,7 +25,7 @@ from ... import constants as K
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS
 from ...utils import looks, presets
 from ..actions import edit
-from ..model import layer, material, stamp
+from ..model import layer, material, material_read, stamp
 from . import plots, preferences, properties
 from .context import PRESET_SUBDIR, target_material
 from ..actions.looks import create_look
@@ -239,7 +239,7 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
 
     def execute(self, context):
         mat = target_material(context, self.material)
-        if mat is None or not material.is_hazy(mat):
+        if mat is None or not material_read.is_hazy(mat):
             report(self, "ERROR", "The material is not hazy: use Make Hazy or New Hazy "
                    "Material first")
             return {"CANCELLED"}
@@ -259,7 +259,7 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
         else:
             values, problems = stamp.read_material(mat)
             damaged = PARAMETERS if "*" in problems else problems
-            defaults = material.tree_defaults(mat)
+            defaults = material_read.tree_defaults(mat)
             for k in damaged:
                 p.setdefault(k, defaults[k])
         _, msg = edit.edit_material(mat, **p)
@@ -296,7 +296,7 @@ class HAZY_GLOSS_OT_preset_add(AddPresetBase, bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         mat = target_material(context)
-        return mat is not None and material.is_hazy(mat)
+        return mat is not None and material_read.is_hazy(mat)
 
 
 class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
@@ -312,7 +312,7 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
 
     def execute(self, context):
         mat = target_material(context, self.material)
-        if mat is None or not material.is_hazy(mat):
+        if mat is None or not material_read.is_hazy(mat):
             report(self, "ERROR", "The material is not hazy")
             return {"CANCELLED"}
         if layer.is_layered(mat):

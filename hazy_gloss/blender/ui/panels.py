@@ -23,10 +23,10 @@ from ... import constants as K
 from ...core.parameters import is_anisotropic
 from ...schema import HAZE_SOCKETS, SCHEMA_BY_NAME
 from ..actions import eevee_output, messages
-from ..model import layer, material, stamp
+from ..model import layer, material, material_edits, material_read, stamp
 from . import plots, preferences, properties
 from .context import target_material
-from ..model.material import edit_problem, maps_problem
+from ..model.material_read import edit_problem, maps_problem
 from ..model.layer_group import haze_params
 from ..actions.messages import plain_message
 from .menus import draw_recomposite_operators
@@ -100,13 +100,13 @@ def node_edit_notes(mat, p):
     the parameters yet (the depsgraph handler reads them back right after the edit; a material
     no object uses is read back on its next change): kept, or replaced by the next change."""
     try:
-        edits = material.node_edits(mat, p)
+        edits = material_edits.node_edits(mat, p)
         if not edits:
             return []
         key = (mat.session_uid, repr(p), repr(edits))
         replaced = _REPLACED.get(key)
         if replaced is None:
-            replaced = _REPLACED[key] = material.adopt_edits(mat, p, edits)[1]
+            replaced = _REPLACED[key] = material_edits.adopt_edits(mat, p, edits)[1]
             if len(_REPLACED) > 64:
                 _REPLACED.pop(next(iter(_REPLACED)))
     except (ValueError, TypeError):
@@ -209,7 +209,7 @@ def draw_material(layout, context, mat, idname):
         layout.operator("hazy_gloss.new_material", icon="ADD")
         return
     problem = edit_problem(mat)
-    if not material.is_hazy(mat):
+    if not material_read.is_hazy(mat):
         col = layout.column()
         if mat.library is not None:
             col.label(text="Linked from a library: read-only", icon="LIBRARY_DATA_DIRECT")
@@ -228,7 +228,7 @@ def draw_material(layout, context, mat, idname):
     if layer.is_layered(mat):
         draw_layer(layout, context, mat, idname, hg, problem)
         return
-    p, damaged = material.read_parameters_lenient(mat)
+    p, damaged = material_read.read_parameters_lenient(mat)
 
     col = layout.column()
     if problem is not None:

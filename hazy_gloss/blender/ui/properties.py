@@ -36,7 +36,7 @@ from ... import constants as K
 from ...core.parameters import HAZE_DEFAULTS, normalise
 from ...schema import LAYER, MATERIAL, SCHEMA, SCHEMA_BY_NAME, preset_properties, property_specs
 from ..actions import edit, eevee_output, messages
-from ..model import material
+from ..model import material, material_read
 from ..actions.messages import plain_message
 
 PROPERTY_NAME = "hazy_gloss_settings"
@@ -66,17 +66,17 @@ def has_hazy_nodes(mat):
 def parameters(mat):
     """The stamped parameters; the defaults for a non-hazy material and for whatever part of a
     damaged stamp does not read (stamp_problem says what)."""
-    if mat is None or not material.is_hazy(mat):
+    if mat is None or not material_read.is_hazy(mat):
         return normalise({})
-    p, _ = material.read_parameters_lenient(mat)
+    p, _ = material_read.read_parameters_lenient(mat)
     return p if p is not None else normalise({})
 
 
 def stamp_problem(mat):
     """Why the stamp cannot be read (one line naming the key and the way out), or None."""
-    if mat is None or not material.is_hazy(mat):
+    if mat is None or not material_read.is_hazy(mat):
         return None
-    _, problem = material.read_parameters_lenient(mat)
+    _, problem = material_read.read_parameters_lenient(mat)
     return problem
 
 
@@ -220,7 +220,7 @@ def _set_linked(key):
         self[f"{key}_linked_"] = bool(value)
         if value:  # linking makes the halo isotropic: y follows x
             x, y = parameters(self.id_data)[key]
-            if x != y and material.is_hazy(self.id_data):
+            if x != y and material_read.is_hazy(self.id_data):
                 _set(self, **{key: (x, x)})
     return set_
 

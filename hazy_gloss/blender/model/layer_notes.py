@@ -1,0 +1,163 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What a haze layer cannot do for its node's values, in plain words, with the setting that fixes
+it: haze that cannot show (no room above the core's reflectivity), a peak the Specular Tint cannot
+hold, what Keep Body Colour cannot keep, how far a thin film moves a metal's peak.
+blender.model.layer.notes gathers these (with what only the material can tell: a bypassed layer
+node, maps converted for other inputs) for the panel, the operator and the API."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...core import body_colour, thin_film
+from . import layer_values
+
+
+def outputs_for_notes(node):
+    """The shown values the notes read for this node (evaluating all of them costs ~10 ms: the
+    film and glass math is skipped where the node has neither)."""
+    shown = layer_values.graph_of(node).shown
+    keys = {"beta dielectric", "beta metal", "beta", "reflectivity metal", "reflectivity"}
+    inp = node.inputs
+    tr, film = inp.get("Transmission Weight"), inp.get("Thin Film Thickness")
+    if (tr is not None and (tr.is_linked or tr.default_value > 0.0)) or \
+            (film is not None and (film.is_linked or film.default_value > 0.1)):
+        keys.add("tint narrow")
+    if layer_values.group_config(node).get("body"):
+        keys |= {"roughness wide", "IOR dielectric"}
+    return {k: shown[k] for k in keys if k in shown}
+
+
+#: The Reflectivity Cap a note proposes where a colour at 1 leaves no room for haze.
+SUGGESTED_CAP = 0.98
+
+
+def _f0(ior):
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+def _parts(node, vals, linked):
+    """(β, the core reflectivity the user set (largest channel), what it is) of each part the
+    node renders, from its unlinked values (a linked reflectivity: not judged)."""
+    inp = node.inputs
+    cfg = layer_values.group_config(node)
+    kind = cfg.get("bsdf")
+
+    def colour(name):
+        return None if name in linked else float(max(inp[name].default_value[:3]))
+    out = []
+    if kind == "PRINCIPLED":
+        m = None if "Metallic" in linked else float(inp["Metallic"].default_value)
+        if m is None or m > 0.0:
+            out.append((vals.get("beta metal", 0.0), colour("Base Color"), "Base Color"))
+        if (m is None or m < 1.0) and not {"IOR", "Specular IOR Level", "Specular Tint"} & set(linked):
+            tint = float(max(inp["Specular Tint"].default_value[:3]))
+            level = 2.0 * max(float(inp["Specular IOR Level"].default_value), 0.0)
+            if float(inp["Transmission Weight"].default_value) > 1e-5:
+                level = 1.0
+            out.append((vals.get("beta dielectric", 0.0),
+                        _f0(float(inp["IOR"].default_value)) * level * tint, "the specular F0"))
+    elif kind == "METALLIC" and cfg.get("settings", {}).get("fresnel_type") == "PHYSICAL_CONDUCTOR":
+        rc = None
+        if not {"IOR", "Extinction"} & set(linked):
+            n = np.asarray(inp["IOR"].default_value[:3], float)
+            k = np.asarray(inp["Extinction"].default_value[:3], float)
+            rc = float((((n - 1) ** 2 + k * k) / ((n + 1) ** 2 + k * k)).max())
+        out.append((vals.get("beta", 0.0), rc, "the F0 of its IOR and Extinction"))
+    elif kind == "METALLIC":
+        out.append((vals.get("beta", 0.0), colour("Base Color"), "Base Color"))
+    else:
+        out.append((vals.get("beta", 0.0), colour("Color"), "Color"))
+    return out
+
+
+def room_notes(node, vals, linked, haze):
+    """Haze that cannot show or the peak it cannot keep, with the setting that fixes it."""
+    out = []
+    cap = float(haze.get("reflectivity_cap", 1.0))
+    for beta, rc, what in _parts(node, vals, linked):
+        if beta > 0.0 or rc is None:
+            continue
+        if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:
+            loss = 1.0 - SUGGESTED_CAP / min(rc, 1.0)
+            out.append(f"no haze shows: {what} reaches {rc:.3g}, which leaves no room for a halo; "
+                       f"set Reflectivity Cap to {SUGGESTED_CAP} to allow haze (the peak then drops "
+                       f"by {100 * loss:.1f}%)")
+        elif rc <= 1e-6:
+            out.append(f"no haze shows: {what} is 0, so there is no reflection to put a halo "
+                       f"around")
+        elif rc >= min(cap, 1.0) - 1e-6:
+            out.append(f"no haze shows: {what} ({rc:.3g}) leaves no room for a halo at this "
+                       f"Reflectivity Cap ({cap:g}): lower the cap")
+    tint = vals.get("tint narrow")
+    if tint is not None and "Specular Tint" not in linked and "IOR" not in linked and \
+            vals.get("beta dielectric", 0.0) > 0.0:
+        f0 = _f0(float(node.inputs["IOR"].default_value)) * max(tint)
+        if f0 > 1.0:
+            out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
+                       f"through the Specular Tint; lower Haziness")
+    return out
+
+
+def film_peak_change(node, vals=None, linked=None):
+    """How much a thin film moves the layer's peak on a metal part (hazy / haze-free - 1, the
+    channel that moves most), for the node's unlinked values, or None without a film on a hazy
+    metal: the layer raises the metal's F0 (Base Color) as without a film (Eq. 5), and the
+    film's interference on a conductor is not linear in F0 (core.thin_film: Cycles'
+    normal-incidence reflectance).  A dielectric's film is in the layer's node math (exact)."""
+    if vals is None:
+        vals, linked = layer_values.values(node)
+    inp = node.inputs
+    d = inp.get("Thin Film Thickness")
+    if d is None or d.is_linked or not thin_film.film_active(d.default_value):
+        return None
+    film = (float(d.default_value), float(inp["Thin Film IOR"].default_value))
+    cfg = layer_values.group_config(node)
+    changes = []
+    if cfg.get("bsdf") == "PRINCIPLED":  # (the dielectric part's film is node math: exact)
+        tint = np.asarray(inp["Specular Tint"].default_value, float)[:3]
+        m = float(inp["Metallic"].default_value)
+        if m > 0.0 and vals.get("beta metal", 0.0) > 0.0:
+            base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+            raised = np.clip(np.asarray(vals["reflectivity metal"], float), 1e-9, 1.0)
+            a = thin_film.metal_reflectance(base, tint, *film)
+            b = thin_film.metal_reflectance(raised, tint, *film)
+            changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    elif cfg.get("bsdf") == "METALLIC" and vals.get("beta", 0.0) > 0.0 and \
+            cfg.get("settings", {}).get("fresnel_type") == "F82":
+        tint = np.asarray(inp["Edge Tint"].default_value, float)[:3]
+        base = np.clip(np.asarray(inp["Base Color"].default_value, float)[:3], 1e-9, 1.0)
+        raised = np.clip(np.asarray(vals["reflectivity"], float), 1e-9, 1.0)
+        a = thin_film.metal_reflectance(base, tint, *film)
+        b = thin_film.metal_reflectance(raised, tint, *film)
+        changes.append(np.asarray(b) / np.maximum(a, 1e-9) * base / raised - 1.0)
+    if not changes:
+        return None
+    worst = np.concatenate([np.ravel(c) for c in changes])
+    return float(worst[np.argmax(np.abs(worst))])
+
+
+def body_note(node, vals, linked):
+    """What Keep Body Colour cannot keep for the node's values (a base that would need a
+    colour above 1): core.body_colour's measure of it, for the panel (the shader computes the
+    compensation itself)."""
+    if {"Base Color", "Roughness", "IOR", "Specular Tint", "Specular IOR Level"} & set(linked):
+        return None
+    inp = node.inputs
+    r = float(inp["Roughness"].default_value)
+    rw = float(vals["roughness wide"])
+    try:
+        bc = body_colour.compensation(
+            r * r, float(inp["IOR"].default_value), float(vals["IOR dielectric"]),
+            float(vals["beta dielectric"]), rw * rw,
+            base_color=tuple(inp["Base Color"].default_value)[:3],
+            tint=tuple(inp["Specular Tint"].default_value)[:3],
+            level=float(inp["Specular IOR Level"].default_value),
+            distribution=layer_values.group_config(node).get("settings", {}).get("distribution", "GGX"))
+    except (ValueError, FloatingPointError):
+        return None
+    warning = bc.warning()
+    if warning is None:
+        return None
+    most = 1.0 / max(float(np.max(bc.c_face_on)), 1.0)
+    return (f"{warning}: lower Haziness, or a Base Color of at most {most:.2f} keeps the body "
+            f"colour")

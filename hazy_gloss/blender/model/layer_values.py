@@ -1,0 +1,85 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What a haze layer node's group computes (blender.model.layer: the layer node): what the group
+is built for (its stamp), its graph (core.layer_graph, cached per configuration), and that graph
+evaluated in numpy with Blender's node semantics for the node's unlinked input values: the
+panel's Physical Values, the numbers the notes (blender.model.layer_notes) judge.  Linked inputs
+are named, not followed: their values vary per shading point."""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import constants as K
+from ...core import layer_graph
+from ...core.graph import evaluate as evaluate_graph
+from ...schema import HAZE_SOCKETS
+from . import layer_group, stamp
+
+
+def group_config(node):
+    """What the layer node's group is built for (its stamp): bsdf, settings, smooth, baked."""
+    return stamp.group(node.node_tree, K.GROUP_STAMP) or {} if node.node_tree is not None else {}
+
+
+def inputs_of(node):
+    """{graph input name: value} of the layer node's unlinked inputs and the names linked."""
+    vals, linked = {}, []
+    for s in node.inputs:
+        if not s.name or not hasattr(s, "default_value"):
+            continue
+        if s.is_linked:
+            linked.append(s.name)
+        v = s.default_value
+        v = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
+        vals[layer_graph.input_name(s.name)] = v
+    for param, (sname, *_rest) in HAZE_SOCKETS.items():
+        key = layer_graph.input_name(sname)
+        if key in vals:
+            vals[layer_graph.haze_name(param)] = vals.pop(key)
+    for bkey, (sname, _) in layer_graph.BAKED.items():
+        key = layer_graph.input_name(sname)
+        if key in vals:
+            vals[layer_graph.baked_name(bkey)] = vals.pop(key)
+    return vals, linked
+
+
+_LAYERS = {}
+
+
+def graph_of(node):
+    """The core.layer_graph.Layer of a layer node's group (cached per configuration)."""
+    st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
+    cfg = layer_group.config_for(st.get("bsdf", "PRINCIPLED"), st.get("settings", {}),
+                                 smooth=bool(st.get("smooth")), baked=bool(st.get("baked")),
+                                 body=bool(st.get("body")))
+    lay = _LAYERS.get(cfg.key())
+    if lay is None:
+        lay = _LAYERS[cfg.key()] = layer_graph.build(cfg)
+    return lay
+
+
+_NEEDED = {}
+
+
+def evaluate(node, outputs, lazy=False):
+    """({name: value} of the graph ``outputs`` of the layer node's group for the node's
+    unlinked input values, the names of its linked inputs)."""
+    lay = graph_of(node)
+    vals, linked = inputs_of(node)
+    key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
+    needed = _NEEDED.get(key)
+    if needed is None:
+        needed = _NEEDED[key] = {e.name for e in lay.graph.used(outputs) if e.op == "input"}
+    inputs = {}
+    for name in needed:
+        v = vals.get(name, 0.0)  # (Keep Body Colour's view cosine: face-on, Facing 0)
+        vector = lay.graph.inputs[name].vector
+        inputs[name] = np.broadcast_to(np.asarray(v, np.float32), (3,)) if vector else np.float32(v)
+    out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
+    return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
+            for k, v in out.items()}, linked
+
+
+def values(node):
+    """What the layer's group computes from the node's unlinked input values (the panel's
+    Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
+    return evaluate(node, graph_of(node).shown)
