@@ -25,6 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "pure"))
 
+import generated_doc  # noqa: E402
 import layout_graph  # noqa: E402
 
 DOC = ROOT / "docs" / "architecture.md"
@@ -141,10 +142,7 @@ def diagram(root=layout_graph.ROOT):
 
 def render(text, block):
     """``text`` with ``block`` between the markers (ValueError when they are missing)."""
-    i, j = text.find(BEGIN), text.find(END)
-    if i < 0 or j < i:
-        raise ValueError(f"{DOC.relative_to(ROOT)} has no '{BEGIN}' ... '{END}' markers")
-    return text[:i + len(BEGIN)] + "\n" + block + "\n" + text[j:]
+    return generated_doc.render(text, block, BEGIN, END, DOC.relative_to(ROOT))
 
 
 def main(argv=None):
@@ -156,22 +154,8 @@ def main(argv=None):
     if other:
         print(f"architecture.py: outside the layers' folders (drawn as 'other'): {', '.join(other)}",
               file=sys.stderr)
-    try:
-        old = DOC.read_text(encoding="utf-8")
-        new = render(old, block)
-    except (OSError, ValueError) as exc:
-        print(f"architecture.py: {exc}", file=sys.stderr)
-        return 1
-    if args.check:
-        if new != old:
-            print(f"{DOC.relative_to(ROOT)} is out of date with the import graph: run "
-                  "python scripts/architecture.py", file=sys.stderr)
-            return 1
-        return 0
-    if new != old:
-        DOC.write_text(new, encoding="utf-8")
-        print(f"wrote {DOC.relative_to(ROOT)}")
-    return 0
+    return generated_doc.write_or_check(DOC, ROOT, lambda old: render(old, block), check=args.check,
+                                        script="architecture.py", source="the import graph")
 
 
 if __name__ == "__main__":

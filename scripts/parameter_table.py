@@ -24,6 +24,9 @@ sys.path.insert(0, str(ROOT))
 from hazy_gloss import constants as K  # noqa: E402  (bpy-free, numpy-free)
 from hazy_gloss import schema as S  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "scripts"))
+import generated_doc  # noqa: E402
+
 DOC = ROOT / "docs" / "parameters.md"
 BLOCKS = ("parameters", "haze parameters", "vocabulary")
 
@@ -115,11 +118,7 @@ def blocks():
 def render(text, generated):
     """``text`` with each block between its markers (ValueError when some are missing)."""
     for block, body in generated.items():
-        begin, end = markers(block)
-        i, j = text.find(begin), text.find(end)
-        if i < 0 or j < i:
-            raise ValueError(f"{DOC.relative_to(ROOT)} has no '{begin}' ... '{end}' markers")
-        text = text[:i + len(begin)] + "\n" + body + "\n" + text[j:]
+        text = generated_doc.render(text, body, *markers(block), DOC.relative_to(ROOT))
     return text
 
 
@@ -128,22 +127,9 @@ def main(argv=None):
     ap.add_argument("--check", action="store_true",
                     help="exit 1 when docs/parameters.md differs from what would be written")
     args = ap.parse_args(argv)
-    try:
-        old = DOC.read_text(encoding="utf-8")
-        new = render(old, blocks())
-    except (OSError, ValueError) as exc:
-        print(f"parameter_table.py: {exc}", file=sys.stderr)
-        return 1
-    if args.check:
-        if new != old:
-            print(f"{DOC.relative_to(ROOT)} is out of date with hazy_gloss/schema.py: run "
-                  "python scripts/parameter_table.py", file=sys.stderr)
-            return 1
-        return 0
-    if new != old:
-        DOC.write_text(new, encoding="utf-8")
-        print(f"wrote {DOC.relative_to(ROOT)}")
-    return 0
+    return generated_doc.write_or_check(DOC, ROOT, lambda old: render(old, blocks()),
+                                        check=args.check, script="parameter_table.py",
+                                        source="hazy_gloss/schema.py")
 
 
 if __name__ == "__main__":
