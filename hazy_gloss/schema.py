@@ -6,9 +6,9 @@ it under a bare Python).
 symbol (Barla, Pacanowski & Vangorp 2018), type, defaults, ranges, tooltip, where it applies
 (a hazy material, a haze layer, both) and to which kinds.  Everything else is derived from it:
 the names, defaults and ranges below (core.parameters validates with them), the panel's
-properties (blender/ui/properties.py), the haze layer's sockets (:data:`HAZE_SOCKETS`), the
-haze maps of texture conversion and the command line (:data:`HAZE_MAP_INPUTS`), and the tables
-of docs/parameters.md (scripts/parameter_table.py).  The words of kinds, distributions and
+and the operators' properties (blender/ui/properties.py), the haze layer's sockets
+(:data:`HAZE_SOCKETS`), the haze maps of texture conversion and the command line
+(:data:`HAZE_MAP_INPUTS`), and the tables of docs/parameters.md (scripts/parameter_table.py).  The words of kinds, distributions and
 tangents are constants.KIND_TERMS, DISTRIBUTION_TERMS, TANGENT_TERMS.
 """
 from __future__ import annotations
@@ -20,7 +20,8 @@ from . import constants as K
 
 __all__ = ("Parameter", "SCHEMA", "SCHEMA_BY_NAME", "PARAMETERS", "DEFAULTS", "HAZE_PARAMETERS",
            "HAZE_DEFAULTS", "RANGES", "HAZE_SOCKETS", "HAZE_MAP_INPUTS", "LAYER_MAP_INPUTS",
-           "map_inputs", "property_names", "preset_properties", "property_specs", "socket_keys",
+           "map_inputs", "property_names", "preset_properties", "property_specs",
+           "operator_property", "socket_keys",
            "layer_sockets", "STAMP_OPTIONAL", "TEXTURE_OK")
 
 MATERIAL, LAYER, BOTH = "material", "layer", "both"
@@ -357,6 +358,16 @@ def property_specs():
                              dict(default=p.placeholder, min=p.limits[0])))
         out.append((p.name, "FloatProperty", dict(info, **num, description=p.description)))
     return out + memories
+
+
+def operator_property(prop, default):
+    """(bpy.props constructor name, keywords) of the panel property ``prop`` (a name of
+    :func:`property_specs`; an extent's axes are ``<name>_x`` and ``<name>_y``) for an operator
+    of its own: the panel's label, range, slider and tooltip with the operator's ``default``."""
+    for name, ctor, keywords in property_specs():
+        if name == prop:
+            return ctor, dict(keywords, default=default)
+    raise KeyError(f"no panel property {prop!r} in the schema")
 
 
 def _desc(text):

@@ -1307,3 +1307,27 @@ def test_registered_properties_are_the_schemas(env):
         if "precision" in kw:
             assert prop.precision == kw["precision"], name
         assert not prop.is_animatable or name.endswith("_memory"), name
+
+
+def test_operators_take_the_panels_ranges(env):
+    """Every operator property that sets a perceptual parameter is the panel property of that
+    parameter (derived from the one schema): the same label, hard and slider limits, subtype
+    and precision, and its tooltip unless the operator says more; the operator keeps its own
+    default. Checked on the registered RNA of both, so a hand-written limit shows."""
+    panel = env.hg.blender.ui.properties.HazyGlossMaterialSettings.bl_rna.properties
+    own_tooltip = {("make_hazy", "haziness")}
+    seen = 0
+    for op in ("convert_maps", "convert_pbr_set", "make_hazy", "load_recomposite"):
+        rna = getattr(bpy.ops.hazy_gloss, op).get_rna_type().properties
+        for prop in rna:
+            name = "haze_extent_x" if prop.identifier == "haze_extent" else prop.identifier
+            if name not in panel or prop.type not in {"FLOAT"}:
+                continue
+            want = panel[name]
+            seen += 1
+            for attr in ("name", "hard_min", "hard_max", "soft_min", "soft_max", "subtype",
+                         "precision", "array_length"):
+                assert getattr(prop, attr) == getattr(want, attr), (op, prop.identifier, attr)
+            if (op, prop.identifier) not in own_tooltip:
+                assert prop.description == want.description, (op, prop.identifier)
+    assert seen == 18, seen  # convert_maps 11, convert_pbr_set 4, make_hazy 2, load_recomposite 1

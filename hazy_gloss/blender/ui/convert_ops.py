@@ -7,8 +7,7 @@ import tempfile
 import time
 
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
-                       StringProperty)
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ... import constants as K
 from ... import convert as conversion
@@ -17,6 +16,7 @@ from .. import compat
 from ..actions.convert import convert_maps_steps
 from ..actions.convert_pbr import convert_library_steps, convert_set_steps
 from ..model.convert_wiring import wire_material
+from .properties import operator_property
 
 # --------------------------------------------------------------------------------------------
 # Operator
@@ -173,38 +173,35 @@ class HAZY_GLOSS_OT_convert_maps(_ModalConversion, bpy.types.Operator):
     core_reflectivity_image: StringProperty(name="Core Reflectivity Map",
                                             description="Image datablock (colour, decoded to linear)")
     core_reflectivity_path: StringProperty(name="Core Reflectivity File", subtype="FILE_PATH")
-    core_reflectivity: FloatVectorProperty(name="Core Reflectivity", subtype="COLOR", size=3,
-                                           min=0.0, max=1.0, default=(0.5, 0.5, 0.5))
+    core_reflectivity: operator_property("core_reflectivity", (0.5, 0.5, 0.5))
     edge_tint_image: StringProperty(name="Edge Tint Map")
     edge_tint_path: StringProperty(name="Edge Tint File", subtype="FILE_PATH")
-    edge_tint: FloatVectorProperty(name="Edge Tint", subtype="COLOR", size=3, min=0.0, max=1.0,
-                                   default=(0.0, 0.0, 0.0))
+    edge_tint: operator_property("edge_tint", (0.0, 0.0, 0.0))
     roughness_image: StringProperty(name="Roughness Map", description="Non-Color map of R = √α")
     roughness_path: StringProperty(name="Roughness File", subtype="FILE_PATH")
-    roughness: FloatProperty(name="Roughness", min=0.0, max=1.0, default=0.1, subtype="FACTOR")
+    roughness: operator_property("roughness", 0.1)
     anisotropy_image: StringProperty(name="Anisotropy Map")
     anisotropy_path: StringProperty(name="Anisotropy File", subtype="FILE_PATH")
-    anisotropy: FloatProperty(name="Anisotropy", min=0.0, max=1.0, default=0.0, subtype="FACTOR")
+    anisotropy: operator_property("anisotropy", 0.0)
     rotation_image: StringProperty(name="Rotation Map")
     rotation_path: StringProperty(name="Rotation File", subtype="FILE_PATH")
-    rotation: FloatProperty(name="Rotation", default=0.0)
+    rotation: operator_property("rotation", 0.0)
     haziness_image: StringProperty(name="Haziness Map")
     haziness_path: StringProperty(name="Haziness File", subtype="FILE_PATH")
-    haziness: FloatProperty(name="Haziness", min=0.0, max=K.MAX_HAZINESS, default=0.5, subtype="FACTOR")
+    haziness: operator_property("haziness", 0.5)
     haze_extent_image: StringProperty(name="Haze Extent Map", description="Both axes, or X")
     haze_extent_path: StringProperty(name="Haze Extent File", subtype="FILE_PATH")
-    haze_extent: FloatProperty(name="Haze Extent", min=0.0, default=5.0)
+    haze_extent: operator_property("haze_extent_x", 5.0)
     anisotropic_extent: BoolProperty(name="Separate Y Extent", default=False,
                                      description="Give the haze extent along Y separately")
     haze_extent_y_image: StringProperty(name="Haze Extent Y Map")
     haze_extent_y_path: StringProperty(name="Haze Extent Y File", subtype="FILE_PATH")
-    haze_extent_y: FloatProperty(name="Haze Extent Y", min=0.0, default=5.0)
+    haze_extent_y: operator_property("haze_extent_y", 5.0)
     use_smoothness: BoolProperty(name="Smooth Variation", default=False,
                                  description="Use the rational Bézier (Eqs. 12-15) instead of Eq. 7")
-    smoothness: FloatProperty(name="Smoothness", min=K.MIN_SMOOTHNESS, default=2.0)
-    base_color: FloatVectorProperty(name="Base Color", subtype="COLOR", size=3, min=0.0, max=1.0,
-                                    default=(0.0, 0.0, 0.0))
-    transmission: FloatProperty(name="Transmission", min=0.0, max=1.0, default=0.0)
+    smoothness: operator_property("smoothness", 2.0)
+    base_color: operator_property("base_color", (0.0, 0.0, 0.0))
+    transmission: operator_property("transmission", 0.0)
 
     directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="//hazy_maps/",
                               description="Where the physical maps are written ('//' = next to "
@@ -362,12 +359,10 @@ class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
     coat_path: StringProperty(name="Coat", subtype="FILE_PATH")
     alpha_path: StringProperty(name="Opacity", subtype="FILE_PATH")
     haziness_path: StringProperty(name="Haziness Map", subtype="FILE_PATH")
-    haziness: FloatProperty(name="Haziness", min=0.0, max=K.MAX_HAZINESS, default=0.1,
-                            subtype="FACTOR")
-    haze_extent: FloatProperty(name="Haze Extent", min=0.0, default=5.0)
-    coat_haziness: FloatProperty(name="Coat Haziness", min=0.0, max=K.MAX_HAZINESS, default=0.0,
-                                 subtype="FACTOR")
-    coat_haze_extent: FloatProperty(name="Coat Haze Extent", min=0.0, default=5.0)
+    haziness: operator_property("haziness", 0.1)
+    haze_extent: operator_property("haze_extent_x", 5.0)
+    coat_haziness: operator_property("coat_haziness", 0.0)
+    coat_haze_extent: operator_property("coat_haze_extent", 5.0)
     into_active: BoolProperty(name="Into the Active Material", default=False,
                               description="Put the set into the active material's Principled BSDF "
                                           "(its empty inputs) instead of a new material")

@@ -19,7 +19,7 @@ report in plain words.
 """
 import bpy
 from bl_operators.presets import AddPresetBase
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ... import constants as K
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS
@@ -52,10 +52,9 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     material: StringProperty(**_MATERIAL_PROP)
-    haziness: FloatProperty(name="Haziness", default=0.0, min=0.0, max=K.MAX_HAZINESS, soft_max=0.99,
-                            description="Haziness to start with (0: renders exactly as before)")
-    haze_extent: FloatProperty(name="Haze Extent", default=5.0, min=0.0, soft_max=20.0,
-                               description="Width of the halo in units of the core's roughness")
+    haziness: properties.operator_property(
+        "haziness", 0.0, description="Haziness to start with (0: renders exactly as before)")
+    haze_extent: properties.operator_property("haze_extent_x", 5.0)
     node: StringProperty(name="Node", default="", options={"SKIP_SAVE"},
                          description="The BSDF to put the layer on (default: the active node of "
                                      "the Shader Editor if it is one, else the BSDF closest to "

@@ -34,6 +34,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ... import constants as K
 from ...core.parameters import HAZE_DEFAULTS, normalise
+from ... import schema
 from ...schema import LAYER, MATERIAL, SCHEMA, SCHEMA_BY_NAME, preset_properties, property_specs
 from ..actions import edit, eevee_output, messages
 from ..model import material, material_read
@@ -52,6 +53,13 @@ _KIND_IDS = list(K.KINDS)
 # --------------------------------------------------------------------------------------------
 # Reading and editing
 # --------------------------------------------------------------------------------------------
+
+
+def operator_property(prop, default, **keywords):
+    """An operator's bpy property for the schema's parameter ``prop`` (schema.operator_property:
+    the panel's label, range and tooltip), ``keywords`` overriding (the operator's own tooltip)."""
+    ctor, kw = schema.operator_property(prop, default)
+    return getattr(bpy.props, ctor)(**dict(kw, **keywords))
 
 
 def settings(mat):

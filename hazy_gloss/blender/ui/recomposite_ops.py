@@ -1,11 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Operators for editing haziness after the render (blender/recomposite.py, paper §4.3)."""
+"""Operators for editing haziness after the render (model/recomposite.py, paper §4.3)."""
 import bpy
-from bpy.props import BoolProperty, FloatProperty, StringProperty
+from bpy.props import BoolProperty, StringProperty
 
-from ... import constants as K
 from ...recomposite import LAYERS, passes_from_exr
 from ..model import recomposite
+from .properties import operator_property
 
 
 def _cycles(context):
@@ -84,7 +84,7 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
 
     filepath: StringProperty(subtype="FILE_PATH")
     filter_glob: StringProperty(default="*.exr", options={"HIDDEN"})
-    haziness: FloatProperty(name="Haziness", default=0.5, min=0.0, max=K.MAX_HAZINESS, subtype="FACTOR")
+    haziness: operator_property("haziness", 0.5)
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
