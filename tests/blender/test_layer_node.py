@@ -344,3 +344,24 @@ def test_messages_name_keywords_as_typed(env):
         env.api.update_material(mat, smoothness=float("inf"))
     with pytest.raises(ValueError, match="smoothness"):
         env.api.make_hazy(car_paint(), smoothness=float("inf"))
+
+
+def test_group_cache_key_covers_the_tables(env, monkeypatch, tmp_path):
+    """The per-user cache of built layer groups is keyed by a hash of the code that builds them
+    and of the data tables it reads (core/tables/*.json): a regenerated table (say, a new
+    Blender's socket declarations) must not hand out a group built from the old one."""
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    tables = importlib.import_module(f"{env.hg.__name__}.core.tables")
+    files = tables.files()
+    assert {p.name for p in files} >= {"bsdf_interfaces.json", "cycles_albedo_tables.json"}
+    monkeypatch.setattr(lg, "_digest", [])
+    before = lg._code_digest()
+    for i, path in enumerate(files):
+        edited = tmp_path / path.name
+        edited.write_bytes(path.read_bytes().replace(b'"data"', b'"data" ', 1))
+        monkeypatch.setattr(tables, "files", lambda i=i, e=edited: files[:i] + [e] + files[i + 1:])
+        monkeypatch.setattr(lg, "_digest", [])
+        assert lg._code_digest() != before, path.name
+    monkeypatch.setattr(tables, "files", lambda: files)
+    monkeypatch.setattr(lg, "_digest", [])
+    assert lg._code_digest() == before

@@ -19,6 +19,7 @@ from ... import constants as K
 from ...core import (body_colour, graph, layer_graph, multiscatter, node_body_colour, node_fresnel,
                      node_math, node_multiscatter, node_thin_film, thin_film)
 from ...core.multiscatter import cycles_version
+from ...core import tables
 from ...core.tables import bsdf_interfaces, cycles_albedo_tables
 from ... import schema
 from . import groups, stamp
@@ -144,7 +145,8 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
 # --------------------------------------------------------------------------------------------
 
 #: The modules whose code builds the groups: their files are hashed (a module object, not a path,
-#: so a moved or renamed module cannot drop out of the hash unnoticed).
+#: so a moved or renamed module cannot drop out of the hash unnoticed), and so are the data
+#: tables they read (core/tables/*.json).
 _SOURCES = (sys.modules[__name__], emit_module, builder, groups, layer_graph, node_math,
             node_fresnel, node_multiscatter, node_body_colour, body_colour, node_thin_film,
             thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K, schema)
@@ -156,8 +158,8 @@ def _code_digest():
     if not _digest:
         import hashlib
         h = hashlib.sha256()
-        for module in _SOURCES:
-            with open(module.__file__, "rb") as fh:
+        for path in [module.__file__ for module in _SOURCES] + tables.files():
+            with open(path, "rb") as fh:
                 h.update(fh.read())
         _digest.append(h.hexdigest()[:16])
     return _digest[0]

@@ -29,3 +29,8 @@ def dumps(data, source, license):
 def path(name):
     """Where ``<name>.json`` is (the scripts write and ``--check`` it)."""
     return _HERE / f"{name}.json"
+
+
+def files():
+    """Every table file, in name order (a cache of what the code builds from them hashes them)."""
+    return sorted(_HERE.glob("*.json"))
