@@ -33,10 +33,10 @@ and, for a transmissive haze layer under Multiscatter GGX (the glass closure's e
   node counts and axes per generation): the single-scatter albedo of a GGX glass closure.
 
 All values are the 6-decimal numbers Cycles' precompute printed (asserted here: printing each
-float32 with 6 decimals round-trips it bit-exactly); the data module stores them as integer
+float32 with 6 decimals round-trips it bit-exactly); the table file stores them as integer
 millionths, n / 10^6 rounded to float32 giving back the very bits read from the wheel (asserted).
 Copyright Blender Foundation, Apache License 2.0 (compatible with this add-on's GPL-3.0-or-later;
-the data module carries the notice).
+the table file carries the notice).
 """
 from __future__ import annotations
 
