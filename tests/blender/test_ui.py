@@ -569,7 +569,7 @@ def test_slider_change_latency(env):
     record("ui_latency", results)
     print(json.dumps(results, indent=1))
     # timed, not asserted (a shared machine's load is not the add-on's): the figures are the
-    # measured report's (benchmarks/perf_layer_node.py); here each change must have happened
+    # measured report's (benchmarks/perf_layer_edit.py); here each change must have happened
     for label, mat in cases.items():
         assert settings(mat).haziness == pytest.approx(0.05 + 0.01 * (57 % 9))
 
