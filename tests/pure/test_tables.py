@@ -13,8 +13,7 @@ import pytest
 from hazy_gloss.core import tables
 
 ROOT = Path(__file__).resolve().parents[2]
-FOLDER = ROOT / "hazy_gloss" / "core" / "tables"
-FILES = sorted(FOLDER.glob("*.json"))
+FILES = tables.files()
 
 
 def _numbers(obj):
@@ -32,7 +31,7 @@ def test_every_table_has_its_loader():
     assert {p.stem for p in FILES} == {"bsdf_interfaces", "cie_1931", "cycles_albedo_tables",
                                        "cycles_ggx_tables"}
     for p in FILES:
-        assert (FOLDER / f"{p.stem}.py").exists(), p.name
+        assert p.with_suffix(".py").exists(), p.name
 
 
 @pytest.mark.parametrize("path", FILES, ids=lambda p: p.stem)

@@ -15,7 +15,7 @@ _HERE = Path(__file__).resolve().parent
 
 def load(name):
     """The data of ``<name>.json`` in this folder."""
-    with open(_HERE / f"{name}.json", encoding="utf-8") as fh:
+    with open(path(name), encoding="utf-8") as fh:
         return json.load(fh)["data"]
 
 
