@@ -10,6 +10,9 @@ Steps (all inside one bpy session, a few seconds):
 2. generate the asset library with the staged code (``node_groups/build_library.py``):
    ``assets/hazy_gloss_nodes.blend`` holding every node group, each marked as an asset with a
    description and a catalog under "Hazy Gloss", and ``assets/blender_assets.cats.txt``;
+   then the haze layer's groups of the common configurations (``layer_group.SHIPPED``) into
+   ``assets/layer_groups/``, built by every bpy found here (this one, then setup.sh's .venv52
+   and .venv45), so a first Make Hazy appends its group instead of building it for seconds;
 3. build the zip with Blender's own tooling, ``bl_pkg.cli_extension(["build", ...])`` (what
    ``blender --command extension build`` runs), then ``["validate", ZIP]``;
 4. check the zip: the files we expect, nothing we exclude, no symlinks.
@@ -24,6 +27,7 @@ import fnmatch
 import os
 import shutil
 import stat
+import subprocess
 import sys
 import tempfile
 import time
@@ -43,6 +47,22 @@ EXCLUDE_NAMES = ("__pycache__", "*.pyc", "*.pyo", ".pytest_cache", ".hypothesis"
 GENERATED_DIRS = ("assets",)
 
 ASSET_DIRNAME = "assets"
+LAYER_GROUPS_DIR = f"{ASSET_DIRNAME}/layer_groups"
+#: The venvs (scripts/setup.sh) whose bpy also builds the shipped layer groups, if present.
+SHIP_VENVS = (".venv", ".venv52", ".venv45")
+#: Run by each of them with the staged package: its layer groups into the stage.
+_SHIP_HELPER = """
+import sys
+sys.dont_write_bytecode = True
+sys.path.insert(0, {parent!r})
+import bpy
+import {package} as pkg
+from {package}.blender.model import layer_group
+if not pkg.__file__.startswith({stage!r}):
+    raise SystemExit("imported " + pkg.__file__ + ", not the staged package")
+paths = layer_group.write_shipped({out!r})
+print(bpy.app.version_string, len(paths))
+"""
 
 
 def log(msg):
@@ -106,6 +126,37 @@ def build_asset_library(stage):
         _purge_bytecode(stage)
 
 
+def ship_layer_groups(stage, user_resources):
+    """Build the staged package's shipped layer groups (layer_group.SHIPPED) with each bpy
+    here, into ``stage/assets/layer_groups``; returns the Blender versions built.  A version
+    with no bpy here builds its groups on first use (and caches them per user)."""
+    out = stage / LAYER_GROUPS_DIR
+    pythons = [sys.executable] + [str(REPO_ROOT / v / "bin" / "python") for v in SHIP_VENVS]
+    code = _SHIP_HELPER.format(parent=str(stage.parent), package=stage.name,
+                               stage=str(stage), out=str(out))
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(user_resources), PYTHONDONTWRITEBYTECODE="1")
+    env.pop("PYTHONPATH", None)
+    built, seen = [], set()
+    for python in pythons:
+        if python in seen or not os.path.exists(python):
+            continue
+        seen.add(python)
+        proc = subprocess.run([python, "-c", code], cwd=str(stage.parent), env=env,
+                              capture_output=True, text=True, timeout=900)
+        last = proc.stdout.strip().splitlines()[-1:] or [""]
+        if proc.returncode != 0:
+            raise RuntimeError(f"building the layer groups with {python} failed:\n"
+                               f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+        version = last[0].rsplit(" ", 1)[0]
+        if version not in built:
+            built.append(version)
+    _purge_bytecode(stage)
+    files = sorted(out.glob("*.blend"))
+    log(f"layer groups: {len(files)} files for bpy {', '.join(built)} -> {LAYER_GROUPS_DIR} "
+        f"({sum(f.stat().st_size for f in files)} bytes)")
+    return built
+
+
 def bl_pkg_command(args):
     """Run ``blender --command extension <args>`` in this bpy session; return its exit code."""
     import bl_pkg
@@ -133,6 +184,8 @@ def check_zip(zip_path, stage):
                      f"{ASSET_DIRNAME}/blender_assets.cats.txt"):
         if required not in names:
             problems.append(f"missing from zip: {required}")
+    if not any(n.startswith(LAYER_GROUPS_DIR + "/") and n.endswith(".blend") for n in names):
+        problems.append(f"missing from zip: the layer groups ({LAYER_GROUPS_DIR}/*.blend)")
     if problems:
         raise RuntimeError("bad zip:\n  " + "\n  ".join(problems))
     return sorted(names)
@@ -164,6 +217,7 @@ def main(argv=None):
         log(f"bpy {bpy.app.version_string}")
         bpy.context.preferences.use_preferences_save = False
         build_asset_library(stage)
+        ship_layer_groups(stage, tmp / "user_resources")
 
         if zip_path.exists():
             zip_path.unlink()

@@ -34,6 +34,7 @@ ADDON_ID = "hazy_gloss"
 INSTALL_REPO = "hg_install_test"
 INSTALLED_MODULE = f"bl_ext.{INSTALL_REPO}.{ADDON_ID}"
 ASSET_BLEND = "assets/hazy_gloss_nodes.blend"
+LAYER_GROUPS = "assets/layer_groups"
 CATALOGS = "assets/blender_assets.cats.txt"
 
 EXCLUDED_PARTS = ("tests", "docs", "benchmarks", "__pycache__", ".pytest_cache", ".hypothesis",
@@ -118,13 +119,39 @@ def test_zip_holds_real_files_and_nothing_excluded(zip_names, built_zip):
         assert not name.endswith((".pyc", ".pyo", ".blend1")), name
         assert not stat.S_ISLNK(info.external_attr >> 16), f"symlink in zip: {name}"
     # Exactly the package's files plus the manifest and the generated assets.
-    assert names == _source_files() | {ASSET_BLEND, CATALOGS}
+    shipped = {n for n in names if n.startswith(LAYER_GROUPS + "/")}
+    assert names == _source_files() | {ASSET_BLEND, CATALOGS} | shipped
     with zipfile.ZipFile(built_zip) as zf:
         assert zf.read("blender_manifest.toml") == (REPO_ROOT / "blender_manifest.toml").read_bytes()
         for py in PACKAGE_DIR.rglob("*.py"):
             if "__pycache__" not in py.parts:
                 assert zf.read(py.relative_to(PACKAGE_DIR).as_posix()) == py.read_bytes(), py
         assert zf.getinfo(ASSET_BLEND).file_size > 10_000
+
+
+def _shipped_files(layer_group, version):
+    """The files of layer_group.SHIPPED built by Blender ``version`` ("5.3"), as the zip names
+    them (the group name ends with the version that built it)."""
+    here = layer_group.version_tag()
+    out = set()
+    for kind, settings in layer_group.SHIPPED:
+        name = layer_group.group_name(kind, settings)
+        assert name.endswith(" " + here)
+        out.add(f"{LAYER_GROUPS}/" + layer_group._file_name(name[:-len(here)] + version))
+    return out
+
+
+def test_zip_ships_the_layer_groups(zip_names, hg):
+    """The common layer-group configurations, built by each Blender of scripts/setup.sh, named
+    as the per-user cache names them (the code's hash, GROUP_VERSION, the group's name)."""
+    layer_group = importlib.import_module(hg.__name__ + ".blender.model.layer_group")
+    shipped = {n for n in zip_names if n.startswith(LAYER_GROUPS + "/")}
+    for venv, version in ((".venv", "5.3"), (".venv52", "5.2"), (".venv45", "4.5")):
+        want = _shipped_files(layer_group, version)
+        if (REPO_ROOT / venv / "bin" / "python").exists():
+            assert want <= shipped, f"bpy {version}: missing {sorted(want - shipped)}"
+            shipped -= want
+    assert not shipped, f"unexpected layer groups: {sorted(shipped)}"
 
 
 def _expected_groups(groups_mod):
@@ -250,6 +277,28 @@ def test_install_enable_render_disable_uninstall(addon_module, built_zip, tmp_pa
         assert bpy.ops.hazy_gloss.add_node(kind="LEGACY", distribution="GGX",
                                            material=mat.name) == {"FINISHED"}
         assert any(n.bl_idname == "ShaderNodeGroup" for n in mat.node_tree.nodes)
+
+        # -- the first Make Hazy on this machine appends the shipped group: nothing is built --
+        layer_group = importlib.import_module(INSTALLED_MODULE + ".blender.model.layer_group")
+        plain = importlib.import_module(INSTALLED_MODULE + ".blender.compat").new_material("Plain")
+        core = next(n for n in plain.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+        shipped = layer_group._shipped_path(layer_group.group_name(
+            "PRINCIPLED", layer_group.settings_of(core)))
+        assert Path(shipped).is_file() and Path(shipped).is_relative_to(assets_dir)
+
+        def no_build(*_args, **_kw):
+            raise AssertionError("built a layer group the extension ships")
+        saved = layer_group.build, layer_group._cache_path
+        layer_group.build, layer_group._cache_path = no_build, (lambda _name: None)
+        try:
+            assert list(api.make_hazy(plain, haziness=0.5)) == []
+        finally:
+            layer_group.build, layer_group._cache_path = saved
+        node = next(n for n in plain.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
+        assert layer_group.is_layer_group(node.node_tree) and node.node_tree.library is None
+        # appended, not linked: the file does not depend on the extension's files
+        assert not [i.name for c in (bpy.data.node_groups, bpy.data.images) for i in c
+                    if i.library is not None]
 
         # -- disable ---------------------------------------------------------------------------
         addon_utils.disable(INSTALLED_MODULE, default_set=True)

@@ -20,8 +20,8 @@ _.energy_narrow, _.energy_wide, _.energy_reference, _.halo_max, _.compression, _
 _.evaluations, _.physical, _.deviation
 # Generated tables read with getattr(tables, f"..._V{version}")
 _.IOR_S_V4, _.IOR_S_V53, _.E_V4, _.E_V53, _.GLASS_E_MU1_V4, _.GLASS_E_MU1_V53
-# Documented API (docs/compositing.md, docs/body-colour.md) and the asset library build
-# (node_groups/build_library.py)
-_.recomposite, _.compensated_base, _.catalog_definitions, _.CATALOG_FILE
+# Documented API (docs/compositing.md, docs/body-colour.md), the asset library build
+# (node_groups/build_library.py) and the layer groups the extension ships (scripts/build.py)
+_.recomposite, _.compensated_base, _.catalog_definitions, _.CATALOG_FILE, _.write_shipped
 # Schema columns only docs/parameters.md's generator reads (scripts/parameter_table.py)
 _.symbol, _.doc_layer, _.range_note

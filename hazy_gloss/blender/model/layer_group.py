@@ -116,8 +116,9 @@ def is_layer_group(ng):
 
 def ensure_group(kind, settings, smooth=False, baked=False, body=False):
     """The group of this configuration: found by its stamp (a renamed group is taken), else
-    appended from the per-user cache, else built (and cached); an outdated group of the same
-    name is rebuilt in place (its users keep their links and values)."""
+    appended from the groups the extension ships or the per-user cache, else built (and
+    cached); an outdated group of the same name is rebuilt in place (its users keep their links
+    and values)."""
     config = (kind, settings, smooth, baked, body)
     name = group_name(*config)
     ng = bpy.data.node_groups.get(name)
@@ -152,6 +153,21 @@ _SOURCES = (sys.modules[__name__], emit_module, builder, groups, layer_graph, no
             thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K, schema)
 _digest = []
 
+#: Where the built extension keeps the layer groups it ships, under the package.
+SHIPPED_DIR = ("assets", "layer_groups")
+#: The configurations shipped (built by the Blender that builds the extension): each BSDF's
+#: default settings and the other distribution an artist picks most.
+SHIPPED = (
+    ("PRINCIPLED", {"distribution": "MULTI_GGX", "subsurface_method": "RANDOM_WALK"}),
+    ("PRINCIPLED", {"distribution": "GGX", "subsurface_method": "RANDOM_WALK"}),
+    ("METALLIC", {"distribution": "MULTI_GGX", "fresnel_type": "F82"}),
+    ("METALLIC", {"distribution": "GGX", "fresnel_type": "F82"}),
+    ("METALLIC", {"distribution": "MULTI_GGX", "fresnel_type": "PHYSICAL_CONDUCTOR"}),
+    ("METALLIC", {"distribution": "GGX", "fresnel_type": "PHYSICAL_CONDUCTOR"}),
+    ("GLOSSY", {"distribution": "MULTI_GGX"}),
+    ("GLOSSY", {"distribution": "GGX"}),
+)
+
 
 def _code_digest():
     """A hash of the code that builds groups (a cached group from other code is not taken)."""
@@ -163,6 +179,20 @@ def _code_digest():
                 h.update(fh.read())
         _digest.append(h.hexdigest()[:16])
     return _digest[0]
+
+
+def _file_name(name):
+    """The .blend of a group in the per-user cache and in the extension's shipped groups."""
+    import re
+    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
+    return f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend"
+
+
+def _shipped_path(name):
+    """Where the built extension ships this group (scripts/build.py: write_shipped)."""
+    import os
+    package_dir = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    return os.path.join(package_dir, *SHIPPED_DIR, _file_name(name))
 
 
 def _cache_path(name):
@@ -184,13 +214,21 @@ def _cache_path(name):
             os.makedirs(base, exist_ok=True)
         except OSError:
             return None
-    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
-    return os.path.join(base, f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend")
+    return os.path.join(base, _file_name(name))
 
 
 def _from_cache(name, config):
+    """The group appended from the extension's shipped groups, else from the per-user cache;
+    None when neither has it (or holds a group that does not fit)."""
+    for path in (_shipped_path(name), _cache_path(name)):
+        ng = _append(path, name, config)
+        if ng is not None:
+            return ng
+    return None
+
+
+def _append(path, name, config):
     import os
-    path = _cache_path(name)
     if path is None or not os.path.isfile(path):
         return None
     before = set(bpy.data.node_groups)
@@ -225,6 +263,28 @@ def _to_cache(ng):
             os.remove(tmp)
         except OSError:
             pass
+
+
+def write_shipped(out_dir, configs=None):
+    """Build the ``configs`` (default SHIPPED) with this Blender and write each into
+    ``out_dir`` as the cache names it (scripts/build.py puts them in the extension, so the first
+    Make Hazy on a machine appends instead of building).  Returns the files written."""
+    import os
+    os.makedirs(out_dir, exist_ok=True)
+    written = []
+    for kind, settings in configs or SHIPPED:
+        config = (kind, dict(settings), False, False, False)
+        name = group_name(*config)
+        old = bpy.data.node_groups.get(name)
+        if old is not None:
+            bpy.data.node_groups.remove(old)
+        ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+        build(ng, *config)
+        ng[K.GROUP_STAMP] = _stamp_of(*config)
+        path = os.path.join(out_dir, _file_name(name))
+        bpy.data.libraries.write(path, {ng}, fake_user=True, compress=True)
+        written.append(path)
+    return written
 
 
 # --------------------------------------------------------------------------------------------
