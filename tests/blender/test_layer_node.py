@@ -365,3 +365,38 @@ def test_group_cache_key_covers_the_tables(env, monkeypatch, tmp_path):
     monkeypatch.setattr(tables, "files", lambda: files)
     monkeypatch.setattr(lg, "_digest", [])
     assert lg._code_digest() == before
+
+
+def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_path):
+    """Layer groups whose math is the same (Principled groups that differ in the subsurface
+    method only) share their section groups, and all groups the table images: built, or
+    appended from the per-user cache into a file that has some of them, a file holds one copy of
+    each (an append brings its own copies: they give way to the file's and are dropped)."""
+    import re
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    monkeypatch.setattr(lg, "_shipped_path", lambda name: None)
+    monkeypatch.setattr(lg, "_cache_path", lambda name: str(tmp_path / lg._file_name(name)))
+    configs = (("MULTI_GGX", "RANDOM_WALK"), ("MULTI_GGX", "BURLEY"), ("GGX", "RANDOM_WALK"))
+    for how in ("built", "appended from the cache"):
+        bpy.data.batch_remove(list(bpy.data.materials) + list(bpy.data.node_groups)
+                              + list(bpy.data.images))
+        groups = []
+        for dist, sss in configs:
+            mat, core = principled(f"{dist} {sss}", distribution="MULTI_GGX")
+            core.distribution, core.subsurface_method = dist, sss
+            env.api.make_hazy(mat, haziness=0.5)
+            groups.append(env.layer.layer_node(mat).node_tree)
+        assert len(set(groups)) == 3 and all(lg.is_layer_group(g) for g in groups), how
+        if how == "built":
+            assert len(list(tmp_path.glob("*.blend"))) == 3
+        copies = [i.name for c in (bpy.data.node_groups, bpy.data.images) for i in c
+                  if re.search(r"\.\d{3}$", i.name)]
+        assert not copies, (how, copies)
+        parts = [{n.node_tree for n in g.nodes if n.bl_idname == "ShaderNodeGroup"} for g in groups]
+        assert len(parts[0]) == 6 and parts[0] == parts[1], how  # one math, two subsurface methods
+        assert not parts[0] & parts[2], how  # GGX's math is its own
+        tables = {i.name for i in bpy.data.images if i.name.startswith(".Hazy Gloss table")}
+        used = {n.image.name for g in parts[0] | parts[2] for n in g.nodes
+                if n.bl_idname == "ShaderNodeTexImage"}
+        assert tables and tables == used, (how, tables)
+        assert all(g.users > 0 for g in bpy.data.node_groups), how  # nothing left over

@@ -232,6 +232,7 @@ def _append(path, name, config):
     if path is None or not os.path.isfile(path):
         return None
     before = set(bpy.data.node_groups)
+    images_before = set(bpy.data.images)
     try:
         with bpy.data.libraries.load(path, link=False) as (src, dst):
             if name not in src.node_groups:
@@ -240,13 +241,57 @@ def _append(path, name, config):
     except (OSError, RuntimeError):
         return None
     new = [g for g in bpy.data.node_groups if g not in before]
+    new_images = [i for i in bpy.data.images if i not in images_before]
+    for i in new + new_images:  # (as built ones: dropped on save once nothing uses them)
+        i.use_fake_user = False
     ng = next((g for g in new if fits(g, *config)), None)
-    for g in new:
-        if g is not ng and g.users == 0:
-            bpy.data.node_groups.remove(g)
+    used = set()
     if ng is not None:
-        ng.use_fake_user = False  # (as a built one: dropped on save once nothing uses it)
+        _share_parts(ng, before, images_before)
+        used = _uses(ng, used)
+    drop = [i for i in new + new_images if i not in used]
+    if drop:
+        bpy.data.batch_remove(drop)  # (one pass over the file for all of them)
     return ng
+
+
+def _uses(ng, out):
+    """``ng`` and the node groups and images it reads, nested ones included."""
+    out.add(ng)
+    for node in ng.nodes:
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and \
+                node.node_tree not in out:
+            _uses(node.node_tree, out)
+        elif node.bl_idname == "ShaderNodeTexImage" and node.image is not None:
+            out.add(node.image)
+    return out
+
+
+def _share_parts(ng, groups_before, images_before):
+    """Point the just appended ``ng`` at the section groups and tables the file has already
+    (the same name and code, the same values) instead of the copies the append brought."""
+    import re
+
+    def kept(new, have, same):
+        base = re.sub(r"\.\d{3,}$", "", new.name)
+        old = have.get(base) if base != new.name else None
+        return old if old is not None and same(old, new) else new
+
+    part = _part_stamp()
+    groups = {g.name: g for g in groups_before}
+    images = {i.name: i for i in images_before}
+    same_table = lambda a, b: a.get("hazy_gloss_table") == b.get("hazy_gloss_table") is not None  # noqa: E731
+    for node in ng.nodes:
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and \
+                node.node_tree not in groups_before and _is_part(node.node_tree, part):
+            sub = node.node_tree
+            node.node_tree = kept(sub, groups, lambda a, b: _is_part(a, part))
+            if node.node_tree is not sub:
+                continue
+            for inner in sub.nodes:
+                if inner.bl_idname == "ShaderNodeTexImage" and inner.image is not None and \
+                        inner.image not in images_before:
+                    inner.image = kept(inner.image, images, same_table)
 
 
 def _to_cache(ng):
@@ -520,13 +565,27 @@ def _socket_name(e):
     return (e.label or e.name or f"value {e.index}")[:60]
 
 
+def _part_stamp():
+    """A section group's stamp: the code that built it (its name holds the configuration)."""
+    return {"kind": "layer part", "version": GROUP_VERSION, "code": _code_digest()}
+
+
+def _is_part(ng, stamp):
+    d = ng.get(K.GROUP_STAMP)
+    return d is not None and hasattr(d, "to_dict") and d.to_dict() == stamp
+
+
 def _section_group(name, title, g, ext, exported):
-    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``)."""
+    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``);
+    the file's own when another configuration of the same math has it (the same name and
+    code: e.g. Principled groups that differ in their subsurface method only)."""
     old = bpy.data.node_groups.get(name)
+    if old is not None and _is_part(old, _part_stamp()):
+        return old
     if old is not None and old.users == 0:
         bpy.data.node_groups.remove(old)
     sub = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    sub[K.GROUP_STAMP] = {"kind": "layer part", "version": GROUP_VERSION}
+    sub[K.GROUP_STAMP] = _part_stamp()
     iface = sub.interface
     for a in ext:
         iface.new_socket(name=_socket_name(a), in_out="INPUT",
