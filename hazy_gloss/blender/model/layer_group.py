@@ -245,13 +245,10 @@ def _append(path, name, config):
     for i in new + new_images:  # (as built ones: dropped on save once nothing uses them)
         i.use_fake_user = False
     ng = next((g for g in new if fits(g, *config)), None)
-    used = set()
-    if ng is not None:
-        _share_parts(ng, before, images_before)
-        used = _uses(ng, used)
-    drop = [i for i in new + new_images if i not in used]
+    drop = new + new_images if ng is None else _share_parts(ng, before, images_before, new,
+                                                            new_images)
     if drop:
-        bpy.data.batch_remove(drop)  # (one pass over the file for all of them)
+        bpy.data.batch_remove([i for i in drop if i is not ng])  # (one pass over the file)
     return ng
 
 
@@ -267,31 +264,37 @@ def _uses(ng, out):
     return out
 
 
-def _share_parts(ng, groups_before, images_before):
+def _share_parts(ng, groups_before, images_before, new_groups, new_images):
     """Point the just appended ``ng`` at the section groups and tables the file has already
-    (the same name and code, the same values) instead of the copies the append brought."""
+    (the same name and code, the same values) instead of the copies the append brought;
+    returns the copies, now unused.  (Blender names an appended copy "<name>.001".)"""
     import re
 
-    def kept(new, have, same):
-        base = re.sub(r"\.\d{3,}$", "", new.name)
-        old = have.get(base) if base != new.name else None
-        return old if old is not None and same(old, new) else new
+    def originals(new, before):
+        names = {i.name: i for i in before}
+        out = {}
+        for i in new:
+            base = re.sub(r"\.\d{3,}$", "", i.name)
+            if base != i.name and base in names:
+                out[i] = names[base]
+        return out
 
+    groups, images = originals(new_groups, groups_before), originals(new_images, images_before)
+    if not groups and not images:  # (the first configuration in a file: nothing to share)
+        return []
     part = _part_stamp()
-    groups = {g.name: g for g in groups_before}
-    images = {i.name: i for i in images_before}
-    same_table = lambda a, b: a.get("hazy_gloss_table") == b.get("hazy_gloss_table") is not None  # noqa: E731
     for node in ng.nodes:
-        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and \
-                node.node_tree not in groups_before and _is_part(node.node_tree, part):
-            sub = node.node_tree
-            node.node_tree = kept(sub, groups, lambda a, b: _is_part(a, part))
-            if node.node_tree is not sub:
-                continue
+        sub = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
+        if sub in groups and _is_part(sub, part) and _is_part(groups[sub], part):
+            node.node_tree = groups[sub]
+        elif sub in new_groups and images:
             for inner in sub.nodes:
-                if inner.bl_idname == "ShaderNodeTexImage" and inner.image is not None and \
-                        inner.image not in images_before:
-                    inner.image = kept(inner.image, images, same_table)
+                old = images.get(inner.image) if inner.bl_idname == "ShaderNodeTexImage" else None
+                if old is not None and old.get("hazy_gloss_table") is not None and \
+                        old.get("hazy_gloss_table") == inner.image.get("hazy_gloss_table"):
+                    inner.image = old
+    used = _uses(ng, set())
+    return [i for i in new_groups + new_images if i not in used]
 
 
 def _to_cache(ng):
