@@ -4,7 +4,8 @@
 
     .venv/bin/python scripts/build.py [--output-dir DIR] [--keep-stage]
 
-Steps (all inside one bpy session, a few seconds):
+Steps (in one bpy session, plus one process per Blender version for step 2's layer groups;
+about 25 seconds):
 1. stage the package in a temp dir: ``hazy_gloss/`` plus the top-level ``blender_manifest.toml``,
    no ``__pycache__``/``*.pyc``, no tests, docs, benchmarks or caches;
 2. generate the asset library with the staged code (``node_groups/build_library.py``):

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """A real extension: the zip built by scripts/build.py validates, installs, renders, uninstalls;
-the Add-menu operator and the bundled asset library.
+the Add-menu operator, the bundled asset library and the layer groups it ships (a first Make
+Hazy of the installed copy builds nothing).
 
 The zip is built once per session (``built_zip``) by running ``scripts/build.py`` in a
 subprocess with ``.venv/bin/python`` when it exists — the documented build command, so under
