@@ -353,6 +353,7 @@ def main():
     cache_dir = tempfile.mkdtemp(prefix="hg_group_cache_")
     for label, make in (("textured (8 nodes)", textured), ("every input linked", all_linked),
                         ("textured, GGX (a smaller group)", textured_ggx)):
+        C.clean_file()  # (each row in a file of its own: an append's time grows with the file)
         t0 = time.perf_counter()
         row = {"make_hazy": make_hazy_times(bpy, api, layer_group, make, cache_dir),
                "slider": slider_times(bpy, api, layer, make)}
