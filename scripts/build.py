@@ -12,7 +12,7 @@ about 25 seconds):
    ``assets/hazy_gloss_nodes.blend`` holding every node group, each marked as an asset with a
    description and a catalog under "Hazy Gloss", and ``assets/blender_assets.cats.txt``;
    then the haze layer's groups of the common configurations (``layer_group.SHIPPED``) into
-   ``assets/layer_groups/``, built by every bpy found here (this one, then setup.sh's .venv52
+   ``layer_groups/``, built by every bpy found here (this one, then setup.sh's .venv52
    and .venv45), so a first Make Hazy appends its group instead of building it for seconds;
 3. build the zip with Blender's own tooling, ``bl_pkg.cli_extension(["build", ...])`` (what
    ``blender --command extension build`` runs), then ``["validate", ZIP]``;
@@ -45,10 +45,10 @@ EXCLUDE_NAMES = ("__pycache__", "*.pyc", "*.pyo", ".pytest_cache", ".hypothesis"
                  ".ruff_cache", ".git", ".gitignore", ".DS_Store", "*.blend1", "*.orig", "*.rej",
                  "*~", "tests", "docs", "benchmarks", "dist", "out")
 #: Written by the build, so a stale copy in the source must not leak in.
-GENERATED_DIRS = ("assets",)
+GENERATED_DIRS = ("assets", "layer_groups")
 
 ASSET_DIRNAME = "assets"
-LAYER_GROUPS_DIR = f"{ASSET_DIRNAME}/layer_groups"
+LAYER_GROUPS_DIR = "layer_groups"
 #: The venvs (scripts/setup.sh) whose bpy also builds the shipped layer groups, if present.
 SHIP_VENVS = (".venv", ".venv52", ".venv45")
 #: Run by each of them with the staged package: its layer groups into the stage.
@@ -129,7 +129,7 @@ def build_asset_library(stage):
 
 def ship_layer_groups(stage, user_resources):
     """Build the staged package's shipped layer groups (layer_group.SHIPPED) with each bpy
-    here, into ``stage/assets/layer_groups``; returns the Blender versions built.  A version
+    here, into ``stage/layer_groups``; returns the Blender versions built.  A version
     with no bpy here builds its groups on first use (and caches them per user)."""
     out = stage / LAYER_GROUPS_DIR
     pythons = [sys.executable] + [str(REPO_ROOT / v / "bin" / "python") for v in SHIP_VENVS]

@@ -35,7 +35,7 @@ ADDON_ID = "hazy_gloss"
 INSTALL_REPO = "hg_install_test"
 INSTALLED_MODULE = f"bl_ext.{INSTALL_REPO}.{ADDON_ID}"
 ASSET_BLEND = "assets/hazy_gloss_nodes.blend"
-LAYER_GROUPS = "assets/layer_groups"
+LAYER_GROUPS = "layer_groups"
 CATALOGS = "assets/blender_assets.cats.txt"
 
 EXCLUDED_PARTS = ("tests", "docs", "benchmarks", "__pycache__", ".pytest_cache", ".hypothesis",
@@ -78,7 +78,8 @@ def _source_files():
     """Files the package ships, relative to it, plus the top-level manifest."""
     files = {"blender_manifest.toml"}
     for root, dirs, names in os.walk(PACKAGE_DIR, followlinks=True):
-        dirs[:] = [d for d in dirs if d not in EXCLUDED_PARTS and d != "assets"]
+        dirs[:] = [d for d in dirs
+                   if d not in EXCLUDED_PARTS and d not in ("assets", "layer_groups")]
         for n in names:
             if n.endswith((".pyc", ".pyo")):
                 continue
@@ -285,7 +286,7 @@ def test_install_enable_render_disable_uninstall(addon_module, built_zip, tmp_pa
         core = next(n for n in plain.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
         shipped = layer_group._shipped_path(layer_group.group_name(
             "PRINCIPLED", layer_group.settings_of(core)))
-        assert Path(shipped).is_file() and Path(shipped).is_relative_to(assets_dir)
+        assert Path(shipped).is_file() and Path(shipped).is_relative_to(installed_dir)
 
         def no_build(*_args, **_kw):
             raise AssertionError("built a layer group the extension ships")

@@ -153,8 +153,9 @@ _SOURCES = (sys.modules[__name__], emit_module, builder, groups, layer_graph, no
             thin_film, cycles_albedo_tables, graph, bsdf_interfaces, multiscatter, K, schema)
 _digest = []
 
-#: Where the built extension keeps the layer groups it ships, under the package.
-SHIPPED_DIR = ("assets", "layer_groups")
+#: Where the built extension keeps the layer groups it ships, under the package (beside
+#: assets/, not in it: the asset library holds assets only).
+SHIPPED_DIR = ("layer_groups",)
 #: The configurations shipped (built by the Blender that builds the extension): each BSDF's
 #: default settings and the other distribution an artist picks most.
 SHIPPED = (
