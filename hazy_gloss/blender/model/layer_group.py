@@ -272,7 +272,7 @@ def _share_parts(ng, groups_before, images_before, new_groups, new_images):
     import re
 
     def originals(new, before):
-        names = {i.name: i for i in before}
+        names = {i.name: i for i in before if i.library is None}  # (never a linked one)
         out = {}
         for i in new:
             base = re.sub(r"\.\d{3,}$", "", i.name)
