@@ -132,8 +132,8 @@ def _drop_layer_groups(bpy, layer_group):
 
 
 def _cache_in(layer_group, cache_dir):
-    """Point the per-user group cache at ``cache_dir`` (the caller restores ``_cache_path``);
-    the groups a built extension ships are not looked at (this measures the cache)."""
+    """Point the per-user group cache at ``cache_dir`` and look at no shipped groups (this
+    measures the cache); the caller restores ``_cache_path`` and ``_shipped_path``."""
     layer_group._shipped_path = lambda name: None
     layer_group._cache_path = lambda name: os.path.join(
         cache_dir, "".join(c if c.isalnum() or c == "." else "_" for c in name) + ".blend")
@@ -392,10 +392,10 @@ def markdown(res):
     L.append("**Make Hazy** (`api.make_hazy(mat, haziness=0.5)`) by where the layer's node group "
              "comes from: already in the file (every Make Hazy after the first of its "
              "configuration: one shared group per configuration), appended from the per-user "
-             "cache (the first in a file), built (the first ever on this machine with this "
-             "code, for a configuration the extension does not ship: scripts/build.py ships "
-             "each BSDF's default settings and GGX built, so for those the first ever is an "
-             "append too). **A slider change**: the layer node's Haziness set and the depsgraph "
+             "cache (the first in a file), built (what a configuration costs the first time when "
+             "neither the extension nor the per-user cache has it; the built extension ships "
+             "each BSDF's default settings and GGX, these rows' configurations among them). "
+             "**A slider change**: the layer node's Haziness set and the depsgraph "
              "updated (what a drag step does; the add-on's depsgraph handler runs in it), next to "
              "the same change of a plain Principled BSDF's Roughness: the difference is the "
              f"add-on's. Targets: Make Hazy <= {t['make_ms']:.0f} ms, a slider change <= "

@@ -51,9 +51,10 @@ ASSET_DIRNAME = "assets"
 LAYER_GROUPS_DIR = "layer_groups"
 #: The venvs (scripts/setup.sh) whose bpy also builds the shipped layer groups, if present.
 SHIP_VENVS = (".venv", ".venv52", ".venv45")
-#: Run by each of them with the staged package: its layer groups into the stage.
+#: Run by each of them with the staged package: its layer groups into the stage, where the
+#: package looks for them (layer_group.SHIPPED_DIR).
 _SHIP_HELPER = """
-import sys
+import os, sys
 sys.dont_write_bytecode = True
 sys.path.insert(0, {parent!r})
 import bpy
@@ -61,7 +62,7 @@ import {package} as pkg
 from {package}.blender.model import layer_group
 if not pkg.__file__.startswith({stage!r}):
     raise SystemExit("imported " + pkg.__file__ + ", not the staged package")
-paths = layer_group.write_shipped({out!r})
+paths = layer_group.write_shipped(os.path.join({stage!r}, *layer_group.SHIPPED_DIR))
 print(bpy.app.version_string, len(paths))
 """
 
@@ -132,16 +133,22 @@ def ship_layer_groups(stage, user_resources):
     here, into ``stage/layer_groups``; returns the Blender versions built.  A version
     with no bpy here builds its groups on first use (and caches them per user)."""
     out = stage / LAYER_GROUPS_DIR
-    pythons = [sys.executable] + [str(REPO_ROOT / v / "bin" / "python") for v in SHIP_VENVS]
-    code = _SHIP_HELPER.format(parent=str(stage.parent), package=stage.name,
-                               stage=str(stage), out=str(out))
+    # this interpreter's venv, then setup.sh's others (told apart by their venv directories:
+    # two venvs may share one base Python)
+    venvs = [Path(sys.prefix)] + [REPO_ROOT / v for v in SHIP_VENVS]
+    code = _SHIP_HELPER.format(parent=str(stage.parent), package=stage.name, stage=str(stage))
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(user_resources), PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTHONPATH", None)
     built, seen = [], set()
-    for python in pythons:
-        if python in seen or not os.path.exists(python):
+    for venv in venvs:
+        python = sys.executable if venv == Path(sys.prefix) else str(venv / "bin" / "python")
+        if venv.resolve() in seen:
             continue
-        seen.add(python)
+        if not os.path.exists(python):
+            log(f"WARNING: no {venv.name} here: the zip ships no layer groups of its Blender "
+                "(they are built on first use); bash scripts/setup.sh makes every venv")
+            continue
+        seen.add(venv.resolve())
         proc = subprocess.run([python, "-c", code], cwd=str(stage.parent), env=env,
                               capture_output=True, text=True, timeout=900)
         last = proc.stdout.strip().splitlines()[-1:] or [""]

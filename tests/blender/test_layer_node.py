@@ -367,6 +367,10 @@ def test_group_cache_key_covers_the_tables(env, monkeypatch, tmp_path):
     assert lg._code_digest() == before
 
 
+def _no_build(*_args, **_kw):
+    raise AssertionError("built a layer group that should have been appended")
+
+
 def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_path):
     """Layer groups whose math is the same (Principled groups that differ in the subsurface
     method only) share their section groups, and all groups the table images: built, or
@@ -380,6 +384,8 @@ def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_pa
     for how in ("built", "appended from the cache"):
         bpy.data.batch_remove(list(bpy.data.materials) + list(bpy.data.node_groups)
                               + list(bpy.data.images))
+        if how != "built":  # (the second round must not build: it appends what the first cached)
+            monkeypatch.setattr(lg, "build", _no_build)
         groups = []
         for dist, sss in configs:
             mat, core = principled(f"{dist} {sss}", distribution="MULTI_GGX")
@@ -400,3 +406,61 @@ def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_pa
                 if n.bl_idname == "ShaderNodeTexImage"}
         assert tables and tables == used, (how, tables)
         assert all(g.users > 0 for g in bpy.data.node_groups), how  # nothing left over
+
+
+def test_an_edited_part_or_linked_data_is_not_shared(env, monkeypatch, tmp_path):
+    """A section group the artist edited is not handed to another configuration (it gets its
+    own, as built), and a group built in a file that links hazy materials from a library uses
+    none of the library's data (the file and the per-user cache stay free of links)."""
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    monkeypatch.setattr(lg, "_shipped_path", lambda name: None)
+    monkeypatch.setattr(lg, "_cache_path", lambda name: str(tmp_path / lg._file_name(name)))
+
+    def hazy(name, sss):
+        mat, core = principled(name, distribution="MULTI_GGX")
+        core.subsurface_method = sss
+        env.api.make_hazy(mat, haziness=0.5)
+        return env.layer.layer_node(mat).node_tree
+
+    def parts(group):
+        return {n.node_tree for n in group.nodes if n.bl_idname == "ShaderNodeGroup"}
+
+    # -- an edited part ---------------------------------------------------------------------
+    first = hazy("A", "RANDOM_WALK")
+    edited = next(p for p in parts(first) if "Dielectric" in p.name)
+    math = next(n for n in edited.nodes if n.bl_idname == "ShaderNodeMath"
+                and not n.inputs[1].is_linked)
+    math.inputs[1].default_value += 1.0  # the artist's edit
+    for how in ("built", "appended from the cache"):
+        if how != "built":
+            bpy.data.batch_remove([g for g in bpy.data.node_groups if g.users == 0 or "BURLEY" in
+                                   str(g.get("hazy_gloss_group", {}).get("settings", {}))])
+            bpy.data.batch_remove([m for m in bpy.data.materials if m.name.startswith("B")])
+            monkeypatch.setattr(lg, "build", _no_build)
+        second = hazy(f"B {how}", "BURLEY")
+        assert edited not in parts(second), how
+        own = next(p for p in parts(second) if "Dielectric" in p.name)
+        assert own.name == edited.name + ".001", (how, own.name)
+        assert lg._same_part(own, own) and not lg._same_part(own, edited), how
+        assert parts(first) - {edited} == parts(second) - {own}, how  # the rest is shared
+    monkeypatch.undo()
+
+    # -- a library's layer groups -------------------------------------------------------------
+    bpy.data.batch_remove(list(bpy.data.materials) + list(bpy.data.node_groups)
+                          + list(bpy.data.images))
+    monkeypatch.setattr(lg, "_shipped_path", lambda name: None)
+    monkeypatch.setattr(lg, "_cache_path", lambda name: None)
+    lib_mat = principled("Library hazy", distribution="MULTI_GGX")[0]
+    env.api.make_hazy(lib_mat, haziness=0.5)
+    lib_path = str(tmp_path / "library.blend")
+    bpy.data.libraries.write(lib_path, {lib_mat}, fake_user=True)
+    bpy.data.batch_remove(list(bpy.data.materials) + list(bpy.data.node_groups)
+                          + list(bpy.data.images))
+    with bpy.data.libraries.load(lib_path, link=True) as (_src, dst):
+        dst.materials = ["Library hazy"]
+    linked = [i for c in (bpy.data.node_groups, bpy.data.images) for i in c if i.library]
+    assert any(g.name.startswith(".HG ") for g in linked)  # the library's parts are here
+    local = hazy("Local", "RANDOM_WALK")  # the same configuration, built in this file
+    assert local.library is None
+    uses = lg._uses(local, set())
+    assert not [i.name for i in uses if i.library is not None]

@@ -134,8 +134,14 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
             return cached
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    groups_before, images_before = set(bpy.data.node_groups), set(bpy.data.images)
     build(ng, *config)
     ng[K.GROUP_STAMP] = _stamp_of(*config)
+    drop = _share_parts(ng, groups_before, images_before,
+                        [g for g in bpy.data.node_groups if g not in groups_before],
+                        [i for i in bpy.data.images if i not in images_before])
+    if drop:
+        bpy.data.batch_remove(drop)
     _to_cache(ng)
     return ng
 
@@ -156,7 +162,7 @@ _digest = []
 #: Where the built extension keeps the layer groups it ships, under the package (beside
 #: assets/, not in it: the asset library holds assets only).
 SHIPPED_DIR = ("layer_groups",)
-#: The configurations shipped (built by the Blender that builds the extension): each BSDF's
+#: The configurations shipped (built by each Blender scripts/build.py finds): each BSDF's
 #: default settings and the other distribution an artist picks most.
 SHIPPED = (
     ("PRINCIPLED", {"distribution": "MULTI_GGX", "subsurface_method": "RANDOM_WALK"}),
@@ -283,19 +289,25 @@ def _share_parts(ng, groups_before, images_before, new_groups, new_images):
     groups, images = originals(new_groups, groups_before), originals(new_images, images_before)
     if not groups and not images:  # (the first configuration in a file: nothing to share)
         return []
-    part = _part_stamp()
     for node in ng.nodes:
         sub = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
-        if sub in groups and _is_part(sub, part) and _is_part(groups[sub], part):
+        if sub in groups and _same_part(sub, groups[sub]):
             node.node_tree = groups[sub]
         elif sub in new_groups and images:
             for inner in sub.nodes:
                 old = images.get(inner.image) if inner.bl_idname == "ShaderNodeTexImage" else None
-                if old is not None and old.get("hazy_gloss_table") is not None and \
-                        old.get("hazy_gloss_table") == inner.image.get("hazy_gloss_table"):
+                if old is not None and _same_table(inner.image, old):
                     inner.image = old
     used = _uses(ng, set())
     return [i for i in new_groups + new_images if i not in used]
+
+
+def _same_table(new, old):
+    """The same table: the same hash of its values, the same packed bytes."""
+    digest = new.get("hazy_gloss_table")
+    return digest is not None and old.get("hazy_gloss_table") == digest and \
+        new.packed_file is not None and old.packed_file is not None and \
+        old.packed_file.data == new.packed_file.data
 
 
 def _to_cache(ng):
@@ -324,9 +336,8 @@ def write_shipped(out_dir, configs=None):
     for kind, settings in configs or SHIPPED:
         config = (kind, dict(settings), False, False, False)
         name = group_name(*config)
-        old = bpy.data.node_groups.get(name)
-        if old is not None:
-            bpy.data.node_groups.remove(old)
+        if bpy.data.node_groups.get((name, None)) is not None:
+            raise RuntimeError(f"write_shipped runs in an empty file; {name!r} is in this one")
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
         build(ng, *config)
         ng[K.GROUP_STAMP] = _stamp_of(*config)
@@ -540,7 +551,8 @@ def _emit_sections(ng, lay, sources):
                 if not a.is_const and a.index not in inside and a not in ext:
                     ext.append(a)
         exported = [e for e in members if e.index in final or (readers.get(e.index, set()) - {title})]
-        sub = _section_group(f".HG {tag} {n_sec} {title.split(':')[0]}", title, g, ext, exported)
+        short = title.split(":")[0].split(" (")[0]  # (names stay far below 63 bytes)
+        sub = _section_group(f".HG {tag} {n_sec} {short}", title, g, ext, exported)
         node = ng.nodes.new("ShaderNodeGroup")
         node.node_tree = sub
         node.label = title.split(":")[0]
@@ -570,26 +582,46 @@ def _socket_name(e):
 
 
 def _part_stamp():
-    """A section group's stamp: the code that built it (its name holds the configuration)."""
+    """A section group's stamp: the code that built it (its name holds the configuration); the
+    group adds ``print``, its _fingerprint when built."""
     return {"kind": "layer part", "version": GROUP_VERSION, "code": _code_digest()}
 
 
-def _is_part(ng, stamp):
-    d = ng.get(K.GROUP_STAMP)
-    return d is not None and hasattr(d, "to_dict") and d.to_dict() == stamp
+def _fingerprint(ng):
+    """What a section group holds: its nodes (name, type, operation, unlinked input values)
+    and how many links (so a part the artist edited is told from ours)."""
+    import hashlib
+    h = hashlib.sha1(str(len(ng.links)).encode())
+    for n in ng.nodes:
+        h.update(f"{n.name}|{n.bl_idname}|{getattr(n, 'operation', '')}".encode())
+        for sock in n.inputs:
+            if not sock.is_linked and hasattr(sock, "default_value"):
+                v = sock.default_value
+                h.update(repr(tuple(v) if hasattr(v, "__len__") else v).encode())
+    return h.hexdigest()
+
+
+def _same_part(new, old):
+    """Whether the file's section group ``old`` computes what the just made ``new`` does: both
+    from this code, and ``old`` as ``new`` was when it was built (not edited since)."""
+    stamps = [g.get(K.GROUP_STAMP) for g in (new, old)]
+    if not all(hasattr(d, "to_dict") for d in stamps):
+        return False
+    a, b = (d.to_dict() for d in stamps)
+    base = _part_stamp()
+    if any(a.get(k) != v or b.get(k) != v for k, v in base.items()) or "print" not in a:
+        return False
+    return _fingerprint(old) == a["print"]
 
 
 def _section_group(name, title, g, ext, exported):
-    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``);
-    the file's own when another configuration of the same math has it (the same name and
-    code: e.g. Principled groups that differ in their subsurface method only)."""
-    old = bpy.data.node_groups.get(name)
-    if old is not None and _is_part(old, _part_stamp()):
-        return old
+    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``).
+    Where the file has one of that name in use, Blender names this one "<name>.001" and
+    ensure_group gives the group the file's when the two are the same (_share_parts)."""
+    old = bpy.data.node_groups.get((name, None))  # (a local one: never a linked group)
     if old is not None and old.users == 0:
         bpy.data.node_groups.remove(old)
     sub = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    sub[K.GROUP_STAMP] = _part_stamp()
     iface = sub.interface
     for a in ext:
         iface.new_socket(name=_socket_name(a), in_out="INPUT",
@@ -616,6 +648,7 @@ def _section_group(name, title, g, ext, exported):
         right = max(n.location.x for n in nodes)
         gout.location = (right + 2.0 * _COLUMN, 0.0)
     gin.location = (-2.0 * _COLUMN, 0.0)
+    sub[K.GROUP_STAMP] = {**_part_stamp(), "print": _fingerprint(sub)}
     return sub
 
 

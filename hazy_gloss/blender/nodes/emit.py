@@ -199,7 +199,7 @@ def table_image(name, data):
     import bpy
     digest = hashlib.sha1(np.ascontiguousarray(data, np.float32).tobytes()).hexdigest()[:12]
     full = f".Hazy Gloss table {name} {digest}"
-    img = bpy.data.images.get(full)
+    img = bpy.data.images.get((full, None))  # (a local one: never a linked image)
     if img is not None and img.get("hazy_gloss_table") == digest:
         return img
     h, w = data.shape[:2]
