@@ -441,17 +441,18 @@ _COLUMN = 180.0
 _ROW = 160.0
 
 
-def _frame(ng, title, nodes, x0, y0):
-    """Put ``nodes`` (already laid out from (0, 0) down) in a labelled frame at (x0, y0)."""
+def _frame(ng, title, nodes, x0, y0, at=None):
+    """Put ``nodes`` (laid out from (0, 0) down: where they are, or ``at``: name -> (x, y)) in
+    a labelled frame at (x0, y0)."""
     frame = ng.nodes.new("NodeFrame")
     frame.label = title
     frame.label_size = 16
     frame.shrink = True
     frame.location = (x0, y0)
     for n in nodes:
-        loc = n.location.copy()
+        x, y = at[n.name] if at is not None else tuple(n.location)
         n.parent = frame
-        n.location = (x0 + loc.x, y0 + loc.y)
+        n.location = (x0 + x, y0 + y)
     return frame
 
 
@@ -633,6 +634,7 @@ def _section_group(name, title, g, ext, exported):
     gout = sub.nodes.new("NodeGroupOutput")
     known = {a.index: gin.outputs[i] for i, a in enumerate(ext)}
     tb = TreeBuilder(sub, prefix="")
+    tb.set_locations = False  # (laid out once, below)
     made = {}
     out = emit(tb, g, exported, {}, known=known, nodes_by_expr=made)
     for i, v in enumerate(out):
@@ -643,8 +645,7 @@ def _section_group(name, title, g, ext, exported):
             seen.add(n.name)
             nodes.append(n)
     if nodes:
-        _relayout(nodes)
-        _frame(sub, title, nodes, 0.0, 0.0)
+        _frame(sub, title, nodes, 0.0, 0.0, _relayout(nodes, tb.grid))
         right = max(n.location.x for n in nodes)
         gout.location = (right + 2.0 * _COLUMN, 0.0)
     gin.location = (-2.0 * _COLUMN, 0.0)
@@ -652,17 +653,18 @@ def _section_group(name, title, g, ext, exported):
     return sub
 
 
-def _relayout(nodes):
-    """Columns by the order of dependency within a frame (TreeBuilder placed them by global
-    depth): x from the smallest depth used, rows packed per column."""
-    xs = sorted({round(n.location.x) for n in nodes})
-    col = {x: i for i, x in enumerate(xs)}
-    rows = {}
-    for n in sorted(nodes, key=lambda n: (n.location.x, -n.location.y)):
-        c = col[round(n.location.x)]
+def _relayout(nodes, grid):
+    """Where ``nodes`` go in their frame: columns by the order of dependency (TreeBuilder's
+    ``grid``: global depth and row), x from the smallest depth used, rows packed per column.
+    Returns {node name: (x, y)}."""
+    col = {d: i for i, d in enumerate(sorted({grid[n.name][0] for n in nodes}))}
+    rows, at = {}, {}
+    for n in sorted(nodes, key=lambda n: grid[n.name]):
+        c = col[grid[n.name][0]]
         r = rows.get(c, 0)
         rows[c] = r + 1
-        n.location = (_COLUMN * c, -_ROW * r)
+        at[n.name] = (_COLUMN * c, -_ROW * r)
+    return at
 
 
 def _closures(ng, tree, kind, settings, outs, gin, x0, made):

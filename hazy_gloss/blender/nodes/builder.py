@@ -26,6 +26,11 @@ class TreeBuilder:
         self.created = []
         self.reuse = None  # nodes to take instead of creating new ones (nodes.emit)
         self._placed = set()  # names of reused nodes
+        #: node name -> (depth, row) of place(); with ``set_locations`` False place() only
+        #: records it, for a caller that lays the nodes out itself (each location set updates
+        #: the whole tree: one per node is what a large group can afford)
+        self.grid = {}
+        self.set_locations = True
 
     def node(self, bl_idname, *, label=None, name=None, depth=None, **props):
         """A new node; ``name`` becomes "<prefix> <name>" and, in a material tree, its role.
@@ -64,7 +69,9 @@ class TreeBuilder:
             return
         row = self._rows.get(depth, 0)
         self._rows[depth] = row + 1
-        node.location = (self.x0 + 180.0 * depth, self.y0 - 160.0 * row)
+        self.grid[node.name] = (depth, row)
+        if self.set_locations:
+            node.location = (self.x0 + 180.0 * depth, self.y0 - 160.0 * row)
         self._depth[node.name] = depth
 
     def depth_of(self, value):
