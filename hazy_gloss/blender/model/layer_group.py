@@ -134,14 +134,10 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
             return cached
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    groups_before, images_before = set(bpy.data.node_groups), set(bpy.data.images)
+    before = set(bpy.data.node_groups), set(bpy.data.images)
     build(ng, *config)
     ng[K.GROUP_STAMP] = _stamp_of(*config)
-    drop = _share_parts(ng, groups_before, images_before,
-                        [g for g in bpy.data.node_groups if g not in groups_before],
-                        [i for i in bpy.data.images if i not in images_before])
-    if drop:
-        bpy.data.batch_remove(drop)
+    _keep_one_copy(ng, *before)
     _to_cache(ng)
     return ng
 
@@ -238,8 +234,7 @@ def _append(path, name, config):
     import os
     if path is None or not os.path.isfile(path):
         return None
-    before = set(bpy.data.node_groups)
-    images_before = set(bpy.data.images)
+    before = set(bpy.data.node_groups), set(bpy.data.images)
     try:
         with bpy.data.libraries.load(path, link=False) as (src, dst):
             if name not in src.node_groups:
@@ -247,16 +242,24 @@ def _append(path, name, config):
             dst.node_groups = [name]
     except (OSError, RuntimeError):
         return None
-    new = [g for g in bpy.data.node_groups if g not in before]
-    new_images = [i for i in bpy.data.images if i not in images_before]
-    for i in new + new_images:  # (as built ones: dropped on save once nothing uses them)
-        i.use_fake_user = False
+    new = [g for g in bpy.data.node_groups if g not in before[0]]
+    for i in new + [i for i in bpy.data.images if i not in before[1]]:
+        i.use_fake_user = False  # (as built ones: dropped on save once nothing uses them)
     ng = next((g for g in new if fits(g, *config)), None)
-    drop = new + new_images if ng is None else _share_parts(ng, before, images_before, new,
-                                                            new_images)
-    if drop:
-        bpy.data.batch_remove([i for i in drop if i is not ng])  # (one pass over the file)
+    _keep_one_copy(ng, *before)
     return ng
+
+
+def _keep_one_copy(ng, groups_before, images_before):
+    """After ``ng`` was appended or built: the node groups and images that came with it give
+    way to the file's where those are the same (_share_parts), and what nothing of ``ng``
+    uses is removed, in one pass over the file (everything new, when ``ng`` is None)."""
+    new_groups = [g for g in bpy.data.node_groups if g not in groups_before]
+    new_images = [i for i in bpy.data.images if i not in images_before]
+    drop = new_groups + new_images if ng is None else _share_parts(
+        ng, groups_before, images_before, new_groups, new_images)
+    if drop:
+        bpy.data.batch_remove([i for i in drop if i is not ng])
 
 
 def _uses(ng, out):
