@@ -55,11 +55,12 @@ class Notes(list):
         self.material = material
 
 
-def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, **haze):
+def make_hazy(mat, *, haziness=None, haze_extent=None, **haze):
     """Put a haze layer on ``mat``'s own Principled, Metallic or Glossy BSDF (the one closest to
     the Material Output, also inside Mix / Add Shader trees): every input and link of it and
     everything else in the tree stay; at haziness 0 the material renders exactly as before.
-    On a material that has a layer already, the haze values given are set on it.
+    On a material that has a layer already, the haze values given are set on it and the others
+    kept (a new layer starts from haziness 0, haze_extent 5 for those not given).
     Haze keywords: those of ``hazy_gloss.schema.HAZE_PARAMETERS`` (docs/parameters.md's haze
     layer table: haziness, haze_extent (a number or an (x, y) pair), smoothness, ...);
     ``node`` (a node or its name) picks the BSDF.  Returns the layer's :class:`Notes` (``.material``: ``mat``); raises
@@ -176,7 +177,7 @@ def _update(mat, changes):
     from .blender.actions import edit as _edit
     out = _edit.update_material(mat, **changes)
     if out[0] is None and _layer.is_layered(mat):
-        out = (Notes(mat, _layer.notes(mat)), out[1])
+        out = (Notes(mat, _layer.held_haze(mat, changes) + _layer.notes(mat)), out[1])
     replaced = _edit.REPLACED.get(mat.session_uid)
     if replaced:
         import warnings

@@ -96,6 +96,8 @@ def min_roughness(distribution):
 NODE_PREFIX = "HG"
 #: ID-property stamps.
 STAMP = "hazy_gloss"  # on a hazy material: its perceptual parameters
+#: A haze parameter that a link feeds, as read back from the layer node (no one value).
+TEXTURED = "texture"
 MAPS_STAMP = "hazy_gloss_maps"  # on a material wired to converted maps
 RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in recomposite mode
 GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups

@@ -117,20 +117,25 @@ def compositor_output(tree, name, location=(900, 0)):
 
 
 def animated_paths(idblock):
-    """The data paths of ``idblock`` driven by drivers or keyframes (legacy actions of 4.x and
-    the slotted/layered actions of 4.4+, where ``Action.fcurves`` is gone)."""
+    """The data paths of ``idblock`` driven by drivers or keyframes."""
     anim = getattr(idblock, "animation_data", None)
     if anim is None:
         return set()
     paths = {fc.data_path for fc in anim.drivers}
-    action = anim.action
+    return paths | {fc.data_path for fc in slot_fcurves(anim.action, anim)}
+
+
+def slot_fcurves(action, owner):
+    """The F-curves of ``action`` that animate ``owner`` (an AnimData or an NLA strip): in the
+    slotted actions of 4.4+ (where ``Action.fcurves`` is gone or only the first slot's) the
+    channelbag of ``owner.action_slot`` alone; an action can hold other IDs' slots."""
     if action is None:
-        return paths
-    curves = getattr(action, "fcurves", None)
-    if curves is None or not len(curves):
-        curves = []
-        for layer in getattr(action, "layers", ()):
-            for strip in layer.strips:
-                for bag in getattr(strip, "channelbags", ()):
-                    curves.extend(bag.fcurves)
-    return paths | {fc.data_path for fc in curves}
+        return []
+    layers = getattr(action, "layers", None)
+    if layers is None:  # (before 4.4: one ID per action)
+        return list(action.fcurves)
+    slot = getattr(owner, "action_slot", None)
+    if slot is None:
+        return []
+    return [fc for layer in layers for strip in layer.strips
+            for bag in [strip.channelbag(slot)] if bag is not None for fc in bag.fcurves]

@@ -225,8 +225,15 @@ def normalise_haze(params, current=None):
     h = dict(HAZE_DEFAULTS if current is None else current)
     h.update(params)
     for name in HAZE_PARAMETERS:
+        if name not in params and _textured(h[name]):  # (a link feeds it: kept as it is)
+            continue
         h[name] = check_value(name, h[name])
     return h
+
+
+def _textured(value):
+    return (isinstance(value, str) and value == K.TEXTURED) or \
+        (isinstance(value, tuple) and K.TEXTURED in value)
 
 
 def _flag(name, value):

@@ -303,6 +303,77 @@ def test_make_hazy_on_a_hazy_material_updates_it(env):
     assert "Updated" in env.reports.last_reports[0][1]
 
 
+def test_make_hazy_again_changes_only_what_it_is_given(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.4, haze_extent=8.0, coat_haziness=0.3, coat_haze_extent=7.0)
+    env.api.make_hazy(mat, coat_haziness=0.6)
+    p = env.api.read_parameters(mat)
+    assert p["haziness"] == pytest.approx(0.4) and tuple(p["haze_extent"]) == (8.0, 8.0)
+    assert p["coat_haziness"] == pytest.approx(0.6) and p["coat_haze_extent"] == 7.0
+    assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}  # nothing given
+    assert env.api.read_parameters(mat)["haziness"] == pytest.approx(0.4)
+    fresh, _ = principled("Fresh")
+    env.api.make_hazy(fresh, coat_haziness=0.2)  # a new layer: the defaults for the rest
+    p = env.api.read_parameters(fresh)
+    assert p["haziness"] == 0.0 and tuple(p["haze_extent"]) == (5.0, 5.0)
+
+
+def test_setting_an_animated_or_linked_haze_value_says_what_decides_it(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.4)
+    node = env.layer.layer_node(mat)
+    node.inputs["Haziness"].keyframe_insert("default_value", frame=1)
+    tex = mat.node_tree.nodes.new("ShaderNodeValue")
+    mat.node_tree.links.new(tex.outputs[0], node.inputs["Coat Haziness"])
+    for notes in (env.api.make_hazy(mat, haziness=0.9, coat_haziness=0.5),
+                  env.api.update_material(mat, haziness=0.8, coat_haziness=0.1)):
+        said = sorted(n for n in notes if n.startswith(("Haziness", "Coat Haziness")))
+        assert len(said) == 2, notes
+        assert "linked" in said[0] and "animated" in said[1]  # (Coat Haziness, Haziness)
+    assert not any(n.startswith("Haze Extent") for n in env.api.update_material(mat, haze_extent=3))
+
+
+def _node_curves(mat):
+    """{data path: values at frames 1 and 10} of the curves animating ``mat``'s node tree."""
+    anim = mat.node_tree.animation_data
+    curves = [fc for layer in anim.action.layers for strip in layer.strips
+              for fc in strip.channelbag(anim.action_slot).fcurves]
+    return {fc.data_path: (fc.evaluate(1), fc.evaluate(10)) for fc in curves}
+
+
+@pytest.mark.parametrize("shared_by", ["copy of the material", "another slot"])
+def test_a_shared_action_stays_with_the_material_that_did_not_change(env, shared_by):
+    mat, bsdf = principled("Paint")
+    for name, keys in (("Coat Roughness", [(1, 0.1), (10, 0.5)]),
+                       ("Emission Strength", [(1, 0.0), (10, 2.0)])):
+        for frame, value in keys:
+            bsdf.inputs[name].default_value = value
+            bsdf.inputs[name].keyframe_insert("default_value", frame=frame)
+    twin = mat.copy()
+    if shared_by == "another slot":  # one action, a slot per material (4.4+ slotted actions)
+        twin.node_tree.animation_data.action_slot = mat.node_tree.animation_data.action.slots.new(
+            "NODETREE", "twin")
+        for name, (a, b) in _node_curves(mat).items():
+            fc = twin.node_tree.animation_data.action.layers[0].strips[0].channelbag(
+                twin.node_tree.animation_data.action_slot, ensure=True).fcurves.new(name)
+            fc.keyframe_points.insert(1, a)
+            fc.keyframe_points.insert(10, b)
+    before = _node_curves(twin)
+    shared = twin.node_tree.animation_data.action == mat.node_tree.animation_data.action
+    assert shared and len(before) == 2
+    env.api.make_hazy(mat, haziness=0.3)
+    assert _node_curves(twin) == before
+    node = env.layer.layer_node(mat)
+    assert {p.split(".inputs")[0] for p in _node_curves(mat)} == {f'nodes["{node.name}"]'}
+    for name in ("Coat Roughness", "Emission Strength"):
+        assert node.inputs[name].path_from_id() + ".default_value" in _node_curves(mat)
+    copy = mat.copy()  # a copy of the hazy one, then its haze taken off: the original keeps it
+    env.api.remove_haze(copy)
+    assert {p.split(".inputs")[0] for p in _node_curves(mat)} == {f'nodes["{node.name}"]'}
+    assert len(_node_curves(mat)) == 2 and _node_curves(twin) == before
+    assert _node_curves(copy) == before
+
+
 def test_eevee_output_refuses_linked_data(env, tmp_path):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

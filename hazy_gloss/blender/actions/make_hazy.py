@@ -171,13 +171,14 @@ def replace_with_hazy(mat, replaced, p, links):
     return m, dropped
 
 
-def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
+def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
     """Put a haze layer on ``mat``'s own BSDF (blender.model.layer): ``node`` (a node or its name),
     else the Principled, Metallic or Glossy BSDF closest to the Material Output (also inside
     Mix / Add Shader trees) becomes the layer node, with every input, link and keyframe; at
     haziness 0 the material renders as before.  On a material that has a layer already, the
-    haze values given are set on it.  Returns (status, message, notes): status "FINISHED"
-    (made hazy or updated) or "ERROR"."""
+    haze values given are set on it, the others kept (a new layer: HAZE_DEFAULTS for those not
+    given).  Returns (status, message, notes): status "FINISHED" (made hazy or updated) or
+    "ERROR"."""
     problem = edit_problem(mat)
     if problem is not None and (mat is None or mat.library is not None
                                 or getattr(mat, "override_library", None) is not None):
@@ -186,7 +187,9 @@ def make_hazy(mat, *, haziness=0.0, haze_extent=5.0, node=None, **haze):
         return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
-    given = dict(haze, haziness=haziness, haze_extent=haze_extent)
+    given = dict(haze)
+    given.update({k: v for k, v in (("haziness", haziness), ("haze_extent", haze_extent))
+                  if v is not None})
     if layer.is_layered(mat):
         return _update_layer(mat, given, node)
     if material_read.is_hazy(mat):
@@ -252,7 +255,7 @@ def _update_layer(mat, given, node):
         return "ERROR", plain_message(exc), []
     sync.refresh_derived(mat)  # the EEVEE-only output and the export fallback follow
     return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness {h['haziness']:g})",
-            layer.notes(mat))
+            layer.held_haze(mat, given) + layer.notes(mat))
 
 
 def remove_haze(mat):

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import re
 
+import bpy
+
 import numpy as np
 
 from ... import constants as K
@@ -44,7 +46,7 @@ STAMP_VERSION = 3  # 3: the layer as one node
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
 HAZE = HAZE_DEFAULTS
 #: A haze value fed by a link (a map, a procedural mask): its value is per shading point.
-TEXTURE = "texture"
+TEXTURE = K.TEXTURED
 PARKED_SUFFIX = " (before haze)"
 #: constants.ROLE of the layer node (the add-on's node: it builds and removes it).
 LAYER_ROLE = "Haze layer"
@@ -279,6 +281,7 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
                "parent": core.parent.name if core.parent is not None else "",
                "use_custom_color": bool(core.use_custom_color), "color": list(core.color)}
     name = core.name
+    own_animation(tree, [name])  # (before the rename: Blender renames the curves' paths)
     parked = _unique_name(tree, name + PARKED_SUFFIX)
     core.name = parked  # (Blender moves the animation of its inputs with the new name)
     node = tree.nodes.new("ShaderNodeGroup")
@@ -361,20 +364,43 @@ def _fcurves(idblock):
     anim = getattr(idblock, "animation_data", None)
     if anim is None:
         return []
-    curves = list(anim.drivers)
-    actions = [anim.action] if anim.action is not None else []
+    curves = list(anim.drivers) + compat.slot_fcurves(anim.action, anim)
     for track in anim.nla_tracks:
-        actions += [s.action for s in track.strips if s.action is not None]
-    for action in actions:
-        legacy = getattr(action, "fcurves", None)
-        if legacy is not None and len(legacy):
-            curves += list(legacy)
-            continue
-        for layer in getattr(action, "layers", ()):
-            for strip in layer.strips:
-                for bag in getattr(strip, "channelbags", ()):
-                    curves += list(bag.fcurves)
+        for strip in track.strips:
+            curves += compat.slot_fcurves(strip.action, strip)
     return curves
+
+
+def own_animation(tree, node_names):
+    """Before the layer renames or re-points the curves of ``node_names``' inputs: an action
+    ``tree`` shares with another ID (``mat.copy()`` shares it) is replaced by a copy of its own,
+    as Blender's Make Single User does, so the other material keeps its animation.  Returns the
+    names of the copies."""
+    anim = getattr(tree, "animation_data", None)
+    if anim is None:
+        return []
+    owners = [anim] + [strip for track in anim.nla_tracks for strip in track.strips]
+    refs = {}
+    for owner in owners:
+        if owner.action is not None:
+            refs[owner.action] = refs.get(owner.action, 0) + 1
+    prefixes = tuple(f'nodes["{bpy.utils.escape_identifier(n)}"].' for n in node_names)
+    copies = {}
+    for owner in owners:
+        action = owner.action
+        if action is None or action.users - int(action.use_fake_user) <= refs[action]:
+            continue  # (only this tree uses it)
+        if not any(fc.data_path.startswith(prefixes)
+                   for fc in compat.slot_fcurves(action, owner)):
+            continue
+        slot = getattr(owner, "action_slot", None)
+        ident = slot.identifier if slot is not None else None
+        if action not in copies:
+            copies[action] = action.copy()
+        owner.action = copies[action]
+        if ident is not None and getattr(owner, "action_slot", None) is None:
+            owner.action_slot = copies[action].slots.get(ident)
+    return [c.name for c in copies.values()]
 
 
 def _move_animation(tree, src, dst):
@@ -408,6 +434,7 @@ def remove(mat):
     raw = _raw_state(mat) or {}
     node, core = layer_node(mat), original_node(mat)
     _remove_eevee_nodes(mat)
+    own_animation(tree, [n.name for n in (node, core) if n is not None])
     if core is not None:
         if node is not None:
             _give_back(tree, node, core)
@@ -488,8 +515,30 @@ def set_haze(node, haze):
             values[key] = v
     for key, v in values.items():
         sock = _haze_socket(node, key)
-        if sock is not None:
+        if sock is not None and v != TEXTURE:
             set_if_changed(sock, v)
+
+
+def held_haze(mat, keys):
+    """One note per haze value of ``keys`` (HAZE keys) that something else decides on the
+    layer node: a link into its socket, or keyframes / a driver on it."""
+    node = layer_node(mat)
+    if node is None:
+        return []
+    paths = compat.animated_paths(node.id_data)
+    notes = []
+    for key in keys:
+        for k in (("haze_extent_x", "haze_extent_y") if key == "haze_extent" else (key,)):
+            sock = _haze_socket(node, k) if k in HAZE_SOCKETS else None
+            if sock is None:
+                continue
+            if sock.is_linked:
+                notes.append(f"{sock.name} is linked (a map or mask feeds it): the link decides "
+                             f"what renders; the value set waits beneath it")
+            elif sock.path_from_id() + ".default_value" in paths:
+                notes.append(f"{sock.name} is animated (keyframes or a driver): they set it again "
+                             f"on the next frame; change the keys instead")
+    return notes
 
 
 def haze_of(mat):

@@ -31,7 +31,7 @@ __all__ = ("StampError", "plain", "group", "read_material", "check_layer", "mate
 #: Nesting beyond this is junk (the add-on's stamps are at most five levels deep).
 MAX_DEPTH = 12
 #: The haze layer's values that may be per-texel maps (texture conversion).
-TEXTURE = "texture"
+TEXTURE = K.TEXTURED
 _TEXTURE_OK = TEXTURE_OK
 _INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
 

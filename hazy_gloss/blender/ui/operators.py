@@ -71,8 +71,9 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
         if node is None and active is not None and getattr(active, "id_data", None) == mat.node_tree \
                 and active.bl_idname in CORE_NODES and not material.is_ours(active):
             node = active.name
-        return finish(self, *make_hazy(mat, haziness=self.haziness, haze_extent=self.haze_extent,
-                                       node=node))
+        given = {k: getattr(self, k) for k in ("haziness", "haze_extent")
+                 if self.properties.is_property_set(k)}  # (a layer keeps what is not given)
+        return finish(self, *make_hazy(mat, node=node, **given))
 
 
 class _OneMaterialOperator:
