@@ -318,6 +318,44 @@ def test_make_hazy_again_changes_only_what_it_is_given(env):
     assert p["haziness"] == 0.0 and tuple(p["haze_extent"]) == (5.0, 5.0)
 
 
+def test_a_node_that_is_not_a_node_is_refused_in_one_line(env):
+    mat = car_paint()
+    for _ in ("plain", "hazy"):
+        with pytest.raises(ValueError, match=r"^node must be a node or its name, got 123$"):
+            env.api.make_hazy(mat, haziness=0.2, node=123)
+        env.api.make_hazy(mat, haziness=0.2)
+
+
+def test_a_group_that_cannot_be_built_leaves_nothing_behind(env, monkeypatch):
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    monkeypatch.setattr(lg, "_from_cache", lambda name, config: None)
+
+    def half_built(ng, *config):
+        ng.nodes.new("ShaderNodeMath")
+        bpy.data.node_groups.new(".HG part", "ShaderNodeTree")
+        raise RuntimeError("the builder broke")
+    monkeypatch.setattr(lg, "build", half_built)
+    mat = car_paint()
+    with pytest.raises(ValueError, match=r"^Building the layer group .* failed: the builder broke$"):
+        env.api.make_hazy(mat, haziness=0.3)
+    assert not bpy.data.node_groups and env.layer.layer_node(mat) is None
+
+
+def test_a_setting_saved_by_a_newer_blender_is_refused_in_one_line(env):
+    """tests/data/principled_5_3.blend: a default Principled BSDF saved by 5.3 (read_homefile
+    use_empty, one material with a fake user); 4.5 reads its Subsurface Method as no item."""
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(DATA, "principled_5_3.blend"))
+    mat = bpy.data.materials["Principled 5.3"]
+    if mat.node_tree.nodes["Principled BSDF"].subsurface_method:
+        env.api.make_hazy(mat, haziness=0.3)  # (5.2, 5.3: the enum is known)
+        assert env.layer.layer_node(mat) is not None
+        return
+    with pytest.raises(ValueError, match=r"^The Subsurface Method of “Principled BSDF” is one "
+                                         r"this Blender does not know"):
+        env.api.make_hazy(mat, haziness=0.3)
+    assert not bpy.data.node_groups and env.layer.layer_node(mat) is None
+
+
 def test_setting_an_animated_or_linked_haze_value_says_what_decides_it(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.4)
@@ -477,6 +515,7 @@ def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_pa
                 if n.bl_idname == "ShaderNodeTexImage"}
         assert tables and tables == used, (how, tables)
         assert all(g.users > 0 for g in bpy.data.node_groups), how  # nothing left over
+        assert not bpy.data.libraries, how  # (an append's Library entry included)
 
 
 def test_an_edited_part_or_linked_data_is_not_shared(env, monkeypatch, tmp_path):

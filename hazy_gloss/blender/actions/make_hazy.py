@@ -187,6 +187,8 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
         return "ERROR", maps_problem(mat), []
     if not hasattr(mat, "node_tree") or mat.node_tree is None:
         return "ERROR", f"“{mat.name}” has no node tree", []
+    if node is not None and not isinstance(node, (str, bpy.types.Node)):
+        return "ERROR", f"node must be a node or its name, got {node!r:.40}", []
     given = dict(haze)
     given.update({k: v for k, v in (("haziness", haziness), ("haze_extent", haze_extent))
                   if v is not None})

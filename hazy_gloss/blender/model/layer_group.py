@@ -51,7 +51,14 @@ def version_tag(version=None):
 def settings_of(node):
     """{setting: value} of a BSDF node (what a configuration fixes)."""
     kind = kind_of(node)
-    return {p: getattr(node, p) for p in NODE_SETTINGS[kind]}
+    settings = {p: getattr(node, p) for p in NODE_SETTINGS[kind]}
+    unknown = [p for p, v in settings.items() if not v]  # (an enum a newer Blender saved)
+    if unknown:
+        prop = node.bl_rna.properties[unknown[0]].name
+        raise ValueError(f"the {prop} of “{node.name}” is one this Blender does not know (the "
+                         f"file was saved by a newer Blender): pick one in the node, then try "
+                         f"again")
+    return settings
 
 
 def kind_of(node):
@@ -132,10 +139,16 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
         cached = _from_cache(name, config)
         if cached is not None:
             return cached
+    had = set(bpy.data.node_groups), set(bpy.data.images)
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
     before = set(bpy.data.node_groups), set(bpy.data.images)
-    build(ng, *config)
+    try:
+        build(ng, *config)
+    except Exception as exc:  # (nothing half-built stays in the file)
+        bpy.data.batch_remove([i for c, old in zip((bpy.data.node_groups, bpy.data.images), had)
+                               for i in c if i not in old])
+        raise ValueError(f"building the layer group “{name}” failed: {exc}") from exc
     ng[K.GROUP_STAMP] = _stamp_of(*config)
     _keep_one_copy(ng, *before)
     _to_cache(ng)
@@ -230,6 +243,16 @@ def _from_cache(name, config):
     return None
 
 
+def _drop_library(path):
+    """The Library entry an append leaves behind (it holds nothing once the data is local)."""
+    import os
+    for lib in [lib for lib in bpy.data.libraries
+                if os.path.normcase(os.path.abspath(bpy.path.abspath(lib.filepath)))
+                == os.path.normcase(os.path.abspath(path))]:
+        if not any(i.library == lib for c in (bpy.data.node_groups, bpy.data.images) for i in c):
+            bpy.data.libraries.remove(lib)
+
+
 def _append(path, name, config):
     import os
     if path is None or not os.path.isfile(path):
@@ -242,6 +265,8 @@ def _append(path, name, config):
             dst.node_groups = [name]
     except (OSError, RuntimeError):
         return None
+    finally:
+        _drop_library(path)
     new = [g for g in bpy.data.node_groups if g not in before[0]]
     for i in new + [i for i in bpy.data.images if i not in before[1]]:
         i.use_fake_user = False  # (as built ones: dropped on save once nothing uses them)
