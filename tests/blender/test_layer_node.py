@@ -356,6 +356,36 @@ def test_a_setting_saved_by_a_newer_blender_is_refused_in_one_line(env):
     assert not bpy.data.node_groups and env.layer.layer_node(mat) is None
 
 
+def test_a_layer_on_another_blenders_group_moves_to_this_ones(env):
+    """A file saved by another Blender keeps that Blender's group (its Multiscatter correction
+    reads that Blender's tables): the layer says so, and Upgrade Haze Layers or a haze edit
+    moves it to this Blender's group with its values and links."""
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    mats = [car_paint(), car_paint()]
+    for m in mats:
+        env.api.make_hazy(m, haziness=0.4, coat_haziness=0.2)
+    ng = env.layer.layer_node(mats[0]).node_tree
+    stamp = ng[lg.K.GROUP_STAMP].to_dict()
+    stamp["blender"] = "4.2"
+    ng[lg.K.GROUP_STAMP] = stamp
+    ng.name = ng.name.rsplit(" ", 1)[0] + " 4.2"  # (as that Blender named it)
+    tex = mats[0].node_tree.nodes.new("ShaderNodeValue")
+    mats[0].node_tree.links.new(tex.outputs[0], env.layer.layer_node(mats[0]).inputs["Roughness"])
+    for m in mats:
+        assert any("made by Blender 4.2: Upgrade Haze Layers" in n
+                   for n in env.api.read_parameters(m)["notes"]), m.name
+    env.api.update_material(mats[0], haziness=0.5)
+    assert env.api.upgrade_layers() == [mats[1].name]
+    for m, h in zip(mats, (0.5, 0.4)):
+        node = env.layer.layer_node(m)
+        assert node.node_tree != ng and lg.fits(node.node_tree, *env.layer.wanted_group(node))
+        p = env.api.read_parameters(m)
+        assert (p["haziness"], p["coat_haziness"]) == (pytest.approx(h), pytest.approx(0.2))
+        assert not any("made by" in n for n in p["notes"])
+    assert env.layer.layer_node(mats[0]).inputs["Roughness"].links[0].from_node == tex
+    assert ng.users == 0  # (dropped on save)
+
+
 def test_setting_an_animated_or_linked_haze_value_says_what_decides_it(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.4)

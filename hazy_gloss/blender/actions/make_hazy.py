@@ -480,18 +480,22 @@ def materials_or_all(materials):
 
 
 def upgrade_layers(materials):
-    """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node.
-    Returns (status, message, notes)."""
+    """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node, and
+    move layer nodes on another Blender's or add-on's group to this one's.  Returns (status,
+    message, notes)."""
     done, notes = [], []
     for mat in materials:
-        if not layer.is_legacy(mat):
+        if not layer.is_legacy(mat) and layer.outdated_group(mat) is None:
             continue
         problem = edit_problem(mat)
         if problem is not None:
             notes.append(problem)
             continue
         try:
-            layer.upgrade(mat)
+            if layer.is_legacy(mat):
+                layer.upgrade(mat)
+            else:
+                layer.refresh_group(mat)
         except ValueError as exc:
             notes.append(f"“{mat.name}”: {plain_message(exc)}")
             continue
@@ -502,8 +506,9 @@ def upgrade_layers(materials):
             notes.append(f"“{mat.name}”: upgraded, but {error[:1].lower()}{error[1:]}")
         done.append(mat.name)
     if not done and not notes:
-        return "NOOP", "No haze layer of an earlier Hazy Gloss to upgrade", []
-    msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to the layer node"
+        return "NOOP", "No haze layer of an earlier Hazy Gloss or another Blender to upgrade", []
+    msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to this Blender's "
+           f"layer node"
            + (f": {', '.join('“' + n + '”' for n in done)}" if done else ""))
     return ("FINISHED" if done else "ERROR"), msg, notes
 

@@ -585,16 +585,47 @@ def apply(mat, haze, *, core=None):
                              f"again")
         wrap(mat, core, haze, keep_body_colour=bool(haze.get("keep_body_colour")))
         return {}
-    cfg = layer_values.group_config(node)
-    smooth = haze.get("smoothness") is not None
-    kind = cfg.get("bsdf", "PRINCIPLED")
-    body = bool(haze.get("keep_body_colour", cfg.get("body"))) and kind == "PRINCIPLED"
-    if (smooth != bool(cfg.get("smooth")) or body != bool(cfg.get("body"))) and \
-            not cfg.get("baked"):
-        ng = layer_group.ensure_group(kind, dict(cfg.get("settings", {})), smooth, False, body)
-        swap_group(node, ng)
+    want = wanted_group(node, haze)
+    if want is not None and not layer_group.fits(node.node_tree, *want):  # (also: another
+        swap_group(node, layer_group.ensure_group(*want))  # Blender's or add-on's group)
     set_haze(node, haze)
     return {}
+
+
+def wanted_group(node, haze=None):
+    """The configuration (ensure_group's arguments) of the group this Blender and add-on build
+    for the layer node: its group's, with the haze curve (smooth or Eq. 7) and Keep Body Colour
+    of ``haze`` when given.  None when the node has no layer group."""
+    cfg = layer_values.group_config(node)
+    if cfg.get("kind") != "layer":
+        return None
+    kind, baked = cfg.get("bsdf", "PRINCIPLED"), bool(cfg.get("baked"))
+    smooth, body = bool(cfg.get("smooth")), bool(cfg.get("body"))
+    if haze is not None and not baked:
+        smooth = haze.get("smoothness") is not None
+        body = bool(haze.get("keep_body_colour", body)) and kind == "PRINCIPLED"
+    return kind, dict(cfg.get("settings", {})), smooth, baked, body
+
+
+def outdated_group(mat):
+    """The Blender version (e.g. "5.2") or "an earlier Hazy Gloss" whose group the layer node
+    uses when that is not the group this Blender and add-on build; else None."""
+    node = None if is_legacy(mat) else layer_node(mat)
+    want = wanted_group(node) if node is not None else None
+    if want is None or layer_group.fits(node.node_tree, *want):
+        return None
+    made = layer_values.group_config(node).get("blender")
+    return f"Blender {made}" if made != layer_group.version_tag() else "an earlier Hazy Gloss"
+
+
+def refresh_group(mat):
+    """Move the layer node to the group this Blender and add-on build for it (its values, links
+    and haze stay).  Returns whether it moved."""
+    if outdated_group(mat) is None:
+        return False
+    node = layer_node(mat)
+    swap_group(node, layer_group.ensure_group(*wanted_group(node)))
+    return True
 
 
 def swap_group(node, ng):
@@ -759,6 +790,11 @@ def notes(mat):
     node = layer_node(mat)
     if node is None:
         return out
+    made = outdated_group(mat)
+    if made:
+        out.append(f"its layer group was made by {made}: Upgrade Haze Layers (or any haze "
+                   f"edit) moves it to this one's (each Blender's Multiscatter GGX needs its own "
+                   f"correction)")
     if is_baked(mat):
         changed = _baked_changes(mat, node)
         if changed:

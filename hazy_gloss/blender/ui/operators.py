@@ -102,7 +102,8 @@ class HAZY_GLOSS_OT_remove_haze(_OneMaterialOperator, bpy.types.Operator):
 
 class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
     """Make every haze layer of an earlier Hazy Gloss (loose nodes) one layer node, with its
-    values (the first change of such a layer does it too)"""
+    values, and move layer nodes another Blender made to this one's group (the first change of
+    such a layer does it too)"""
 
     bl_idname = "hazy_gloss.upgrade_layers"
     bl_label = "Upgrade Haze Layers"

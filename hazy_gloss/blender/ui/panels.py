@@ -395,6 +395,8 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         box = col.box()
         box.alert = True
         box.label(text=err, icon="ERROR")
+    if layer.outdated_group(mat) and problem is None:
+        col.operator("hazy_gloss.upgrade_layers", icon="FILE_REFRESH").material = mat.name
     head = col.box().column(align=True)
     head.label(text=f"Haze layer node “{node.name}” ({node.node_tree.name})", icon="NODE_MATERIAL")
     head.label(text="Its own inputs are the BSDF's: edit them on the node as usual")
