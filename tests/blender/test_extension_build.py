@@ -133,13 +133,13 @@ def test_zip_holds_real_files_and_nothing_excluded(zip_names, built_zip):
 
 def _shipped_files(layer_group, version):
     """The files of layer_group.SHIPPED built by Blender ``version`` ("5.3"), as the zip names
-    them (the group name ends with the version that built it)."""
+    them (the group name ends with the version that built it, in its brackets)."""
     here = layer_group.version_tag()
     out = set()
     for kind, settings in layer_group.SHIPPED:
         name = layer_group.group_name(kind, settings)
-        assert name.endswith(" " + here)
-        out.add(f"{LAYER_GROUPS}/" + layer_group._file_name(name[:-len(here)] + version))
+        assert name.endswith(f" {here})")
+        out.add(f"{LAYER_GROUPS}/" + layer_group._file_name(f"{name[:-len(here) - 1]}{version})"))
     return out
 
 

@@ -548,6 +548,38 @@ def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_pa
         assert not bpy.data.libraries, how  # (an append's Library entry included)
 
 
+def test_an_appended_hazy_material_brings_no_copies(env, tmp_path):
+    """Appending hazy materials from another file into one that has their configuration: the
+    copies of the groups and tables Blender brings ("<name>.001") give way to the file's (the
+    name keeps its Blender version: no trailing ".3" for Blender to take as a copy's number);
+    a copy the artist made of a layer group (Make Single User) stays theirs."""
+    import re
+    for name in ("Paint A", "Paint B"):
+        mat = car_paint()
+        mat.name = name
+        env.api.make_hazy(mat, haziness=0.4)
+        mat.use_fake_user = True
+    lib = str(tmp_path / "lib.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    mine = car_paint()
+    env.api.make_hazy(mine, haziness=0.2)
+    group = env.layer.layer_node(mine).node_tree
+    assert not re.search(r"\.\d+$", group.name), group.name
+    counts = len(bpy.data.node_groups), len(bpy.data.images)
+    with bpy.data.libraries.load(lib, link=False) as (src, dst):
+        dst.materials = ["Paint A", "Paint B"]
+    assert len(bpy.data.node_groups) > counts[0]  # (Blender's copies, before the update)
+    bpy.context.view_layer.update()
+    assert (len(bpy.data.node_groups), len(bpy.data.images)) == counts
+    for name in ("Paint A", "Paint B"):
+        assert env.layer.layer_node(bpy.data.materials[name]).node_tree == group
+    single = group.copy()  # the artist's own copy, to edit
+    env.layer.layer_node(mine).node_tree = single
+    bpy.context.view_layer.update()
+    assert env.layer.layer_node(mine).node_tree == single and single.name in bpy.data.node_groups
+
+
 def test_an_edited_part_or_linked_data_is_not_shared(env, monkeypatch, tmp_path):
     """A section group the artist edited is not handed to another configuration (it gets its
     own, as built), and a group built in a file that links hazy materials from a library uses

@@ -15,11 +15,13 @@ from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import fallback, layer, legacy_layer, material_edits, material_read, stamp
+from ..model import (fallback, layer, layer_group, legacy_layer, material_edits, material_read,
+                     stamp)
 from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
 _busy = False
+_group_count = [-1]  # node groups in the file at the last update (merge_copies when it changes)
 
 
 def sync(mat, *, force=False):
@@ -117,6 +119,15 @@ def on_depsgraph_update(scene, depsgraph):
     global _busy
     if _busy:
         return
+    if len(bpy.data.node_groups) != _group_count[0]:  # (an append may have brought copies)
+        _busy = True
+        try:
+            layer_group.merge_copies()
+        except Exception:  # noqa: BLE001 (a handler must not raise; the copies just stay)
+            pass
+        finally:
+            _busy = False
+            _group_count[0] = len(bpy.data.node_groups)
     mats = []
     for update in depsgraph.updates:
         idd = getattr(update.id, "original", update.id)

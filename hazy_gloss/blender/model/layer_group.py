@@ -76,7 +76,8 @@ def config_for(kind, settings, *, smooth=False, baked=False, body=False):
 
 
 def group_name(kind, settings, smooth=False, baked=False, body=False):
-    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth) 5.3" (< 64 bytes)."""
+    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth, 5.3)" (< 64 bytes; the
+    version inside the brackets: Blender reads a trailing ".3" as a copy's number)."""
     parts = [K.label(K.DISTRIBUTION_TERMS, settings.get("distribution", ""))]
     for key in ("subsurface_method", "fresnel_type"):
         label = _SETTING_LABEL.get(settings.get(key), "")
@@ -88,7 +89,7 @@ def group_name(kind, settings, smooth=False, baked=False, body=False):
         parts.append("Converted")
     if body:
         parts.append("Body")
-    name = f"{_LABEL[kind]} ({', '.join(parts)}) {version_tag()}"
+    name = f"{_LABEL[kind]} ({', '.join(parts + [version_tag()])})"
     for long, short in _SHORTER:  # Blender's ID names hold 63 bytes
         if len(name.encode()) <= 63:
             break
@@ -200,7 +201,7 @@ def _code_digest():
 def _file_name(name):
     """The .blend of a group in the per-user cache and in the extension's shipped groups."""
     import re
-    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name)
+    slug = re.sub(r"[^A-Za-z0-9.]+", "_", name).strip("_")
     return f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend"
 
 
@@ -328,6 +329,70 @@ def _share_parts(ng, groups_before, images_before, new_groups, new_images):
                     inner.image = old
     used = _uses(ng, set())
     return [i for i in new_groups + new_images if i not in used]
+
+
+def merge_copies():
+    """Copies of the file's layer groups, section groups and tables that an append of hazy
+    materials from another file brought ("<name>.001", the same as the file's own): their
+    users get the file's, and the copies go.  Returns how many data-blocks went."""
+    import re
+    copy = re.compile(r"\.\d{3,}$")
+    groups = [g for g in bpy.data.node_groups if g.library is None]
+    ours = [g for g in groups if copy.search(g.name) and (stamp.group(g, K.GROUP_STAMP) or {})
+            .get("kind") in ("layer", "layer part")]
+    tables = [i for i in bpy.data.images if i.library is None and copy.search(i.name)
+              and i.get("hazy_gloss_table") is not None]
+    if not ours and not tables:
+        return 0
+    groups_before = [g for g in groups if g not in ours]
+    images_before = [i for i in bpy.data.images if i not in tables]
+    by_name = {g.name: g for g in groups_before}
+    gone = []
+    for c in [g for g in ours if is_layer_group(g)]:
+        o = by_name.get(copy.sub("", c.name))
+        if o is not None and _same_layer_group(c, o):
+            c.user_remap(o)
+            gone.append(c)
+    for ng in [g for g in groups if is_layer_group(g) and g not in gone]:
+        _share_parts(ng, groups_before, images_before, ours, tables)
+    bpy.data.batch_remove(gone)
+    n = len(gone)
+    for kind in (ours, tables):  # (section groups first: they hold the tables)
+        unused = [i for i in kind if i not in gone and i.users == 0]
+        bpy.data.batch_remove(unused)
+        gone += unused
+        n += len(unused)
+    return n
+
+
+def _same_layer_group(new, old):
+    """Whether ``new`` (a copy an append brought) is ``old``: the same stamp, the same nodes,
+    and each section group and table the same as ``old``'s (from this code, not edited).  A copy
+    whose sections are ``old``'s own is one the artist made (Make Single User): kept."""
+    if is_layer_group(old) is False or old.library is not None or \
+            stamp.group(new, K.GROUP_STAMP) != stamp.group(old, K.GROUP_STAMP) or \
+            _fingerprint(new) != _fingerprint(old):
+        return False
+    copied = False
+    for node in new.nodes:
+        if node.bl_idname != "ShaderNodeGroup":
+            continue
+        twin = old.nodes.get(node.name)
+        a, b = node.node_tree, getattr(twin, "node_tree", None)
+        if a is b:
+            continue
+        copied = True
+        if a is None or b is None or not _same_part(a, b) or \
+                _fingerprint(a) != (stamp.group(a, K.GROUP_STAMP) or {}).get("print"):
+            return False
+        for inner in a.nodes:
+            if inner.bl_idname == "ShaderNodeTexImage":
+                other = b.nodes.get(inner.name)
+                img = getattr(other, "image", None)
+                if inner.image is not img and (inner.image is None or img is None
+                                               or not _same_table(inner.image, img)):
+                    return False
+    return copied
 
 
 def _same_table(new, old):
