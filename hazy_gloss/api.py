@@ -115,12 +115,16 @@ def create_look(look, name=None, **haze):
 
 def remove_haze(mat):
     """Take the haze layer off ``mat``: its BSDF gets the user's own values and links back and
-    the layer's nodes go.  Returns whether there was a layer."""
+    the layer's nodes go.  Returns whether there was a layer; what it could not give back as it
+    was comes as a UserWarning."""
     from .blender.actions import make_hazy as _make
     _material_read.check_material(mat, "remove_haze")
-    status, msg, _ = _make.remove_haze(mat)
+    status, msg, notes = _make.remove_haze(mat)
     if status == "ERROR":
         raise ValueError(msg)
+    if notes:
+        import warnings
+        warnings.warn(f"{mat.name}: {'; '.join(notes)}", UserWarning, stacklevel=2)
     return status == "FINISHED"
 
 

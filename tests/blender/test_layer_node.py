@@ -442,6 +442,30 @@ def test_a_shared_action_stays_with_the_material_that_did_not_change(env, shared
     assert _node_curves(copy) == before
 
 
+def test_remove_haze_after_the_kept_bsdf_was_deleted_gives_a_new_one(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5)
+    tree = mat.node_tree
+    node = env.layer.layer_node(mat)
+    node.inputs["Roughness"].default_value = 0.27
+    tex = tree.nodes.new("ShaderNodeValue")
+    tree.links.new(tex.outputs[0], node.inputs["Coat Weight"])
+    tree.nodes.remove(env.layer.original_node(mat))
+    with pytest.warns(UserWarning, match="was deleted: a new one"):
+        assert env.api.remove_haze(mat) is True
+    bsdf = tree.nodes["Principled BSDF"]
+    assert bsdf.bl_idname == "ShaderNodeBsdfPrincipled" and not env.layer.is_layered(mat)
+    assert bsdf.inputs["Roughness"].default_value == pytest.approx(0.27)
+    assert bsdf.inputs["Coat Weight"].links[0].from_node == tex
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    assert out.inputs["Surface"].links[0].from_node == bsdf
+    assert not any(n.bl_idname == "ShaderNodeGroup" for n in tree.nodes)
+    env.api.make_hazy(mat, haziness=0.3)  # and it can be made hazy again
+    env.layer.layer_node(mat).id_data.nodes.remove(env.layer.layer_node(mat))
+    with pytest.warns(UserWarning, match="the BSDF is back, unconnected"):
+        env.api.remove_haze(mat)
+
+
 def test_eevee_output_refuses_linked_data(env, tmp_path):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

@@ -275,16 +275,20 @@ def remove_haze(mat):
         notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
                      "could not restore keep the values the layer gave them")
     if not state.get("legacy") and layer.original_node(mat) is None:
-        notes.append("the BSDF kept beside the layer node is gone: the layer node stays, as "
-                     "an ordinary node group")
+        notes.append("the BSDF kept beside the layer node was deleted: a new one with the "
+                     "layer node's values and links takes its place")
+    elif not state.get("legacy") and layer.layer_node(mat) is None:
+        notes.append("the layer node was deleted, and its links with it: the BSDF is back, "
+                     "unconnected")
+    also = ""
     if fallback.remove_export_fallback(mat):  # the user's output active again, as before
-        notes.append("the export fallback was removed too (the material is no longer hazy)")
+        also = ", and its export fallback"
     core = (layer.find_core(mat.node_tree, state.get("core")) if state.get("legacy")
             else layer.original_node(mat))
     label = core.bl_label if core is not None else ""
     layer.remove(mat)
     where = f" from its {label} “{core.name}”" if core is not None else ""
-    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}", notes
+    return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}{also}", notes
 
 
 # --------------------------------------------------------------------------------------------

@@ -435,6 +435,8 @@ def remove(mat):
     node, core = layer_node(mat), original_node(mat)
     _remove_eevee_nodes(mat)
     own_animation(tree, [n.name for n in (node, core) if n is not None])
+    if core is None and node is not None:  # the artist deleted the kept BSDF: a new one
+        core = _new_core(tree, node)
     if core is not None:
         if node is not None:
             _give_back(tree, node, core)
@@ -452,6 +454,23 @@ def remove(mat):
         del node[K.LAYER_NODE_KEY]
     if K.STAMP in mat:
         del mat[K.STAMP]
+
+
+def _new_core(tree, node):
+    """A BSDF of the layer group's type and settings in the layer node's place (Remove Haze
+    gives it the node's values and links), or None for a node without a layer group."""
+    cfg = layer_values.group_config(node)
+    idname = layer_group.BSDF_NODES.get(cfg.get("bsdf"))
+    if idname is None:
+        return None
+    core = tree.nodes.new(idname)
+    for key, value in cfg.get("settings", {}).items():
+        try:
+            setattr(core, key, value)
+        except (TypeError, AttributeError):  # (a setting this Blender does not have)
+            pass
+    core.parent, core.location = node.parent, node.location
+    return core
 
 
 def _remove_eevee_nodes(mat):
