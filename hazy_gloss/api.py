@@ -94,13 +94,18 @@ def upgrade_layers(materials=None):
 def add_haziness_map(mat, *, size=1024, param="haziness"):
     """Link a paintable float image (filled with the current value, packed into the file) into
     the layer node's Haziness (``param="coat_haziness"``: Coat Haziness) through an Image
-    Texture, made the active paint slot.  Returns the image; raises ValueError (one line)."""
+    Texture, made the active paint slot; what is painted is packed again when the file is
+    saved.  Returns the image; raises ValueError (one line); what stands in the way of painting
+    (no UV map) comes as a UserWarning."""
     from .blender.model import layer
     from .blender.actions import make_hazy as _make
     _material_read.check_material(mat, "add_haziness_map")
-    status, msg, _ = _make.add_haziness_map(mat, size=size, param=param)
+    status, msg, notes = _make.add_haziness_map(mat, size=size, param=param)
     if status == "ERROR":
         raise ValueError(msg)
+    if notes:
+        import warnings
+        warnings.warn(f"{mat.name}: {'; '.join(notes)}", UserWarning, stacklevel=2)
     sock = layer.layer_node(mat).inputs[HAZE_SOCKETS[param][0]]
     return sock.links[0].from_node.image
 

@@ -98,6 +98,8 @@ NODE_PREFIX = "HG"
 STAMP = "hazy_gloss"  # on a hazy material: its perceptual parameters
 #: A haze parameter that a link feeds, as read back from the layer node (no one value).
 TEXTURED = "texture"
+#: On a haziness map Add Haziness Map made: the parameter it paints.
+PAINTED_MAP = "hazy_gloss_painted_map"
 MAPS_STAMP = "hazy_gloss_maps"  # on a material wired to converted maps
 RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in recomposite mode
 GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups

@@ -187,6 +187,37 @@ def test_add_haziness_map(env):
     assert rel_diff(a, b) <= 1e-6
 
 
+def test_a_painted_haziness_map_is_saved_with_the_paint(env, tmp_path):
+    """Painting changes the image in memory; Blender writes a packed image's old bytes unless it
+    is packed again: the add-on packs its painted maps before each save."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.3)
+    img = env.api.add_haziness_map(mat, size=16)
+    name = img.name
+    painted = np.random.default_rng(7).random(16 * 16 * 4).astype(np.float32)
+    img.pixels.foreach_set(painted)  # (what a brush stroke does: the image is dirty)
+    assert img.is_dirty
+    path = str(tmp_path / "painted.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    back = np.empty(16 * 16 * 4, np.float32)
+    bpy.data.images[name].pixels.foreach_get(back)
+    rgb = (slice(None), slice(0, 3))  # (an RGB image: alpha reads 1)
+    assert np.array_equal(back.reshape(-1, 4)[rgb], painted.reshape(-1, 4)[rgb])
+
+
+def test_a_map_on_objects_without_uvs_warns(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.3)
+    mesh = bpy.data.meshes.new("no uv")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    mesh.materials.append(mat)
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("no uv", mesh))
+    with pytest.warns(UserWarning, match="no UV map"):
+        env.api.add_haziness_map(mat, size=16)
+
+
 # --------------------------------------------------------------------------------------------
 # Closures: none over Cycles' limit (the harness fails any render that logs it)
 # --------------------------------------------------------------------------------------------

@@ -520,8 +520,8 @@ def upgrade_layers(materials):
 def add_haziness_map(mat, *, size=1024, param="haziness"):
     """A paintable image linked to the layer node's haziness (or ``param``: coat_haziness):
     an Image Texture with a new float, Non-Color image filled with the current value, made the
-    active paint slot.  The image is packed into the file (farm-safe).  Returns
-    (status, message, notes)."""
+    active paint slot.  The image is packed into the file (farm-safe), and packed again on
+    every save once painted.  Returns (status, message, notes)."""
     problem = edit_problem(mat)
     if problem is not None:
         return "ERROR", problem, []
@@ -549,6 +549,7 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     px[3::4] = 1.0
     img.pixels.foreach_set(px)
     img.pack()  # (a generated image is packed only once it has pixels: as OpenEXR)
+    img[K.PAINTED_MAP] = param  # (packed again on save once painted: sync.repack_painted_maps)
     tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = tex_image = img

@@ -9,6 +9,9 @@ user's node-editor edits of the add-on's nodes back into the stamp
 (blender.model.legacy_layer: copies of the core that had to follow it) is upgraded to the layer
 node on the first edit of its core after the file was opened.  Scripts
 that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
+When the file's node groups change in number (an append), the copies of the layer's groups and
+tables an append of hazy materials brought give way to the file's (layer_group.merge_copies);
+before a save, painted haziness maps are packed again (``save_pre``).
 """
 import bpy
 from bpy.app.handlers import persistent
@@ -153,16 +156,32 @@ def on_load(_dummy=None):
     _fingerprints.clear()
 
 
+@persistent
+def repack_painted_maps(_dummy=None):
+    """Before a save: the haziness maps Add Haziness Map made (packed images) are packed again
+    when painted since (Blender saves a packed image's old bytes, and the paint is lost)."""
+    for img in bpy.data.images:
+        if img.library is None and K.PAINTED_MAP in img and img.packed_file is not None \
+                and img.is_dirty:
+            try:
+                img.pack()
+            except RuntimeError as exc:  # (a handler must not raise: the save goes on)
+                print(f"Hazy Gloss: could not pack the painted map “{img.name}”: {exc}")
+
+
 def register():
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
     if on_load not in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.append(on_load)
+    if repack_painted_maps not in bpy.app.handlers.save_pre:
+        bpy.app.handlers.save_pre.append(repack_painted_maps)
 
 
 def unregister():
     for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
-                         (bpy.app.handlers.load_post, on_load)):
+                         (bpy.app.handlers.load_post, on_load),
+                         (bpy.app.handlers.save_pre, repack_painted_maps)):
         while fn in handlers:
             handlers.remove(fn)
     _fingerprints.clear()
