@@ -207,6 +207,15 @@ def test_a_painted_haziness_map_is_saved_with_the_paint(env, tmp_path):
     assert np.array_equal(back.reshape(-1, 4)[rgb], painted.reshape(-1, 4)[rgb])
 
 
+def test_remove_haze_keeps_a_painted_map_and_says_so(env):
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.3)
+    img = env.api.add_haziness_map(mat, size=16)
+    with pytest.warns(UserWarning, match=f"the haziness map “{img.name}” stays in the tree"):
+        env.api.remove_haze(mat)
+    assert any(getattr(n, "image", None) == img for n in mat.node_tree.nodes)
+
+
 def test_a_map_on_objects_without_uvs_warns(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

@@ -286,6 +286,13 @@ def remove_haze(mat):
     core = (layer.find_core(mat.node_tree, state.get("core")) if state.get("legacy")
             else layer.original_node(mat))
     label = core.bl_label if core is not None else ""
+    lnode = None if state.get("legacy") else layer.layer_node(mat)
+    maps = [l.from_node for s in (lnode.inputs if lnode is not None else ()) for l in s.links
+            if getattr(l.from_node, "image", None) is not None and K.PAINTED_MAP in l.from_node.image]
+    if maps:
+        notes.append(f"the haziness map{'s' if len(maps) > 1 else ''} "
+                     f"{', '.join('“' + m.image.name + '”' for m in maps)} stay{'' if len(maps) > 1 else 's'} "
+                     f"in the tree, unlinked (your paint): delete when no longer needed")
     layer.remove(mat)
     where = f" from its {label} “{core.name}”" if core is not None else ""
     return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}{also}", notes
