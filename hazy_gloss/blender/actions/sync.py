@@ -10,7 +10,7 @@ user's node-editor edits of the add-on's nodes back into the stamp
 node on the first edit of its core after the file was opened.  Scripts
 that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
 When the file's node groups change in number (an append), the copies of the layer's groups and
-tables an append of hazy materials brought give way to the file's (layer_group.merge_copies);
+tables an append of hazy materials brought give way to the file's (group_copies.merge_copies);
 before a save, painted haziness maps are packed again (``save_pre``).
 """
 import bpy
@@ -18,7 +18,7 @@ from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import (fallback, layer, layer_group, legacy_layer, material_edits, material_read,
+from ..model import (fallback, group_copies, layer, legacy_layer, material_edits, material_read,
                      stamp)
 from .messages import plain_message
 
@@ -125,7 +125,7 @@ def on_depsgraph_update(scene, depsgraph):
     if len(bpy.data.node_groups) != _group_count[0]:  # (an append may have brought copies)
         _busy = True
         try:
-            layer_group.merge_copies()
+            group_copies.merge_copies()
         except Exception:  # noqa: BLE001 (a handler must not raise; the copies just stay)
             pass
         finally:

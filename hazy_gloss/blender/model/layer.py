@@ -26,10 +26,6 @@ blender.model.layer_notes.
 """
 from __future__ import annotations
 
-import re
-
-import bpy
-
 import numpy as np
 
 from ... import constants as K
@@ -37,7 +33,7 @@ from ...core import gulbrandsen_inverse
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
-from . import layer_group, layer_notes, layer_values, legacy_layer, stamp
+from . import layer_animation, layer_group, layer_notes, layer_values, legacy_layer, stamp
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
 
@@ -281,7 +277,7 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
                "parent": core.parent.name if core.parent is not None else "",
                "use_custom_color": bool(core.use_custom_color), "color": list(core.color)}
     name = core.name
-    own_animation(tree, [name])  # (before the rename: Blender renames the curves' paths)
+    layer_animation.own_animation(tree, [name])  # (before the rename: Blender renames the curves' paths)
     parked = _unique_name(tree, name + PARKED_SUFFIX)
     core.name = parked  # (Blender moves the animation of its inputs with the new name)
     node = tree.nodes.new("ShaderNodeGroup")
@@ -297,7 +293,7 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
     _take_inputs(tree, core, node)
     for dest in [link.to_socket for link in core.outputs[0].links]:
         tree.links.new(node.outputs["BSDF"], dest)  # (replaces the link from the core)
-    _move_animation(tree, core, node)
+    layer_animation.move_animation(tree, core, node)
     set_haze(node, haze)
     # the artist's node, kept as it was: collapsed and muted beside the layer node
     core[K.ORIGINAL_NODE_KEY] = True
@@ -355,67 +351,6 @@ def _give_back(tree, src, dst):
             tree.links.new(link.from_socket, sock)
 
 
-# -- animation: keyframes and drivers of the core's inputs follow the sockets -------------------
-
-_INPUT_PATH = re.compile(r'^nodes\["((?:[^"\\]|\\.)*)"\]\.inputs\[(\d+)\](.*)$')
-
-
-def _fcurves(idblock):
-    anim = getattr(idblock, "animation_data", None)
-    if anim is None:
-        return []
-    curves = list(anim.drivers) + compat.slot_fcurves(anim.action, anim)
-    for track in anim.nla_tracks:
-        for strip in track.strips:
-            curves += compat.slot_fcurves(strip.action, strip)
-    return curves
-
-
-def own_animation(tree, node_names):
-    """Before the layer renames or re-points the curves of ``node_names``' inputs: an action
-    ``tree`` shares with another ID (``mat.copy()`` shares it) is replaced by a copy of its own,
-    as Blender's Make Single User does, so the other material keeps its animation.  Returns the
-    names of the copies."""
-    anim = getattr(tree, "animation_data", None)
-    if anim is None:
-        return []
-    owners = [anim] + [strip for track in anim.nla_tracks for strip in track.strips]
-    refs = {}
-    for owner in owners:
-        if owner.action is not None:
-            refs[owner.action] = refs.get(owner.action, 0) + 1
-    prefixes = tuple(f'nodes["{bpy.utils.escape_identifier(n)}"].' for n in node_names)
-    copies = {}
-    for owner in owners:
-        action = owner.action
-        if action is None or action.users - int(action.use_fake_user) <= refs[action]:
-            continue  # (only this tree uses it)
-        if not any(fc.data_path.startswith(prefixes)
-                   for fc in compat.slot_fcurves(action, owner)):
-            continue
-        slot = getattr(owner, "action_slot", None)
-        ident = slot.identifier if slot is not None else None
-        if action not in copies:
-            copies[action] = action.copy()
-        owner.action = copies[action]
-        if ident is not None and getattr(owner, "action_slot", None) is None:
-            owner.action_slot = copies[action].slots.get(ident)
-    return [c.name for c in copies.values()]
-
-
-def _move_animation(tree, src, dst):
-    """Keyframes and drivers on ``src``'s inputs drive ``dst``'s inputs of the same name."""
-    index = {s.name: i for i, s in enumerate(dst.inputs)}
-    for fc in _fcurves(tree):
-        m = _INPUT_PATH.match(fc.data_path)
-        if m is None or m.group(1).replace('\\"', '"') != src.name:
-            continue
-        i = int(m.group(2))
-        if i >= len(src.inputs) or src.inputs[i].name not in index:
-            continue
-        fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
-
-
 def animated_inputs(node):
     """Names of ``node``'s inputs driven by keyframes or drivers."""
     tree = node.id_data
@@ -434,7 +369,7 @@ def remove(mat):
     raw = _raw_state(mat) or {}
     node, core = layer_node(mat), original_node(mat)
     _remove_eevee_nodes(mat)
-    own_animation(tree, [n.name for n in (node, core) if n is not None])
+    layer_animation.own_animation(tree, [n.name for n in (node, core) if n is not None])
     if core is None and node is not None:  # the artist deleted the kept BSDF: a new one
         core = _new_core(tree, node)
     if core is not None:
@@ -442,7 +377,7 @@ def remove(mat):
             _give_back(tree, node, core)
             for dest in [link.to_socket for link in node.outputs["BSDF"].links]:
                 tree.links.new(core.outputs[0], dest)
-            _move_animation(tree, node, core)
+            layer_animation.move_animation(tree, node, core)
         restore = raw.get("restore", {})
         if K.ORIGINAL_NODE_KEY in core:
             del core[K.ORIGINAL_NODE_KEY]

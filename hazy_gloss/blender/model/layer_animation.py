@@ -1,0 +1,67 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Keyframes and drivers of a layer's BSDF inputs follow the sockets when Make Hazy or Remove
+Haze moves them between the artist's node and the layer node; never another ID's."""
+import re
+
+import bpy
+
+from .. import compat
+
+
+_INPUT_PATH = re.compile(r'^nodes\["((?:[^"\\]|\\.)*)"\]\.inputs\[(\d+)\](.*)$')
+
+
+def _fcurves(idblock):
+    anim = getattr(idblock, "animation_data", None)
+    if anim is None:
+        return []
+    curves = list(anim.drivers) + compat.slot_fcurves(anim.action, anim)
+    for track in anim.nla_tracks:
+        for strip in track.strips:
+            curves += compat.slot_fcurves(strip.action, strip)
+    return curves
+
+
+def own_animation(tree, node_names):
+    """Before the layer renames or re-points the curves of ``node_names``' inputs: an action
+    ``tree`` shares with another ID (``mat.copy()`` shares it) is replaced by a copy of its own,
+    as Blender's Make Single User does, so the other material keeps its animation.  Returns the
+    names of the copies."""
+    anim = getattr(tree, "animation_data", None)
+    if anim is None:
+        return []
+    owners = [anim] + [strip for track in anim.nla_tracks for strip in track.strips]
+    refs = {}
+    for owner in owners:
+        if owner.action is not None:
+            refs[owner.action] = refs.get(owner.action, 0) + 1
+    prefixes = tuple(f'nodes["{bpy.utils.escape_identifier(n)}"].' for n in node_names)
+    copies = {}
+    for owner in owners:
+        action = owner.action
+        if action is None or action.users - int(action.use_fake_user) <= refs[action]:
+            continue  # (only this tree uses it)
+        if not any(fc.data_path.startswith(prefixes)
+                   for fc in compat.slot_fcurves(action, owner)):
+            continue
+        slot = getattr(owner, "action_slot", None)
+        ident = slot.identifier if slot is not None else None
+        if action not in copies:
+            copies[action] = action.copy()
+        owner.action = copies[action]
+        if ident is not None and getattr(owner, "action_slot", None) is None:
+            owner.action_slot = copies[action].slots.get(ident)
+    return [c.name for c in copies.values()]
+
+
+def move_animation(tree, src, dst):
+    """Keyframes and drivers on ``src``'s inputs drive ``dst``'s inputs of the same name."""
+    index = {s.name: i for i, s in enumerate(dst.inputs)}
+    for fc in _fcurves(tree):
+        m = _INPUT_PATH.match(fc.data_path)
+        if m is None or m.group(1).replace('\\"', '"') != src.name:
+            continue
+        i = int(m.group(2))
+        if i >= len(src.inputs) or src.inputs[i].name not in index:
+            continue
+        fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
