@@ -287,12 +287,13 @@ def remove_haze(mat):
             else layer.original_node(mat))
     label = core.bl_label if core is not None else ""
     lnode = None if state.get("legacy") else layer.layer_node(mat)
-    maps = [l.from_node for s in (lnode.inputs if lnode is not None else ()) for l in s.links
-            if getattr(l.from_node, "image", None) is not None and K.PAINTED_MAP in l.from_node.image]
+    maps = [f"“{l.from_node.image.name}”" for s in (lnode.inputs if lnode else ()) for l in s.links
+            if K.PAINTED_MAP in (getattr(l.from_node, "image", None) or {})]
     if maps:
-        notes.append(f"the haziness map{'s' if len(maps) > 1 else ''} "
-                     f"{', '.join('“' + m.image.name + '”' for m in maps)} stay{'' if len(maps) > 1 else 's'} "
-                     f"in the tree, unlinked (your paint): delete when no longer needed")
+        many = len(maps) > 1
+        notes.append(f"the haziness map{'s' if many else ''} {', '.join(maps)} "
+                     f"stay{'' if many else 's'} in the tree, unlinked (your paint): delete when "
+                     f"no longer needed")
     layer.remove(mat)
     where = f" from its {label} “{core.name}”" if core is not None else ""
     return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}{also}", notes

@@ -24,7 +24,7 @@ from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
 _busy = False
-_group_count = [-1]  # node groups in the file at the last update (merge_copies when it changes)
+_group_count = -1  # node groups in the file at the last update (merge_copies when it changes)
 
 
 def sync(mat, *, force=False):
@@ -119,10 +119,10 @@ def refresh_fallback(mat):
 
 @persistent
 def on_depsgraph_update(scene, depsgraph):
-    global _busy
+    global _busy, _group_count
     if _busy:
         return
-    if len(bpy.data.node_groups) != _group_count[0]:  # (an append may have brought copies)
+    if len(bpy.data.node_groups) != _group_count:  # (an append may have brought copies)
         _busy = True
         try:
             group_copies.merge_copies()
@@ -130,7 +130,7 @@ def on_depsgraph_update(scene, depsgraph):
             pass
         finally:
             _busy = False
-            _group_count[0] = len(bpy.data.node_groups)
+            _group_count = len(bpy.data.node_groups)
     mats = []
     for update in depsgraph.updates:
         idd = getattr(update.id, "original", update.id)

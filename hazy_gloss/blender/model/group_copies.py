@@ -11,8 +11,7 @@ def merge_copies():
     """Copies of the file's layer groups, section groups and tables that an append of hazy
     materials from another file brought ("<name>.001", the same as the file's own): their
     users get the file's, and the copies go.  Returns how many data-blocks went."""
-    import re
-    copy = re.compile(r"\.\d{3,}$")
+    copy = lg.COPY_SUFFIX
     groups = [g for g in bpy.data.node_groups if g.library is None]
     ours = [g for g in groups if copy.search(g.name) and (stamp.group(g, K.GROUP_STAMP) or {})
             .get("kind") in ("layer", "layer part")]
@@ -45,7 +44,7 @@ def _same_layer_group(new, old):
     """Whether ``new`` (a copy an append brought) is ``old``: the same stamp, the same nodes,
     and each section group and table the same as ``old``'s (from this code, not edited).  A copy
     whose sections are ``old``'s own is one the artist made (Make Single User): kept."""
-    if lg.is_layer_group(old) is False or old.library is not None or \
+    if not lg.is_layer_group(old) or old.library is not None or \
             stamp.group(new, K.GROUP_STAMP) != stamp.group(old, K.GROUP_STAMP) or \
             lg._fingerprint(new) != lg._fingerprint(old):
         return False

@@ -277,7 +277,7 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
                "parent": core.parent.name if core.parent is not None else "",
                "use_custom_color": bool(core.use_custom_color), "color": list(core.color)}
     name = core.name
-    layer_animation.own_animation(tree, [name])  # (before the rename: Blender renames the curves' paths)
+    layer_animation.own_animation(tree, [name])  # (before the rename: it renames curves)
     parked = _unique_name(tree, name + PARKED_SUFFIX)
     core.name = parked  # (Blender moves the animation of its inputs with the new name)
     node = tree.nodes.new("ShaderNodeGroup")

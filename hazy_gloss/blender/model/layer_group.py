@@ -11,6 +11,7 @@ group's own, except those the mapping computes) and their Mix Shaders.  Two outp
 """
 from __future__ import annotations
 
+import re
 import sys
 
 import bpy
@@ -140,15 +141,14 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
         cached = _from_cache(name, config)
         if cached is not None:
             return cached
-    had = set(bpy.data.node_groups), set(bpy.data.images)
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
     before = set(bpy.data.node_groups), set(bpy.data.images)
     try:
         build(ng, *config)
     except Exception as exc:  # (nothing half-built stays in the file)
-        bpy.data.batch_remove([i for c, old in zip((bpy.data.node_groups, bpy.data.images), had)
-                               for i in c if i not in old])
+        bpy.data.batch_remove([i for c, old in zip((bpy.data.node_groups, bpy.data.images), before)
+                               for i in c if i not in old] + ([] if stale else [ng]))
         raise ValueError(f"building the layer group “{name}” failed: {exc}") from exc
     ng[K.GROUP_STAMP] = _stamp_of(*config)
     _keep_one_copy(ng, *before)
@@ -300,17 +300,20 @@ def _uses(ng, out):
     return out
 
 
+#: What Blender adds to the name of a data-block appended beside one of the same name.
+COPY_SUFFIX = re.compile(r"\.\d{3,}$")
+
+
 def _share_parts(ng, groups_before, images_before, new_groups, new_images):
     """Point the just appended ``ng`` at the section groups and tables the file has already
     (the same name and code, the same values) instead of the copies the append brought;
-    returns the copies, now unused.  (Blender names an appended copy "<name>.001".)"""
-    import re
+    returns the copies, now unused."""
 
     def originals(new, before):
         names = {i.name: i for i in before if i.library is None}  # (never a linked one)
         out = {}
         for i in new:
-            base = re.sub(r"\.\d{3,}$", "", i.name)
+            base = COPY_SUFFIX.sub("", i.name)
             if base != i.name and base in names:
                 out[i] = names[base]
         return out
