@@ -225,7 +225,7 @@ def test_export_stamps_of_the_wrong_type(env, tmp_path):
     assert any("Maps" in str(s) and "damaged" in str(s) for s in rep.skipped)
 
 
-FUZZ_BUDGET = float(os.environ.get("HAZY_GLOSS_FUZZ_SECONDS", "120"))
+FUZZ_BUDGET = float(os.environ.get("HAZY_GLOSS_FUZZ_SECONDS", "120"))  # CPU seconds of this process
 FUZZ_STRIDE = int(os.environ.get("HAZY_GLOSS_FUZZ_STRIDE", "7"))
 
 
