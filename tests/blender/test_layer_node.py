@@ -426,6 +426,65 @@ def test_a_layer_on_another_blenders_group_moves_to_this_ones(env):
     assert ng.users == 0  # (dropped on save)
 
 
+def _driven(tree):
+    """{(node, input name, path tail): curve kind} for every input curve of ``tree``."""
+    out = {}
+    anim = tree.animation_data
+    curves = [(fc, "driver") for fc in anim.drivers] + [
+        (fc, "key") for layer in anim.action.layers for strip in layer.strips
+        for bag in strip.channelbags for fc in bag.fcurves] if bpy.app.version >= (4, 4) else []
+    for fc, kind in curves:
+        sock = tree.path_resolve(fc.data_path.rsplit(".", 1)[0])
+        out[(sock.node.name, sock.name)] = kind
+    return out
+
+
+@pytest.mark.parametrize("change", ["smoothness", "keep_body_colour", "another_blender"])
+def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change):
+    """Smoothness, Keep Body Colour or another Blender's group give the layer node a group with
+    other sockets: keys, drivers, links (a muted one stays muted) and the values under links
+    stay on the inputs of the same name (Blender keeps them by position and identifier: keys
+    on Coat Haziness moved to Reflectivity Cap, a link into Coat Haze Extent to Coat Haziness)."""
+    mat = car_paint()
+    tree = mat.node_tree
+    rough = tree.nodes.new("ShaderNodeValue")
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    tree.links.new(rough.outputs[0], bsdf.inputs["Roughness"]).is_muted = True
+    env.api.make_hazy(mat, haziness=0.4, coat_haziness=0.2)
+    node = env.layer.layer_node(mat)
+    assert node.inputs["Roughness"].links[0].is_muted  # (a muted link renders nothing)
+    for frame, value in ((1, 0.1), (10, 0.6)):
+        node.inputs["Coat Haziness"].default_value = value
+        node.inputs["Coat Haziness"].keyframe_insert("default_value", frame=frame)
+    fc = node.inputs["Haziness"].driver_add("default_value")
+    fc.driver.expression = "0.3"
+    ext = tree.nodes.new("ShaderNodeValue")
+    node.inputs["Coat Haze Extent"].default_value = 7.0
+    tree.links.new(ext.outputs[0], node.inputs["Coat Haze Extent"])
+    before = _driven(tree)
+    old = node.node_tree
+    if change == "another_blender":
+        lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+        stamp = old[lg.K.GROUP_STAMP].to_dict()
+        stamp["blender"] = "4.2"
+        old[lg.K.GROUP_STAMP] = stamp
+        old.name = old.name.rsplit(" ", 1)[0] + " 4.2"  # (as that Blender named it)
+        env.api.upgrade_layers()
+    else:
+        env.api.update_material(mat, **{change: 2.0 if change == "smoothness" else True})
+    assert node.node_tree != old
+    assert _driven(tree) == before == {(node.name, "Coat Haziness"): "key",
+                                       (node.name, "Haziness"): "driver"}
+    assert [l.from_node for l in node.inputs["Coat Haze Extent"].links] == [ext]
+    assert node.inputs["Coat Haze Extent"].default_value == pytest.approx(7.0)
+    assert not node.inputs["Coat Haziness"].is_linked
+    assert [(l.from_node, l.is_muted) for l in node.inputs["Roughness"].links] == [(rough, True)]
+    name = node.name
+    env.api.remove_haze(mat)
+    assert tree.nodes[name].bl_idname == "ShaderNodeBsdfPrincipled"
+    assert _driven(tree) == {}  # (the haze inputs' curves go with the layer node, none moved)
+
+
 def test_setting_an_animated_or_linked_haze_value_says_what_decides_it(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.4)

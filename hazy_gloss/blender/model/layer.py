@@ -318,7 +318,9 @@ def _take_inputs(tree, src, dst):
             set_if_changed(target, _plain(sock.default_value))
         for link in into.get(sock.identifier, ()):
             # a new group node's input has no link to replace: no limit to verify
-            tree.links.new(link.from_socket, target, verify_limits=False)
+            new = tree.links.new(link.from_socket, target, verify_limits=False)
+            if link.is_muted:
+                new.is_muted = True  # (a muted link renders nothing: so on the layer too)
 
 
 def _links_into(tree, node):
@@ -583,25 +585,33 @@ def refresh_group(mat):
 
 
 def swap_group(node, ng):
-    """Give the layer node the group ``ng``, keeping every value and link by socket name."""
+    """Give the layer node the group ``ng``, keeping every value, link (muted or not) and
+    keyframe or driver by socket name (Blender keeps them by socket identifier and position,
+    which differ between groups)."""
     tree = node.id_data
-    vals = {s.name: _plain(s.default_value) for s in node.inputs
-            if hasattr(s, "default_value") and not s.is_linked}
-    ins = [(s.name, l.from_socket) for s in node.inputs for l in s.links]
-    outs = [(s.name, l.to_socket) for s in node.outputs for l in s.links]
+    layer_animation.own_animation(tree, [node.name])  # (a shared action stays the other's)
+    names = [s.name for s in node.inputs]
+    vals = {s.name: _plain(s.default_value) for s in node.inputs if hasattr(s, "default_value")}
+    ins = [(s.name, l.from_socket, l.is_muted) for s in node.inputs for l in s.links]
+    outs = [(s.name, l.to_socket, l.is_muted) for s in node.outputs for l in s.links]
+    for link in [l for s in list(node.inputs) + list(node.outputs) for l in s.links]:
+        tree.links.remove(link)
     node.node_tree = ng
+    for link in [l for s in list(node.inputs) + list(node.outputs) for l in s.links]:
+        tree.links.remove(link)
     for name, v in vals.items():
         s = node.inputs.get(name)
         if s is not None and hasattr(s, "default_value"):
             s.default_value = socket_value(s, v)
-    for name, src in ins:
+    for name, src, muted in ins:
         s = node.inputs.get(name)
         if s is not None and not s.is_linked:
-            tree.links.new(src, s)
-    for name, dst in outs:
+            tree.links.new(src, s).is_muted = muted
+    for name, dst, muted in outs:
         s = node.outputs.get(name)
         if s is not None:
-            tree.links.new(s, dst)
+            tree.links.new(s, dst).is_muted = muted
+    layer_animation.follow_names(tree, node, names)
 
 
 def upgrade(mat):

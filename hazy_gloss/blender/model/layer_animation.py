@@ -65,3 +65,21 @@ def move_animation(tree, src, dst):
         if i >= len(src.inputs) or src.inputs[i].name not in index:
             continue
         fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
+
+
+def follow_names(tree, node, old_names):
+    """After ``node``'s sockets changed (another group): its inputs' keyframes and drivers, which
+    Blender keys by position, follow their input's name (``old_names``: the names by position
+    before); one whose input is gone keys it by name, so nothing drives the wrong input."""
+    index = {s.name: i for i, s in enumerate(node.inputs)}
+    for fc in _fcurves(tree):
+        m = _INPUT_PATH.match(fc.data_path)
+        if m is None or m.group(1).replace('\\"', '"') != node.name:
+            continue
+        i = int(m.group(2))
+        if i >= len(old_names):
+            continue
+        name = old_names[i]
+        head = f'nodes["{bpy.utils.escape_identifier(node.name)}"].inputs'
+        fc.data_path = (f"{head}[{index[name]}]" if name in index else
+                        f'{head}["{bpy.utils.escape_identifier(name)}"]') + m.group(3)

@@ -280,12 +280,25 @@ def _keep_one_copy(ng, groups_before, images_before):
     """After ``ng`` was appended or built: the node groups and images that came with it give
     way to the file's where those are the same (_share_parts), and what nothing of ``ng``
     uses is removed, in one pass over the file (everything new, when ``ng`` is None)."""
+    groups_before, images_before = _alive(groups_before), _alive(images_before)
     new_groups = [g for g in bpy.data.node_groups if g not in groups_before]
     new_images = [i for i in bpy.data.images if i not in images_before]
     drop = new_groups + new_images if ng is None else _share_parts(
         ng, groups_before, images_before, new_groups, new_images)
     if drop:
         bpy.data.batch_remove([i for i in drop if i is not ng])
+
+
+def _alive(ids):
+    """``ids`` without those removed since (a stale group's rebuild removes its old sections)."""
+    out = set()
+    for i in ids:
+        try:
+            i.name
+        except ReferenceError:
+            continue
+        out.add(i)
+    return out
 
 
 def _uses(ng, out):
