@@ -565,6 +565,27 @@ def test_remove_haze_after_the_kept_bsdf_was_deleted_gives_a_new_one(env):
         env.api.remove_haze(mat)
 
 
+def test_remove_haze_refuses_to_overwrite_a_kept_bsdf_back_in_use(env):
+    """The artist un-mutes the kept BSDF, edits it and renders it: Remove Haze would give it the
+    layer node's values and links (it overwrote the edit, up to 40 % of the render); it refuses
+    in one line and changes nothing, and goes ahead once that BSDF is muted again."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5)
+    tree = mat.node_tree
+    kept = env.layer.original_node(mat)
+    kept.mute = False
+    kept.inputs["Roughness"].default_value = 0.7
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    tree.links.new(kept.outputs[0], out.inputs["Surface"])
+    with pytest.raises(ValueError, match="in use again .* Remove Haze would overwrite it"):
+        env.api.remove_haze(mat)
+    assert env.layer.is_layered(mat) and kept.inputs["Roughness"].default_value == pytest.approx(0.7)
+    assert out.inputs["Surface"].links[0].from_node == kept
+    kept.mute = True
+    tree.links.remove(out.inputs["Surface"].links[0])
+    assert env.api.remove_haze(mat) is True and not env.layer.is_layered(mat)
+
+
 def test_eevee_output_refuses_linked_data(env, tmp_path):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

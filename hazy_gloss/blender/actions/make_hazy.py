@@ -269,6 +269,13 @@ def remove_haze(mat):
     if problem is not None:
         return "ERROR", problem, []
     state = layer.layer_state(mat) or {}
+    kept, lnode = layer.original_node(mat), layer.layer_node(mat)
+    if not state.get("legacy") and kept is not None and lnode is not None and (
+            not kept.mute or kept.outputs[0].is_linked):
+        # (Remove Haze gives that node the layer node's values and links: the artist's edits)
+        return "ERROR", (f"“{kept.name}” in “{mat.name}” is in use again (un-muted or "
+                         f"connected): Remove Haze would overwrite it with the layer node's "
+                         f"values; mute and disconnect it, or delete it, then Remove Haze"), []
     notes = []
     if any(keys is None and (".base" in why or why.startswith("layer is"))
            for why, keys in state.get("problems", [])):
