@@ -76,18 +76,22 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, **haze):
 def upgrade_layers(materials=None):
     """Turn haze layers saved by an earlier Hazy Gloss (loose nodes in the tree) into layer
     nodes, with their values, and move layer nodes whose group another Blender or Hazy Gloss
-    made to this one's (``materials``: all of the file's by default; a layer is also upgraded
-    on its first edit).  Returns the names of the materials upgraded; raises
-    ValueError (one line) when there were old layers and none could be upgraded."""
+    made to this one's (``materials``: all of the file's by default, passing over linked ones
+    with a UserWarning; a layer is also upgraded on its first edit).  Returns the names of the
+    materials upgraded; raises ValueError (one line) when there were old layers and none could
+    be upgraded."""
     from .blender.model import layer
     from .blender.actions import make_hazy as _make
     mats = _make.materials_or_all(materials)
     for m in mats:
         _material_read.check_material(m, "upgrade_layers")
     old = [m for m in mats if layer.is_legacy(m) or layer.outdated_group(m)]
-    status, msg, notes = _make.upgrade_layers(old)
+    status, msg, notes = _make.upgrade_layers(old, every=materials is None)
     if status == "ERROR":
         raise ValueError(notes[0] if notes else msg)
+    if notes:
+        import warnings
+        warnings.warn("; ".join(notes), UserWarning, stacklevel=2)
     return [m.name for m in old if not layer.is_legacy(m) and not layer.outdated_group(m)]
 
 

@@ -405,10 +405,7 @@ def test_a_layer_on_another_blenders_group_moves_to_this_ones(env):
     for m in mats:
         env.api.make_hazy(m, haziness=0.4, coat_haziness=0.2)
     ng = env.layer.layer_node(mats[0]).node_tree
-    stamp = ng[lg.K.GROUP_STAMP].to_dict()
-    stamp["blender"] = "4.2"
-    ng[lg.K.GROUP_STAMP] = stamp
-    ng.name = ng.name.rsplit(" ", 1)[0] + " 4.2"  # (as that Blender named it)
+    _as_made_by(ng, lg, "4.2")
     tex = mats[0].node_tree.nodes.new("ShaderNodeValue")
     mats[0].node_tree.links.new(tex.outputs[0], env.layer.layer_node(mats[0]).inputs["Roughness"])
     for m in mats:
@@ -464,11 +461,8 @@ def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change
     before = _driven(tree)
     old = node.node_tree
     if change == "another_blender":
-        lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
-        stamp = old[lg.K.GROUP_STAMP].to_dict()
-        stamp["blender"] = "4.2"
-        old[lg.K.GROUP_STAMP] = stamp
-        old.name = old.name.rsplit(" ", 1)[0] + " 4.2"  # (as that Blender named it)
+        _as_made_by(old, importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group"),
+                    "4.2")
         env.api.upgrade_layers()
     else:
         env.api.update_material(mat, **{change: 2.0 if change == "smoothness" else True})
@@ -600,6 +594,45 @@ def test_eevee_output_refuses_linked_data(env, tmp_path):
     for fn in (env.api.add_eevee_output, env.api.remove_eevee_output):
         with pytest.raises(ValueError, match="linked from the library"):
             fn(linked)
+
+
+def _as_made_by(ng, lg, version):
+    """Stamp and name ``ng`` as Blender ``version``'s group of its configuration."""
+    stamp = ng[lg.K.GROUP_STAMP].to_dict()
+    stamp["blender"] = version
+    ng[lg.K.GROUP_STAMP] = stamp
+    ng.name = ng.name.rsplit(" ", 1)[0] + f" {version}"  # (as that Blender named it)
+
+
+def test_upgrade_passes_over_linked_layers_and_a_current_linked_one_is_up_to_date(env, tmp_path):
+    """A library's layer on this Blender's group is up to date (Upgrade raised on every file
+    that linked one); a linked old layer is read-only here: Upgrade of the whole file passes
+    over it with a note naming the library, and refuses it when named."""
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    now, old = car_paint(), principled("Old", distribution="MULTI_GGX")[0]
+    for m in (now, old):
+        env.api.make_hazy(m, haziness=0.3)
+        m.use_fake_user = True
+    assert env.layer.layer_node(now).node_tree != env.layer.layer_node(old).node_tree
+    _as_made_by(env.layer.layer_node(old).node_tree, lg, "4.2")
+    lib, names = str(tmp_path / "lib.blend"), [now.name, old.name]
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.materials = names
+    linked_now, linked_old = dst.materials
+    local = principled("Local", distribution="MULTI_GGX")[0]
+    env.api.make_hazy(local, haziness=0.3)
+    _as_made_by(env.layer.layer_node(local).node_tree, lg, "4.2")
+    assert env.layer.outdated_group(linked_now) is None
+    assert not any("made by" in n for n in env.api.read_parameters(linked_now)["notes"])
+    assert env.layer.outdated_group(linked_old) == "Blender 4.2"
+    with pytest.warns(UserWarning, match=r"1 linked material .* left as .* upgrade it in lib.blend"):
+        assert env.api.upgrade_layers() == [local.name]
+    assert env.layer.outdated_group(local) is None
+    with pytest.raises(ValueError, match="linked from the library"):
+        env.api.upgrade_layers([linked_old])
+    assert env.api.upgrade_layers([linked_now]) == []
 
 
 def test_a_bypassed_layer_says_so(env):

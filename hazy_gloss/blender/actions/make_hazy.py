@@ -498,13 +498,17 @@ def materials_or_all(materials):
     return list(bpy.data.materials if materials is None else materials)
 
 
-def upgrade_layers(materials):
+def upgrade_layers(materials, every=False):
     """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node, and
-    move layer nodes on another Blender's or add-on's group to this one's.  Returns (status,
+    move layer nodes on another Blender's or add-on's group to this one's; ``every`` (the
+    file's materials, none named) passes over linked ones with a note.  Returns (status,
     message, notes)."""
-    done, notes = [], []
+    done, notes, linked = [], [], []
     for mat in materials:
         if not layer.is_legacy(mat) and layer.outdated_group(mat) is None:
+            continue
+        if every and mat.library is not None:
+            linked.append(mat)
             continue
         problem = edit_problem(mat)
         if problem is not None:
@@ -524,8 +528,13 @@ def upgrade_layers(materials):
         if error:
             notes.append(f"“{mat.name}”: upgraded, but {error[:1].lower()}{error[1:]}")
         done.append(mat.name)
-    if not done and not notes:
-        return "NOOP", "No haze layer of an earlier Hazy Gloss or another Blender to upgrade", []
+    if linked:
+        libs = sorted({bpy.path.basename(m.library.filepath) for m in linked})
+        notes.append(f"{len(linked)} linked material{'s' if len(linked) != 1 else ''} with an "
+                     f"earlier layer left as they are (read-only here): upgrade "
+                     f"{'them' if len(linked) != 1 else 'it'} in {', '.join(libs)}")
+    if not done and (linked or not notes):
+        return "NOOP", "No haze layer of an earlier Hazy Gloss or another Blender to upgrade", notes
     msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to this Blender's "
            f"layer node"
            + (f": {', '.join('“' + n + '”' for n in done)}" if done else ""))

@@ -113,8 +113,10 @@ def _stamp_of(kind, settings, smooth, baked=False, body=False):
     return d
 
 
-def fits(ng, kind, settings, smooth, baked=False, body=False):
-    if ng is None or ng.library is not None:
+def fits(ng, kind, settings, smooth, baked=False, body=False, linked_ok=False):
+    """Whether ``ng`` is this Blender's and add-on's group of the configuration (a linked group
+    is read-only here, so it does not fit a local layer unless ``linked_ok``)."""
+    if ng is None or (ng.library is not None and not linked_ok):
         return False
     return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked, body)
 

@@ -117,10 +117,8 @@ class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
             if mat is None:
                 report(self, "ERROR", f"No material named “{self.material}”")
                 return {"CANCELLED"}
-            mats = [mat]
-        else:
-            mats = list(bpy.data.materials)
-        return finish(self, *upgrade_layers(mats))
+            return finish(self, *upgrade_layers([mat]))
+        return finish(self, *upgrade_layers(list(bpy.data.materials), every=True))
 
 
 class HAZY_GLOSS_OT_add_haziness_map(_OneMaterialOperator, bpy.types.Operator):
