@@ -103,6 +103,7 @@ PAINTED_MAP = "hazy_gloss_painted_map"
 MAPS_STAMP = "hazy_gloss_maps"  # on a material wired to converted maps
 RECOMPOSITE_STAMP = "hazy_gloss_recomposite"  # on materials and the scene in recomposite mode
 GROUP_STAMP = "hazy_gloss_group"  # on the generated shader node groups
+GROUP_PRINT = "hazy_gloss_print"  # a layer group's fingerprint when built (an edit is told)
 #: Node custom property naming a node's role in a hazy material (survives renaming).
 ROLE = "hazy_gloss_role"
 

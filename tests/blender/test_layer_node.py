@@ -6,6 +6,7 @@ material exceeds Cycles' closure limit; every entry point answers."""
 import importlib
 import json
 import os
+import re
 import subprocess
 import sys
 from types import SimpleNamespace
@@ -648,6 +649,97 @@ def test_a_bypassed_layer_says_so(env):
     tree.links.remove(out.inputs["Surface"].links[0])
     notes = " ".join(env.api.read_parameters(mat)["notes"])
     assert "not connected to the Material Output" in notes
+
+
+def test_a_muted_copied_or_regrouped_layer_node_says_so(env):
+    """The notes name what keeps the layer node from rendering as the panel shows it: muted (a
+    muted group node has no shader to pass on: black), a copy (Shift+D) rendering instead or
+    too, another group given to it; Remove Haze leaves the artist's copy and regrouped node, and
+    says so (they were called "not connected" and "deleted")."""
+    mat = metallic_map()
+    env.api.make_hazy(mat, haziness=0.5)
+    tree, node = mat.node_tree, env.layer.layer_node(mat)
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    node.mute = True
+    assert any("“Principled BSDF” is muted" in n for n in env.api.read_parameters(mat)["notes"])
+    node.mute = False
+    copy = tree.nodes.new("ShaderNodeGroup")  # what Shift+D makes
+    copy.node_tree, copy.name = node.node_tree, "Principled BSDF.001"
+    tree.links.new(copy.outputs[0], out.inputs["Surface"])
+    notes = " ".join(env.api.read_parameters(mat)["notes"])
+    assert "“Principled BSDF.001”, a copy of the layer node “Principled BSDF”, renders instead" in notes
+    assert "not connected" not in notes
+    with pytest.warns(UserWarning, match="“Principled BSDF.001”, a copy of the layer node, stays"):
+        env.api.remove_haze(mat)
+    assert copy.name in tree.nodes and copy.outputs[0].is_linked
+
+    mat = metallic_map()
+    env.api.make_hazy(mat, haziness=0.5)
+    tree, node = mat.node_tree, env.layer.layer_node(mat)
+    mine = bpy.data.node_groups.new("Artist's group", "ShaderNodeTree")
+    node.node_tree = mine
+    with pytest.raises(ValueError, match="“Principled BSDF” uses “Artist's group”, not a Hazy "
+                                         "Gloss layer group"):
+        env.api.read_parameters(mat)
+    with pytest.warns(UserWarning, match="“Principled BSDF” uses another group now: it stays"):
+        env.api.remove_haze(mat)
+    assert node.node_tree == mine and not env.api.is_hazy(mat)
+
+
+def test_an_edited_layer_group_says_so_and_remove_haze_keeps_it(env):
+    """A layer group edited by hand (Make Single User, then a node added inside, or a part's
+    math changed) renders what the panel does not show: the notes say so, in the panel too once
+    the edit's depsgraph update came; Remove Haze keeps the edited group (a fake user)."""
+    mat, other = metallic_map(), metallic_map()
+    for m in (mat, other):
+        env.api.make_hazy(m, haziness=0.6)
+    mesh = bpy.data.meshes.new("Shown")
+    mesh.materials.append(mat)
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Shown", mesh))
+    node = env.layer.layer_node(mat)
+    mine = node.node_tree.copy()
+    node.node_tree = mine
+    bpy.context.view_layer.update()
+    assert not any("edited by hand" in n for n in env.layer.summary(mat)["notes"])
+    assert not any("edited by hand" in n for n in env.api.read_parameters(mat)["notes"])
+    mul = mine.nodes.new("ShaderNodeMath")  # the artist's edit: a node inside
+    bpy.context.view_layer.update()  # (the panel's note waits for this)
+    assert any(f"its layer group was edited by hand (“{mine.name}”)" in n
+               for n in env.api.read_parameters(mat)["notes"])
+    assert any("edited by hand" in n for n in env.layer.summary(mat)["notes"])
+    mine.nodes.remove(mul)
+    part = next(n.node_tree for n in mine.nodes if getattr(n, "node_tree", None) is not None)
+    math = next(n for n in part.nodes if n.bl_idname == "ShaderNodeMath"
+                and any(not s.is_linked for s in n.inputs))
+    free = next(s for s in math.inputs if not s.is_linked)
+    free.default_value += 0.25  # an edit inside a part, shared with the other material
+    for m in (mat, other):
+        assert any(f"(“{part.name}”)" in n for n in env.api.read_parameters(m)["notes"]), m.name
+    with pytest.warns(UserWarning, match=f"the layer group “{re.escape(mine.name)}”, edited by "
+                                         f"hand, stays in the file"):
+        env.api.remove_haze(mat)
+    assert mine.use_fake_user and mine.users == 1
+
+
+def test_remove_haze_keeps_the_layer_nodes_name_label_frame_and_place(env):
+    """What the artist changed on the layer node since Make Hazy (renamed, relabelled, framed,
+    moved) the BSDF comes back with; what they did not change comes back as it was."""
+    mat, plain = metallic_map(), metallic_map()
+    for m in (mat, plain):
+        env.api.make_hazy(m, haziness=0.4)
+    tree, node = mat.node_tree, env.layer.layer_node(mat)
+    frame = tree.nodes.new("NodeFrame")
+    node.parent, node.name, node.label = frame, "Car body", "Body"
+    node.location = (33.0, 44.0)
+    env.api.remove_haze(mat)
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    assert (bsdf.name, bsdf.label, bsdf.parent) == ("Car body", "Body", frame)
+    assert tuple(bsdf.location) == pytest.approx((33.0, 44.0))
+    was = tuple(env.layer.original_node(plain).location)
+    env.api.remove_haze(plain)
+    bsdf = next(n for n in plain.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    assert (bsdf.name, bsdf.label, bsdf.parent) == ("Principled BSDF", "", None)
+    assert tuple(bsdf.location) == pytest.approx((was[0], was[1] - 60.0))
 
 
 def test_messages_name_keywords_as_typed(env):

@@ -27,7 +27,7 @@ from ...core.graph import evaluate
 from ...core.parameters import HAZE_DEFAULTS, RANGES
 from ...schema import HAZE_MAP_INPUTS, HAZE_SOCKETS, LAYER_MAP_INPUTS
 from .. import compat
-from ..model import layer, layer_group
+from ..model import layer, layer_group, layer_values
 from .convert import _check_prefix, _check_targets
 from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, openimageio, udim_tiles
 from ..model.convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
@@ -458,7 +458,7 @@ def attach_baked_layer(mat, bsdf, images, *, vector=None, interpolation="Linear"
     -> Image), linked through Image Textures into its Converted Maps (the one place the
     conversion wires the layer).  ``sources``: the BSDF inputs the maps were computed from
     (what they held is recorded: layer.notes says when they change)."""
-    record = layer.input_record(bsdf, sources)
+    record = layer_values.input_record(bsdf, sources)
     node = layer.wrap(mat, bsdf, {}, baked=True)
     layer.record_baked_sources(mat, record)
     tree = mat.node_tree

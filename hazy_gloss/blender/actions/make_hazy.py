@@ -18,7 +18,7 @@ from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
-from ..model import fallback, layer, material, material_read
+from ..model import fallback, layer, layer_group, material, material_read
 from . import messages, sync
 from ..model.material_read import edit_problem, maps_problem
 from .messages import plain_message
@@ -285,8 +285,16 @@ def remove_haze(mat):
         notes.append("the BSDF kept beside the layer node was deleted: a new one with the "
                      "layer node's values and links takes its place")
     elif not state.get("legacy") and layer.layer_node(mat) is None:
-        notes.append("the layer node was deleted, and its links with it: the BSDF is back, "
-                     "unconnected")
+        swapped = layer.tagged_layer_node(mat)
+        notes.append(f"the layer node “{swapped.name}” uses another group now: it stays, as "
+                     f"yours; the BSDF is back beside it, unconnected" if swapped is not None
+                     else "the layer node was deleted, and its links with it: the BSDF is "
+                          "back, unconnected")
+    copies = [] if state.get("legacy") else layer.layer_copies(mat)
+    if copies:
+        notes.append(f"{', '.join(f'“{n.name}”' for n in copies)}, a copy of the layer node, "
+                     f"stay{'s' if len(copies) == 1 else ''} (yours) and still render"
+                     f"{'s' if len(copies) == 1 else ''} haze")
     also = ""
     if fallback.remove_export_fallback(mat):  # the user's output active again, as before
         also = ", and its export fallback"
@@ -301,6 +309,11 @@ def remove_haze(mat):
         notes.append(f"the haziness map{'s' if many else ''} {', '.join(maps)} "
                      f"stay{'' if many else 's'} in the tree, unlinked (your paint): delete when "
                      f"no longer needed")
+    edited = layer_group.edited_parts(lnode.node_tree) if lnode is not None else []
+    if edited:  # (with no user it would be lost on save: the artist's work)
+        lnode.node_tree.use_fake_user = True
+        notes.append(f"the layer group “{lnode.node_tree.name}”, edited by hand, stays in the "
+                     f"file (fake user): delete it when no longer needed")
     layer.remove(mat)
     where = f" from its {label} “{core.name}”" if core is not None else ""
     return "FINISHED", f"Removed the haze layer of “{mat.name}”{where}{also}", notes

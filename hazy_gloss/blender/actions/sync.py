@@ -18,8 +18,8 @@ from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import (fallback, group_copies, layer, legacy_layer, material_edits, material_read,
-                     stamp)
+from ..model import (fallback, group_copies, layer, layer_group, legacy_layer, material_edits,
+                     material_read, stamp)
 from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
@@ -134,6 +134,8 @@ def on_depsgraph_update(scene, depsgraph):
     mats = []
     for update in depsgraph.updates:
         idd = getattr(update.id, "original", update.id)
+        if isinstance(idd, bpy.types.NodeTree):
+            layer_group.forget_edits()  # (the panel's note on an edited layer group)
         if isinstance(idd, bpy.types.Material) and K.STAMP in idd and idd not in mats:
             mats.append(idd)
     if not mats:

@@ -33,7 +33,8 @@ from ...core import gulbrandsen_inverse
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
-from . import layer_animation, layer_group, layer_notes, layer_values, legacy_layer, stamp
+from . import (layer_animation, layer_group, layer_notes, layer_values, layer_wiring,
+               legacy_layer, stamp)
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
 
@@ -151,6 +152,19 @@ def layer_node(mat):
                       lambda n: n.bl_idname == "ShaderNodeGroup" and layer_group.is_layer_group(n.node_tree))
 
 
+def tagged_layer_node(mat):
+    """The node the layer's record names (or tags) as the layer node, whatever group it has
+    now (the artist may have given it another), or None."""
+    node = _kept_node(mat, "node", K.LAYER_NODE_KEY)
+    return node if node is not None and node.bl_idname == "ShaderNodeGroup" else None
+
+
+def layer_copies(mat):
+    """Copies of the layer node the artist made (Shift+D), which Remove Haze leaves."""
+    node = layer_node(mat)
+    return layer_wiring.copies_of(mat.node_tree, node) if node is not None else []
+
+
 def original_node(mat):
     """The artist's BSDF kept beside the layer node (by the stamp's name, else its tag), or None."""
     return _kept_node(mat, "original", K.ORIGINAL_NODE_KEY)
@@ -174,56 +188,20 @@ def _material_of(tree):
 def _problems(mat, raw):
     """[(one line, haze parameters that fix it or None)] of a layer whose tree no longer fits
     its record."""
-    out = []
-    node = layer_node(mat)
+    if layer_node(mat) is not None:
+        return []
+    node = tagged_layer_node(mat)
     if node is None:
-        out.append(("its layer node is gone (deleted or ungrouped)", None))
-    elif node.node_tree is None or not layer_group.is_layer_group(node.node_tree):
-        out.append(("its layer node no longer uses a Hazy Gloss layer group", None))
-    return out
+        return [("its layer node is gone (deleted or ungrouped)", None)]
+    other = f"“{node.node_tree.name}”" if node.node_tree is not None else "no group"
+    return [(f"its layer node “{node.name}” uses {other}, not a Hazy Gloss layer group", None)]
 
 
-def connection_problem(mat):
-    """Why the layer does not render (its node bypassed or disconnected), or None."""
+def connection_problems(mat):
+    """[one line] on why the layer node does not render as the panel shows it (muted, bypassed,
+    disconnected, a copy rendering: blender.model.layer_wiring)."""
     node = layer_node(mat)
-    if node is None:
-        return None
-    tree = mat.node_tree
-    out = _active_output(tree)
-    if out is None:
-        return "the material has no Material Output"
-    reached = _upstream(out.inputs["Surface"])
-    if node.name in reached:
-        return None
-    original = original_node(mat)
-    if original is not None and original.name in reached:
-        return (f"“{original.name}” (the BSDF as it was before haze) is connected instead of the "
-                f"layer node “{node.name}”: no haze renders")
-    return f"the layer node “{node.name}” is not connected to the Material Output: no haze renders"
-
-
-def _active_output(tree):
-    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    return next((n for n in outs if n.is_active_output), outs[0] if outs else None)
-
-
-def _upstream(sock):
-    """Names of the nodes whose closures reach ``sock`` (through shader links)."""
-    seen, queue = set(), [sock]
-    while queue:
-        s = queue.pop()
-        for link in s.links:
-            if link.is_muted or not link.is_valid:
-                continue
-            n = link.from_node
-            if n.name in seen:
-                continue
-            seen.add(n.name)
-            if n.mute:
-                queue.extend(n.inputs)  # a muted node passes its first matching input
-            else:
-                queue.extend(i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute")
-    return seen
+    return [] if node is None else layer_wiring.wiring_problems(mat, node, original_node(mat))
 
 
 # --------------------------------------------------------------------------------------------
@@ -241,14 +219,6 @@ def _write_state(mat, state):
     d["layer"] = state
     d["version"] = STAMP_VERSION
     mat[K.STAMP] = d
-
-
-def _plain(v):
-    if hasattr(v, "__len__") and not isinstance(v, str):
-        return [float(x) for x in v]
-    if isinstance(v, bool):
-        return v
-    return float(v) if isinstance(v, (int, float)) else v
 
 
 def _unique_name(tree, base):
@@ -315,7 +285,7 @@ def _take_inputs(tree, src, dst):
         if target is None:
             continue
         if hasattr(sock, "default_value") and hasattr(target, "default_value"):
-            set_if_changed(target, _plain(sock.default_value))
+            set_if_changed(target, layer_values.plain(sock.default_value))
         for link in into.get(sock.identifier, ()):
             # a new group node's input has no link to replace: no limit to verify
             new = tree.links.new(link.from_socket, target, verify_limits=False)
@@ -342,7 +312,7 @@ def _give_back(tree, src, dst):
         if have is None:
             continue
         if hasattr(sock, "default_value") and hasattr(have, "default_value"):
-            sock.default_value = socket_value(sock, _plain(have.default_value))
+            sock.default_value = socket_value(sock, layer_values.plain(have.default_value))
         now = into_src.get(have.identifier, [])
         kept = into_dst.get(sock.identifier, [])
         if [l.from_socket for l in now] == [l.from_socket for l in kept]:
@@ -380,7 +350,7 @@ def remove(mat):
             for dest in [link.to_socket for link in node.outputs["BSDF"].links]:
                 tree.links.new(core.outputs[0], dest)
             layer_animation.move_animation(tree, node, core)
-        restore = raw.get("restore", {})
+        restore = _followed(raw.get("restore", {}), node)
         if K.ORIGINAL_NODE_KEY in core:
             del core[K.ORIGINAL_NODE_KEY]
         if node is not None:
@@ -389,8 +359,33 @@ def remove(mat):
         _restore_node(tree, core, restore)
     elif node is not None:  # the artist's node is gone: keep the layer node as it is
         del node[K.LAYER_NODE_KEY]
+    swapped = tagged_layer_node(mat)  # (on another group: the artist's now)
+    if swapped is not None and K.LAYER_NODE_KEY in swapped:
+        del swapped[K.LAYER_NODE_KEY]
     if K.STAMP in mat:
         del mat[K.STAMP]
+
+
+def _followed(restore, node):
+    """The record of how the BSDF was, with what the artist changed on the layer node since
+    (Make Hazy gave it the BSDF's name, label, frame, place and colour): renamed, relabelled,
+    moved or re-framed, the BSDF comes back so."""
+    if node is None:
+        return restore
+    now = {"name": node.name, "label": node.label, "location": list(node.location),
+           "parent": node.parent.name if node.parent is not None else "",
+           "use_custom_color": bool(node.use_custom_color), "color": list(node.color)}
+    out = dict(restore)
+    for key, value in now.items():
+        was = restore.get(key)
+        if was is None:
+            continue
+        same = (np.allclose(value, was, atol=1e-3) if isinstance(value, list) else value == was)
+        if not same:
+            out[key] = value
+    if out.get("parent") != restore.get("parent"):
+        out["location"] = now["location"]  # (relative to the new frame)
+    return out
 
 
 def _new_core(tree, node):
@@ -592,7 +587,8 @@ def swap_group(node, ng):
     tree = node.id_data
     layer_animation.own_animation(tree, [node.name])  # (a shared action stays the other's)
     names = [s.name for s in node.inputs]
-    vals = {s.name: _plain(s.default_value) for s in node.inputs if hasattr(s, "default_value")}
+    vals = {s.name: layer_values.plain(s.default_value) for s in node.inputs
+            if hasattr(s, "default_value")}
     ins = [(s.name, l.from_socket, l.is_muted) for s in node.inputs for l in s.links]
     outs = [(s.name, l.to_socket, l.is_muted) for s in node.outputs for l in s.links]
     for link in [l for s in list(node.inputs) + list(node.outputs) for l in s.links]:
@@ -706,62 +702,33 @@ def read(mat):
     return p
 
 
-def input_record(node, names):
-    """{input name: {"link": node name} | {"value": v}} of ``node``'s inputs ``names``."""
-    out = {}
-    for name in names:
-        s = node.inputs.get(name)
-        if s is None:
-            continue
-        if s.is_linked:
-            out[name] = {"link": s.links[0].from_node.name}
-        elif hasattr(s, "default_value"):
-            out[name] = {"value": _plain(s.default_value)}
-    return out
-
-
 def record_baked_sources(mat, record):
     raw = dict(_raw_state(mat) or {})
     raw["baked_from"] = record
     _write_state(mat, raw)
 
 
-def _baked_changes(mat, node):
-    """Inputs of a converted layer that no longer hold what its maps were computed from."""
-    raw = _raw_state(mat) or {}
-    was = raw.get("baked_from") or {}
-    now = input_record(node, list(was))
-    changed = []
-    for name, rec in was.items():
-        cur = now.get(name)
-        if cur is None or set(cur) != set(rec):
-            changed.append(name)
-        elif "link" in rec and cur["link"] != rec["link"]:
-            changed.append(name)
-        elif "value" in rec and not np.allclose(np.atleast_1d(cur["value"]),
-                                                np.atleast_1d(rec["value"]), rtol=1e-6, atol=1e-7):
-            changed.append(name)
-    return changed
-
-
-def notes(mat):
-    """What the panel, the operator and the API say about a layer, in plain words: a bypassed
-    or disconnected layer node; haze that cannot show (no room above the core's reflectivity);
-    what the layer only approximates for these values."""
-    out = []
-    problem = connection_problem(mat)
-    if problem:
-        out.append(problem)
+def notes(mat, panel=False):
+    """What the panel (``panel``: the group-edit check as last found), the operator and the API
+    say about a layer, in plain words: a muted, bypassed or disconnected layer node; an edited
+    layer group; haze that cannot show (no room above the core's reflectivity); what the layer
+    only approximates for these values."""
+    out = connection_problems(mat)
     node = layer_node(mat)
     if node is None:
         return out
+    edited = layer_group.edited_parts(node.node_tree, cached=panel)
+    if edited:
+        out.append(f"its layer group was edited by hand ({', '.join(f'“{n}”' for n in edited)}): "
+                   f"what renders is not what the panel and these notes show")
     made = outdated_group(mat)
     if made:
         out.append(f"its layer group was made by {made}: Upgrade Haze Layers (or any haze "
                    f"edit) moves it to this one's (each Blender's Multiscatter GGX needs its own "
                    f"correction)")
     if is_baked(mat):
-        changed = _baked_changes(mat, node)
+        was = (_raw_state(mat) or {}).get("baked_from") or {}
+        changed = layer_values.baked_changes(was, node)
         if changed:
             out.append(f"its haze comes from converted maps made for other {', '.join(changed)}: "
                        f"convert the maps again (or Remove Haze, then Make Hazy for a live layer)")
@@ -796,4 +763,4 @@ def summary(mat):
                          f"{(state.get('problems') or [('its layer node is gone', None)])[0][0]}")
     vals, linked = layer_values.values(node)
     return dict(node=node, values=vals, textured=linked, animated=animated_inputs(node),
-                notes=notes(mat), group=node.node_tree.name)
+                notes=notes(mat, panel=True), group=node.node_tree.name)

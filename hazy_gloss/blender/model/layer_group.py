@@ -567,7 +567,37 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
         s.hide = bool(s.name) and not s.is_linked
     for s in gin2.outputs:
         s.hide = bool(s.name) and not s.is_linked
+    ng[K.GROUP_PRINT] = _fingerprint(ng)
     return lay
+
+
+_edited_seen = {}  # group session_uid -> edited_parts, for the panel (forget_edits clears it)
+
+
+def forget_edits():
+    """Node trees changed: what edited_parts(cached=True) remembered is stale."""
+    _edited_seen.clear()
+
+
+def edited_parts(ng, cached=False):
+    """Names of the layer group ``ng`` and of its section groups that were edited since they
+    were built (fingerprints that no longer match; a group from before fingerprints: none).
+    ``cached``: as last found until forget_edits (hashing a group's ~1000 nodes takes ~7 ms, too
+    long for every redraw of the panel)."""
+    if cached:
+        if ng.session_uid not in _edited_seen:
+            _edited_seen[ng.session_uid] = edited_parts(ng)
+        return _edited_seen[ng.session_uid]
+    out = []
+    if isinstance(ng.get(K.GROUP_PRINT), str) and ng[K.GROUP_PRINT] != _fingerprint(ng):
+        out.append(ng.name)
+    for n in ng.nodes:
+        sub = getattr(n, "node_tree", None)
+        made = (sub.get(K.GROUP_STAMP) if sub is not None else None)
+        if hasattr(made, "get") and isinstance(made.get("print"), str) and \
+                made["print"] != _fingerprint(sub) and sub.name not in out:
+            out.append(sub.name)
+    return out
 
 
 def _emit_sections(ng, lay, sources):

@@ -83,3 +83,43 @@ def values(node):
     """What the layer's group computes from the node's unlinked input values (the panel's
     Physical Values; the graph evaluated in numpy with Blender's node semantics)."""
     return evaluate(node, graph_of(node).shown)
+
+
+def plain(v):
+    """A socket value as plain Python (lists for vectors and colours), for records."""
+    if hasattr(v, "__len__") and not isinstance(v, str):
+        return [float(x) for x in v]
+    if isinstance(v, bool):
+        return v
+    return float(v) if isinstance(v, (int, float)) else v
+
+
+def input_record(node, names):
+    """{input name: {"link": node name} | {"value": v}} of ``node``'s inputs ``names``."""
+    out = {}
+    for name in names:
+        s = node.inputs.get(name)
+        if s is None:
+            continue
+        if s.is_linked:
+            out[name] = {"link": s.links[0].from_node.name}
+        elif hasattr(s, "default_value"):
+            out[name] = {"value": plain(s.default_value)}
+    return out
+
+
+def baked_changes(was, node):
+    """Inputs of a converted layer node that no longer hold what its maps were computed from
+    (``was``: the input_record made when they were)."""
+    now = input_record(node, list(was))
+    changed = []
+    for name, rec in was.items():
+        cur = now.get(name)
+        if cur is None or set(cur) != set(rec):
+            changed.append(name)
+        elif "link" in rec and cur["link"] != rec["link"]:
+            changed.append(name)
+        elif "value" in rec and not np.allclose(np.atleast_1d(cur["value"]),
+                                                np.atleast_1d(rec["value"]), rtol=1e-6, atol=1e-7):
+            changed.append(name)
+    return changed

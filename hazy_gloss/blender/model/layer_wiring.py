@@ -1,0 +1,69 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Whether a layer node renders, in plain words for blender.model.layer.notes: the Material
+Output must reach it through shader links, un-muted (a muted group node has no shader to pass:
+the material renders black), and not through the kept BSDF or a copy of the layer node instead
+(Shift+D copies its tag; the panel and haze edits change the layer node only)."""
+from __future__ import annotations
+
+from ... import constants as K
+from . import layer_group
+
+
+def active_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    return next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+
+
+def upstream(sock):
+    """Names of the nodes whose closures reach ``sock`` (through shader links; a muted node is
+    passed through to its inputs, and named)."""
+    seen, queue = set(), [sock]
+    while queue:
+        s = queue.pop()
+        for link in s.links:
+            if link.is_muted or not link.is_valid:
+                continue
+            n = link.from_node
+            if n.name in seen:
+                continue
+            seen.add(n.name)
+            if n.mute:
+                queue.extend(n.inputs)  # a muted node passes its first matching input
+            else:
+                queue.extend(i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute")
+    return seen
+
+
+def copies_of(tree, node):
+    """Other group nodes on a layer group or with the layer node's tag: copies the artist made
+    (Shift+D, or a Group node given the layer's group)."""
+    return [n for n in tree.nodes if n != node and n.bl_idname == "ShaderNodeGroup"
+            and (n.get(K.LAYER_NODE_KEY) or layer_group.is_layer_group(n.node_tree))]
+
+
+def wiring_problems(mat, node, original):
+    """[one line] on why the layer node ``node`` does not render as the panel shows it."""
+    tree = mat.node_tree
+    out = active_output(tree)
+    if out is None:
+        return ["the material has no Material Output"]
+    reached = upstream(out.inputs["Surface"])
+    copies = [n for n in copies_of(tree, node) if n.name in reached]
+    found = []
+    if copies:
+        names = ", ".join(f"“{n.name}”" for n in copies)
+        verb = "render" if len(copies) > 1 else "renders"
+        found.append(f"{names}, a copy of the layer node “{node.name}”, {verb} "
+                     f"{'too' if node.name in reached else 'instead'}: the panel and haze edits "
+                     f"change “{node.name}” only (delete the copy, or use two materials)")
+    if node.name in reached:
+        if node.mute:
+            found.append(f"the layer node “{node.name}” is muted: the material renders without "
+                         f"it (black where it was the only shader); un-mute it (M)")
+    elif original is not None and original.name in reached:
+        found.append(f"“{original.name}” (the BSDF as it was before haze) is connected instead "
+                     f"of the layer node “{node.name}”: no haze renders")
+    elif not copies:
+        found.append(f"the layer node “{node.name}” is not connected to the Material Output: "
+                     f"no haze renders")
+    return found
