@@ -669,7 +669,6 @@ def read(mat):
     _, linked = layer_values.inputs_of(node)
     p["textured"] = sorted(n for n in linked if n not in {v[0] for v in HAZE_SOCKETS.values()})
     p["animated"] = animated_inputs(node)
-    p["notes"] = notes(mat)
     if kind == "PRINCIPLED":
         m = inp["Metallic"]
         p["metallic"] = None if m.is_linked else float(m.default_value)
@@ -698,7 +697,7 @@ def read(mat):
         p["kind"] = "LEGACY"
         p["core_reflectivity"] = val("Color", (0.8,) * 3)
     p["shader_mapping"] = bool(p["textured"])
-    p["notes"] = notes(mat)  # (a bypassed layer node, haze that cannot show, ...)
+    p["notes"] = notes(mat, quick=False)  # (a bypassed layer node, haze that cannot show, ...)
     return p
 
 
@@ -708,16 +707,16 @@ def record_baked_sources(mat, record):
     _write_state(mat, raw)
 
 
-def notes(mat, panel=False):
-    """What the panel (``panel``: the group-edit check as last found), the operator and the API
-    say about a layer, in plain words: a muted, bypassed or disconnected layer node; an edited
-    layer group; haze that cannot show (no room above the core's reflectivity); what the layer
-    only approximates for these values."""
+def notes(mat, quick=True):
+    """What the panel, the operators and the API say about a layer, in plain words: a muted,
+    bypassed or disconnected layer node; an edited layer group (``quick``: as last found, see
+    layer_group.edited_parts; read_parameters looks afresh); haze that cannot show (no room
+    above the core's reflectivity); what the layer only approximates for these values."""
     out = connection_problems(mat)
     node = layer_node(mat)
     if node is None:
         return out
-    edited = layer_group.edited_parts(node.node_tree, cached=panel)
+    edited = layer_group.edited_parts(node.node_tree, cached=quick)
     if edited:
         out.append(f"its layer group was edited by hand ({', '.join(f'“{n}”' for n in edited)}): "
                    f"what renders is not what the panel and these notes show")
@@ -763,4 +762,4 @@ def summary(mat):
                          f"{(state.get('problems') or [('its layer node is gone', None)])[0][0]}")
     vals, linked = layer_values.values(node)
     return dict(node=node, values=vals, textured=linked, animated=animated_inputs(node),
-                notes=notes(mat, panel=True), group=node.node_tree.name)
+                notes=notes(mat), group=node.node_tree.name)

@@ -571,7 +571,7 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
     return lay
 
 
-_edited_seen = {}  # group session_uid -> edited_parts, for the panel (forget_edits clears it)
+_edited_seen = {}  # (group session_uid, sizes) -> edited_parts (forget_edits clears it)
 
 
 def forget_edits():
@@ -582,12 +582,14 @@ def forget_edits():
 def edited_parts(ng, cached=False):
     """Names of the layer group ``ng`` and of its section groups that were edited since they
     were built (fingerprints that no longer match; a group from before fingerprints: none).
-    ``cached``: as last found until forget_edits (hashing a group's ~1000 nodes takes ~7 ms, too
-    long for every redraw of the panel)."""
-    if cached:
-        if ng.session_uid not in _edited_seen:
-            _edited_seen[ng.session_uid] = edited_parts(ng)
-        return _edited_seen[ng.session_uid]
+    ``cached``: as last found until forget_edits or a node or link more or less (hashing a
+    group's ~1000 nodes takes ~7 ms: too long for every redraw of the panel or slider change)."""
+    if cached:  # (keyed also by node and link counts: a script's edit shows at once)
+        parts = [ng] + [n.node_tree for n in ng.nodes if getattr(n, "node_tree", None)]
+        key = (ng.session_uid,) + tuple((len(g.nodes), len(g.links)) for g in parts)
+        if key not in _edited_seen:
+            _edited_seen[key] = edited_parts(ng)
+        return _edited_seen[key]
     out = []
     if isinstance(ng.get(K.GROUP_PRINT), str) and ng[K.GROUP_PRINT] != _fingerprint(ng):
         out.append(ng.name)
