@@ -716,6 +716,12 @@ def notes(mat, quick=True):
     node = layer_node(mat)
     if node is None:
         return out
+    closures = layer_wiring.closure_count(mat.node_tree)
+    if closures > layer_wiring.MAX_CLOSURES:
+        out.append(f"Cycles counts up to {closures} closures in this material, over its "
+                   f"{layer_wiring.MAX_CLOSURES}: where more than that have weight at one point "
+                   f"it drops the rest (5.x logs “Maximum number of closures exceeded”); the "
+                   f"layer's BSDF copies count 12 each as Principled: mix fewer BSDFs beside it")
     edited = layer_group.edited_parts(node.node_tree, cached=quick)
     if edited:
         out.append(f"its layer group was edited by hand ({', '.join(f'“{n}”' for n in edited)}): "

@@ -67,3 +67,54 @@ def wiring_problems(mat, node, original):
         found.append(f"the layer node “{node.name}” is not connected to the Material Output: "
                      f"no haze renders")
     return found
+
+
+#: What Cycles counts for a closure node (ShaderGraph::get_num_closures in
+#: intern/cycles/scene/shader_graph.cpp); a node not named here counts 1.
+CLOSURES = {"ShaderNodeBsdfPrincipled": 12, "ShaderNodeSubsurfaceScattering": 3,
+            "ShaderNodeBsdfGlass": 2, "ShaderNodeBsdfHairPrincipled": 2,
+            "ShaderNodeVolumeScatter": 32, "ShaderNodeVolumeAbsorption": 32,
+            "ShaderNodeVolumePrincipled": 32, "ShaderNodeVolumeCoefficients": 32}
+#: Cycles' MAX_CLOSURE: closures past it at a shading point are dropped.
+MAX_CLOSURES = 64
+_NOT_CLOSURES = {"ShaderNodeMixShader", "ShaderNodeAddShader", "NodeReroute", "ShaderNodeGroup",
+                 "NodeGroupInput", "ShaderNodeEeveeSpecular", "ShaderNodeShaderToRGB"}
+
+
+def closure_count(tree):
+    """How many closures Cycles counts for the material ``tree`` (its limit MAX_CLOSURES): the
+    closure nodes the active output's Surface and Volume reach through un-muted shader links,
+    inside groups too (each group node is its own copy).  An upper bound: Cycles also drops a
+    Mix Shader's branch where its factor folds to 0 or 1."""
+    out = active_output(tree)
+    if out is None:
+        return 0
+    total, queue = 0, [(tree, s, ()) for s in (out.inputs.get("Surface"), out.inputs.get("Volume"))
+                       if s is not None]
+    seen = set()
+    while queue:
+        t, sock, path = queue.pop()
+        for link in sock.links:
+            if link.is_muted or not link.is_valid:
+                continue
+            n = link.from_node
+            key = (path, t.name, n.name, link.from_socket.identifier)
+            if key in seen:
+                continue
+            seen.add(key)
+            shader_ins = [i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute"]
+            if n.mute:
+                queue += [(t, i, path) for i in shader_ins[:2]]  # (a muted Mix passes its first)
+            elif n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+                inner = n.node_tree
+                gout = next((g for g in inner.nodes if g.bl_idname == "NodeGroupOutput"
+                             and g.is_active_output), None)
+                s = gout.inputs.get(link.from_socket.name) if gout is not None else None
+                if s is not None:
+                    queue.append((inner, s, path + (n.name,)))
+            elif n.bl_idname in _NOT_CLOSURES:
+                queue += [(t, i, path) for i in shader_ins]
+            elif n.outputs and n.outputs[0].type == "SHADER":
+                distribution = getattr(n, "distribution", "")
+                total += CLOSURES.get(n.bl_idname, 2 if distribution == "MULTI_GGX" else 1)
+    return total
