@@ -43,8 +43,8 @@ PROG = "hazy_gloss convert"
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage block
-        self.exit(2, f"{PROG}: error: {message}\n")
+    def error(self, message):  # one line, no usage block, named as the command typed
+        self.exit(2, f"{self.prog.replace('python -m ', '')}: error: {as_flags(message)}\n")
 
 
 def parse_value(text):
@@ -158,8 +158,30 @@ class _Signals:
             signal.signal(sig, old if old is not None else signal.SIG_DFL)
 
 
+#: Parameter names as the command line spells them (the API's messages name parameters).
+_FLAG_NAMES = dict(INPUT_FLAGS, smoothness="--smoothness", file_format="--format",
+                   exr_codec="--exr-codec", prefix="--prefix", kind="--kind",
+                   distribution="--distribution")
+
+
+def as_flags(message):
+    """``message`` with the parameters it names spelt as flags: snake_case names anywhere (no
+    prose has them), a plain word only as the subject it opens with."""
+    import re
+    text = str(message)
+    names = sorted((n for n in _FLAG_NAMES if "_" in n), key=len, reverse=True)
+    if names:
+        text = re.sub(r"(?<![\w-])(" + "|".join(names) + r")(?!\w)",
+                      lambda m: _FLAG_NAMES[m.group(1)], text)
+    text = text.replace("None selects", "leaving it out selects")
+    head = re.match(r"(\w+)(?=[: ])", text)
+    if head and head.group(1) in _FLAG_NAMES:
+        text = _FLAG_NAMES[head.group(1)] + text[head.end():]
+    return text
+
+
 def _error(message, code=K.EXIT_BAD_INPUT):
-    print(f"{PROG}: error: {message}", file=sys.stderr)
+    print(f"{PROG}: error: {as_flags(message)}", file=sys.stderr)
     return code
 
 
@@ -323,7 +345,7 @@ def _run_batch(args, inputs, progress, bar, cli, signals):
     signals.hold()
     bar.close()
     for name, why in report.failed:
-        print(f"{PROG}: error: {name}: {why}", file=sys.stderr)
+        print(f"{PROG}: error: {name}: {as_flags(why)}", file=sys.stderr)
     if args.json:
         print(json.dumps({"sets": {n: dict(r) for n, r in report.done},
                           "failed": dict(report.failed), "seconds": report.seconds}, indent=1))
@@ -525,7 +547,11 @@ def _engines(args):
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # (named by the command they were given to, as argparse's other errors are)
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        sub.choices[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command == "convert":
         return _convert(args)
     if args.command == "export-materialx":

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import constants as K
 from .core.lobes import describe
-from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, sanitise
+from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, check_value, sanitise
 # Split off this module and re-exported here (``hazy_gloss.convert`` still names them): the
 # errors and progress, the pixel helpers, the PBR texture sets.
 from .conversion_status import (ConversionCancelled, ConversionError, ConversionOptionError,
@@ -159,7 +159,8 @@ def _constant(label, range_key, role, value):
         if role == "colour" and arr.min() >= 0 and arr.max() <= 255:
             scaled = tuple(round(float(v) / 255, 4) for v in arr)
             hint = f" (colours are 0-1, not 0-255: divide 8-bit values by 255, e.g. {scaled})"
-        raise ConversionError(f"{label}: constant {value!r} is outside {rng}{hint}")
+        raise ConversionError(f"{label}: constant {value!r} is out of range: it must be "
+                              f"{'in ' if rng.startswith('[') else ''}{rng}{hint}")
     out = arr.astype(np.float32)
     return out if role == "colour" else out[0]
 
@@ -193,13 +194,10 @@ def resolve_inputs(inputs, kind="CONDUCTOR", distribution="GGX", smoothness=None
     if str(file_format).upper() not in FILE_FORMATS:
         raise ConversionError(f"file_format must be one of {', '.join(FILE_FORMATS)}; got "
                               f"{file_format!r}{did_you_mean(str(file_format).upper(), FILE_FORMATS)}")
-    if smoothness is not None:
-        try:
-            w = float(smoothness)
-        except (TypeError, ValueError):
-            raise ConversionError(f"smoothness must be None or a number > 0, got {smoothness!r}") from None
-        if not w > 0:
-            raise ConversionError(f"smoothness must be None or a number > 0, got {smoothness!r}")
+    try:  # (the range make_hazy and create_material take: one check)
+        check_value("smoothness", smoothness)
+    except ValueError as exc:
+        raise ConversionError(str(exc)) from None
     if not isinstance(inputs, dict):
         raise ConversionError("inputs must be a dict of parameter name -> image path, image or constant")
     allowed = set(PARAMETERS) | set(ALIASES)

@@ -366,7 +366,13 @@ def operator_property(prop, default):
     of its own: the panel's label, range, slider and tooltip with the operator's ``default``."""
     for name, ctor, keywords in property_specs():
         if name == prop:
-            return ctor, dict(keywords, default=default)
+            kw = dict(keywords, default=default)
+            # the range as the slider's only: a script's value out of it is refused with the
+            # API's message (a hard limit would clamp it, saying nothing)
+            for hard in ("min", "max"):
+                if hard in kw:
+                    kw.setdefault(f"soft_{hard}", kw.pop(hard))
+            return ctor, kw
     raise KeyError(f"no panel property {prop!r} in the schema")
 
 

@@ -27,6 +27,7 @@ import bpy
 import numpy as np
 import pytest
 
+import scenes
 from test_convert import N, make_inputs, read_raw, write_exr, write_png
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -692,8 +693,17 @@ def test_cli_exit_codes_and_one_line_errors(hg, clean_file, tmp_path):
         "--out must name a folder, got ''": ["--haziness", paths["haziness"], "--out", ""],
         "prefix must be a plain file-name prefix": ["--haziness", paths["haziness"],
                                                     "--prefix", "../up", "--out", str(tmp_path / "o")],
-        "exr_codec must be one of NONE, ZIP": ["--haziness", paths["haziness"], "--exr-codec",
-                                               "FOO", "--out", str(tmp_path / "o")],
+        "--exr-codec must be one of NONE, ZIP": ["--haziness", paths["haziness"], "--exr-codec",
+                                                 "FOO", "--out", str(tmp_path / "o")],
+        # (the parameters named as the flags typed; the range as make_hazy's)
+        "--haze-extent: constant -1.0 is out of range: it must be >= 0": [
+            "--haziness", paths["haziness"], "--haze-extent", "-1", "--out", str(tmp_path / "o")],
+        "--smoothness must be >= 0.0001 and finite (the Bézier weight w; leaving it out": [
+            "--haziness", paths["haziness"], "--smoothness", "inf", "--out", str(tmp_path / "o")],
+        "--smoothness must be >= 0.0001": ["--haziness", paths["haziness"], "--smoothness",
+                                           "1e-9", "--out", str(tmp_path / "o")],
+        "give both --haze-extent-x and --haze-extent-y (or --haze-extent": [
+            "--haziness", paths["haziness"], "--haze-extent-x", "3", "--out", str(tmp_path / "o")],
         "colours are 0-1, not 0-255": ["--haziness", paths["haziness"], "--core-reflectivity",
                                        "255,128,0", "--out", str(tmp_path / "o")],
         "did you mean": ["--haziness", paths["haziness"], "--kind", "CONDUCTR",
@@ -707,6 +717,17 @@ def test_cli_exit_codes_and_one_line_errors(hg, clean_file, tmp_path):
     assert not (tmp_path / "o").exists()
     ok = _cli(["convert", "--haziness", paths["haziness"], "--out", str(tmp_path / "ok")], tmp_path)
     assert ok.returncode == 0 and ok.stderr.strip() == "", ok.stderr
+
+
+@pytest.mark.parametrize("w", [float("inf"), 1e-9, 0.0, float("nan"), "2"])
+def test_convert_maps_refuses_the_smoothness_make_hazy_refuses(api, core, tmp_path, w):
+    paths, _ = make_inputs(tmp_path / "in")
+    with pytest.raises(ValueError) as made:
+        api.make_hazy(scenes.new_material("M"), smoothness=w)
+    with pytest.raises(core.ConversionError) as info:
+        api.convert_maps(paths, str(tmp_path / "out"), smoothness=w)
+    assert str(info.value) == str(made.value)
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("prefix", ["a\0b", "../x", "a/b", "a\\b", "..", ".hidden", "x\ny", 7])
@@ -767,7 +788,7 @@ def test_operator_fallback_folder_stays_inside(hg, clean_file, tmp_path, monkeyp
     (dict(core_reflectivity="0.9,0.6,0.3"), r"core_reflectivity: '0.9,0.6,0.3' is a string and no "
                                             r"such file exists; .*core_reflectivity=\(0.9, 0.6, 0.3\)"),
     (dict(haziness="0.5"), r"haziness: '0.5' is a string .* haziness=0.5"),
-    (dict(core_reflectivity=(255, 128, 0)), r"outside \[0, 1\] \(colours are 0-1, not 0-255: .*"
+    (dict(core_reflectivity=(255, 128, 0)), r"must be in \[0, 1\] \(colours are 0-1, not 0-255: .*"
                                             r"\(1.0, 0.502, 0.0\)"),
     (dict(edge_tint=(1, 0.5, 0.2, 1)), "RGB triple, got .* \\(drop alpha\\)"),
     (dict(haze_extent=(5, 3)), "haze_extent: expected a number, got .*haze_extent_x and "

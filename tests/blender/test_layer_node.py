@@ -754,6 +754,59 @@ def test_messages_name_keywords_as_typed(env):
         env.api.make_hazy(car_paint(), smoothness=float("inf"))
 
 
+def test_entry_points_refuse_what_the_api_refuses_in_one_line(env):
+    """An operator called from a script refuses an out-of-range value with the API's line (a
+    hard property limit clamped it, saying nothing); sizes and material lists that do not read
+    are named."""
+    mat = car_paint()
+    for key, value in (("haziness", 5.0), ("haziness", -1.0), ("haze_extent", -3.0)):
+        with pytest.raises(ValueError) as api_says:
+            env.api.make_hazy(car_paint(), **{key: value})
+        with pytest.raises(RuntimeError) as op_says:
+            bpy.ops.hazy_gloss.make_hazy(material=mat.name, **{key: value})
+        assert str(api_says.value) in str(op_says.value)
+        assert not env.api.is_hazy(mat)
+    env.api.make_hazy(mat, haziness=0.3)
+    for size in (float("nan"), float("inf"), None, "32", 16.7, 8, True):
+        with pytest.raises(ValueError, match=r"^size must be a whole number of pixels, 16 to "
+                                             r"16384, got "):
+            env.api.add_haziness_map(mat, size=size)
+    with pytest.raises(RuntimeError, match="size must be a whole number"):
+        bpy.ops.hazy_gloss.add_haziness_map(material=mat.name, size=-5)
+    assert not mat.node_tree.nodes.get("Image Texture")
+    with pytest.raises(TypeError, match="upgrade_layers expects a list of materials, or None"):
+        env.api.upgrade_layers(5)
+    assert env.api.upgrade_layers(mat) == []
+
+
+def test_a_haze_input_out_of_its_range_says_what_it_renders_as(env):
+    """Keys, drivers and scripts can put any number in a haze input: the note names it and
+    what it renders as — the group's clamp, checked against the static material with that
+    value (equal to the last bit); NaN renders as no value does, and says so."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.3, coat_haziness=0.3)
+    node = env.layer.layer_node(mat)
+    render(env, mat)  # (the scene holds the material: frame_set runs its drivers)
+    for name, driven, clamped in (("Haziness", 2.0, 0.9999), ("Coat Haziness", -1.0, 0.0),
+                                  ("Haze Extent X", -5.0, 0.0)):
+        fc = node.inputs[name].driver_add("default_value")
+        fc.driver.expression = repr(driven)
+        bpy.context.scene.frame_set(1)
+        assert node.inputs[name].default_value == driven
+        notes = env.api.read_parameters(mat)["notes"]
+        assert f"{name} is {driven:g} (from its keys or driver), outside" in " ".join(notes)
+        assert f"it renders as {clamped:g}" in " ".join(notes)
+        got = render(env, mat)["combined"]
+        node.inputs[name].driver_remove("default_value")
+        node.inputs[name].default_value = clamped
+        assert np.array_equal(render(env, mat)["combined"], got), name
+        assert not any(name in n for n in env.api.read_parameters(mat)["notes"])
+        node.inputs[name].default_value = {"Haze Extent X": 5.0}.get(name, 0.3)
+    node.inputs["Haze Extent Y"].default_value = float("nan")
+    assert any(n.startswith("Haze Extent Y is NaN: it renders as no valid value does")
+               for n in env.api.read_parameters(mat)["notes"])
+
+
 def test_group_cache_key_covers_the_tables(env, monkeypatch, tmp_path):
     """The per-user cache of built layer groups is keyed by a hash of the code that builds them
     and of the data tables it reads (core/tables/*.json): a regenerated table (say, a new

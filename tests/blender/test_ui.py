@@ -1311,9 +1311,10 @@ def test_registered_properties_are_the_schemas(env):
 
 def test_operators_take_the_panels_ranges(env):
     """Every operator property that sets a perceptual parameter is the panel property of that
-    parameter (derived from the one schema): the same label, hard and slider limits, subtype
-    and precision, and its tooltip unless the operator says more; the operator keeps its own
-    default. Checked on the registered RNA of both, so a hand-written limit shows."""
+    parameter (derived from the one schema): the same label, slider limits, subtype and
+    precision, and its tooltip unless the operator says more; the operator keeps its own
+    default and no hard limit (a script's value out of range is refused in one line, not
+    clamped). Checked on the registered RNA of both, so a hand-written limit shows."""
     panel = env.hg.blender.ui.properties.HazyGlossMaterialSettings.bl_rna.properties
     own_tooltip = {("make_hazy", "haziness")}
     seen = 0
@@ -1325,9 +1326,10 @@ def test_operators_take_the_panels_ranges(env):
                 continue
             want = panel[name]
             seen += 1
-            for attr in ("name", "hard_min", "hard_max", "soft_min", "soft_max", "subtype",
-                         "precision", "array_length"):
+            for attr in ("name", "soft_min", "soft_max", "subtype", "precision", "array_length"):
                 assert getattr(prop, attr) == getattr(want, attr), (op, prop.identifier, attr)
+            assert (prop.hard_min, prop.hard_max) == (-3.4028234663852886e+38,
+                                                      3.4028234663852886e+38), (op, prop.identifier)
             if (op, prop.identifier) not in own_tooltip:
                 assert prop.description == want.description, (op, prop.identifier)
     assert seen == 18, seen  # convert_maps 11, convert_pbr_set 4, make_hazy 2, load_recomposite 1

@@ -188,11 +188,11 @@ def test_resolve_defaults_and_aliases():
     ({"haziness": "h.png", "haze_extent": 1, "haze_extent_x": 2, "haze_extent_y": 2}, {}, "not both"),
     ({"haziness": "h.png", "haze_extent_x": 2}, {}, "both haze_extent_x"),
     ({"haziness": 0.5}, {}, "no image input"),
-    ({"haziness": "h.png", "roughness": 1.5}, {}, r"roughness.*outside"),
+    ({"haziness": "h.png", "roughness": 1.5}, {}, r"roughness.*out of range"),
     ({"haziness": "h.png", "core_reflectivity": (0.1, 0.2)}, {}, "RGB triple"),
     ({"haziness": "h.png", "core_reflectivity": math.nan}, {}, "finite"),
     ({"roughness": "r.png", "haziness": 1.0}, {}, r"haziness.*\[0, 0.9999\]"),
-    ({"haziness": "h.png", "haze_extent": -1}, {}, r"haze_extent.*outside"),
+    ({"haziness": "h.png", "haze_extent": -1}, {}, r"haze_extent.*out of range"),
 ])
 def test_resolve_errors(inputs, kw, pattern):
     with pytest.raises(C.ConversionError, match=pattern) as info:

@@ -86,7 +86,8 @@ def _constant(name, v):
         rng = f"[{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g} and finite"
         hint = " (8-bit values: divide by 255)" if hi == 1.0 and np.all(vals <= 255) and \
             np.any(vals > 1) else ""
-        raise ConversionError(f"{name} must be in {rng}{hint}, got {v!r}")
+        raise ConversionError(f"{name} must be {'in ' if hi is not None else ''}{rng}{hint}, "
+                              f"got {v!r}")
     if name == "base_color":
         rgb = np.broadcast_to(vals[:3], 3) if vals.size >= 3 else np.repeat(vals, 3)
         return tuple(float(x) for x in rgb) + (1.0,)

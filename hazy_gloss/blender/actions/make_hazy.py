@@ -506,9 +506,17 @@ def import_two_lobe_mix(mat):
 # --------------------------------------------------------------------------------------------
 
 
-def materials_or_all(materials):
-    """``materials`` as a list, or every material of the file when it is None."""
-    return list(bpy.data.materials if materials is None else materials)
+def materials_or_all(materials, caller="upgrade_layers"):
+    """``materials`` as a list, or every material of the file when it is None; TypeError (one
+    line) for what is not a collection of them (one material is put in a list)."""
+    if materials is None:
+        return list(bpy.data.materials)
+    if isinstance(materials, bpy.types.Material):
+        return [materials]
+    if isinstance(materials, (str, bytes)) or not hasattr(materials, "__iter__"):
+        raise TypeError(f"{caller} expects a list of materials, or None for all of the file's; "
+                        f"got {type(materials).__name__} {materials!r:.40}")
+    return list(materials)
 
 
 def upgrade_layers(materials, every=False):
@@ -576,9 +584,10 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     if sock.is_linked:
         return ("ERROR", f"{sock.name} of “{node.name}” is linked to “{sock.links[0].from_node.name}” "
                 f"already: disconnect it first to paint a map instead", [])
+    if isinstance(size, bool) or not isinstance(size, (int, float, np.integer)) or \
+            not (math.isfinite(size) and size == int(size) and 16 <= size <= 16384):
+        return "ERROR", f"size must be a whole number of pixels, 16 to 16384, got {size!r}", []
     size = int(size)
-    if not 16 <= size <= 16384:
-        return "ERROR", f"size must be 16 to 16384 pixels, got {size}", []
     value = float(sock.default_value)
     img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
                               float_buffer=True, is_data=True)

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What a haze layer cannot do for its node's values, in plain words, with the setting that fixes
 it: haze that cannot show (no room above the core's reflectivity), a peak the Specular Tint cannot
-hold, what Keep Body Colour cannot keep, how far a thin film moves a metal's peak.
+hold, what Keep Body Colour cannot keep, how far a thin film moves a metal's peak, a haze input
+holding a value out of its range (typed by a script, or from a key or driver).
 blender.model.layer.notes gathers these (with what only the material can tell: a bypassed layer
 node, maps converted for other inputs) for the panel, the operator and the API."""
 from __future__ import annotations
@@ -9,7 +10,31 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import body_colour, thin_film
+from ...core.parameters import RANGES
+from ...schema import HAZE_SOCKETS
 from . import layer_values
+
+
+def out_of_range_notes(node, animated=()):
+    """A line for each unlinked haze input whose value is out of its parameter's range: what it
+    renders as (the group clamps it; ``animated``: inputs whose keys or drivers set it), or
+    that NaN renders as no value does."""
+    out = []
+    for key, (name, *_rest) in HAZE_SOCKETS.items():
+        sock = node.inputs.get(name)
+        if sock is None or sock.is_linked or not hasattr(sock, "default_value"):
+            continue
+        lo, hi = RANGES[key[:-2] if key.endswith(("_x", "_y")) else key]
+        v = float(sock.default_value)
+        source = " (from its keys or driver)" if name in animated else ""
+        if np.isnan(v):
+            out.append(f"{name} is NaN{source}: it renders as no valid value does; give it a "
+                       f"number")
+        elif v < lo or (hi is not None and v > hi):
+            rng = f"[{lo:g}, {hi:g}]" if hi is not None and np.isfinite(hi) else f">= {lo:g}"
+            shown = max(v, lo) if hi is None else min(max(v, lo), hi)
+            out.append(f"{name} is {v:g}{source}, outside {rng}: it renders as {shown:g}")
+    return out
 
 
 def outputs_for_notes(node):

@@ -131,7 +131,9 @@ class HAZY_GLOSS_OT_add_haziness_map(_OneMaterialOperator, bpy.types.Operator):
     material: StringProperty(**_MATERIAL_PROP)
     target: EnumProperty(name="Input", items=(("haziness", "Haziness", "The base's haziness"),
                                               ("coat_haziness", "Coat Haziness", "The coat's")))
-    size: bpy.props.IntProperty(name="Size", default=1024, min=16, max=16384)
+    size: bpy.props.IntProperty(name="Size", default=1024, soft_min=16, soft_max=16384,
+                                description="Width and height of the map in pixels, 16 to 16384 "
+                                            "(a size outside is refused, not clamped)")
 
     def apply(self, mat):
         return add_haziness_map(mat, size=self.size, param=self.target)

@@ -3,6 +3,7 @@
 import bpy
 from bpy.props import BoolProperty, StringProperty
 
+from ...core.parameters import check_value
 from ...recomposite import LAYERS, passes_from_exr
 from ..model import recomposite
 from .properties import operator_property
@@ -92,6 +93,7 @@ class HAZY_GLOSS_OT_load_recomposite(bpy.types.Operator):
 
     def execute(self, context):
         try:
+            check_value("haziness", self.haziness)  # (the slider's range only: a script's value)
             passes_from_exr(bpy.path.abspath(self.filepath))  # validates the file
         except (OSError, KeyError, ValueError) as exc:
             self.report({"ERROR"}, str(exc))
