@@ -156,7 +156,7 @@ def test_pbr_set_into_the_users_material(env, tmp_path):
     assert "noise" not in [n.bl_idname for n in tree.nodes] or noise.name in tree.nodes
     assert bsdf.inputs["Coat Weight"].default_value == 0.5
     assert env.layer.layer_node(mat).name == "Principled BSDF" and env.layer.original_node(mat) == bsdf
-    with pytest.raises(ValueError, match="converted maps"):
+    with pytest.raises(ValueError, match="was converted into its maps"):
         env.api.update_material(mat, haziness=0.2)
 
 
@@ -228,6 +228,34 @@ def test_baked_layer_after_an_edit_that_needs_new_maps(env, tmp_path):
     said = " ".join(env.api.read_parameters(mat)["notes"])
     assert "Specular Tint" in said and "convert the maps again" in said
     assert L.signature(mat) == sig
+
+
+def test_a_baked_layer_reports_its_haze_refuses_haze_edits_and_goes_whole(env, tmp_path):
+    """A converted layer's haze is in its maps: read_parameters gives what they were converted
+    with (it said haziness 0), a haze edit is refused in one line naming it (it changed nothing
+    and said nothing), and Remove Haze takes the Image Textures of the converted maps with the
+    layer (ten stayed, unlinked); the set's own maps stay on the BSDF, the files on disk."""
+    paths = pbr_set(tmp_path, haze=False)
+    paths.update(haziness=0.45, haze_extent=7.0)
+    mat = env.api.convert_maps(paths, str(tmp_path / "out"), name="Baked").material
+    p = env.api.read_parameters(mat)
+    assert (p["haziness"], p["haze_extent"], p["coat_haziness"]) == (0.45, (7.0, 7.0), 0.0)
+    mapped = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "m"), name="Mapped").material
+    assert env.api.read_parameters(mapped)["haziness"] == "texture"
+    sig = L.signature(mat)
+    for edit in (lambda: env.api.make_hazy(mat, haziness=0.9),
+                 lambda: env.api.update_material(mat, haze_extent=2.0)):
+        with pytest.raises(ValueError, match=r"^the haze of “Baked” was converted into its maps "
+                                             r"\(haziness 0.45\): convert the maps again"):
+            edit()
+        assert L.signature(mat) == sig
+    own = {n.image.name for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"
+           and not n.label.startswith("Converted ")}
+    files = sorted(os.listdir(tmp_path / "out"))
+    env.api.remove_haze(mat)
+    left = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+    assert {n.image.name for n in left} == own and all(n.outputs["Color"].is_linked for n in left)
+    assert sorted(os.listdir(tmp_path / "out")) == files
 
 
 def test_converting_again_replaces_the_baked_layer(env, tmp_path):

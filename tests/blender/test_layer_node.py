@@ -181,6 +181,11 @@ def test_add_haziness_map(env):
     with pytest.raises(RuntimeError, match="linked to .* already"):
         bpy.ops.hazy_gloss.add_haziness_map(material=mat.name)
     assert sock.links[0].from_node == tex
+    # Make Hazy again (the panel's button, a pipeline re-run) reports the map (it raised on
+    # formatting "texture" as a number)
+    env.reports.last_reports.clear()
+    assert bpy.ops.hazy_gloss.make_hazy(material=mat.name) == {"FINISHED"}
+    assert any("(haziness a map)" in r for r in map(str, env.reports.last_reports))
     # and it renders the value it holds: the same as the constant
     a = render(env, mat, (25.0, 0.0), (0.0, 0.0))["combined"]
     mat.node_tree.links.remove(sock.links[0])

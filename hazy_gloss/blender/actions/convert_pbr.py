@@ -19,6 +19,7 @@ import time
 import bpy
 import numpy as np
 
+from ... import constants as K
 from ... import convert as conversion
 from ... import imagestream as stream
 from ...convert import ConversionError, did_you_mean
@@ -370,7 +371,8 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         images_out = {k: _image_for(p) for k, p in paths.items()}
         baked = {k: images_out[first[id(e)]] for k, e in live.items()}
         attach_baked_layer(mat, bsdf, baked, vector=vector, interpolation=interpolation,
-                           sources=sorted(n[3:] for n in needed if n.startswith("in:")))
+                           sources=sorted(n[3:] for n in needed if n.startswith("in:")),
+                           haze=haze)
     except BaseException as exc:
         problems = [] if txn.committed else txn.rollback()
         if created and mat is not None:
@@ -454,19 +456,22 @@ def _bake_strips(readers, own, feeds, consts, g, live, first, files, size, bad, 
         yield
 
 
-def attach_baked_layer(mat, bsdf, images, *, vector=None, interpolation="Linear", sources=()):
+def attach_baked_layer(mat, bsdf, images, *, vector=None, interpolation="Linear", sources=(),
+                       haze=None):
     """``bsdf`` becomes a layer node whose group reads the converted maps ``images`` (BAKED key
     -> Image), linked through Image Textures into its Converted Maps (the one place the
     conversion wires the layer).  ``sources``: the BSDF inputs the maps were computed from
-    (what they held is recorded: layer.notes says when they change)."""
+    (what they held is recorded: layer.notes says when they change); ``haze``: the haze they
+    were computed with (read_parameters reports it)."""
     record = layer_values.input_record(bsdf, sources)
     node = layer.wrap(mat, bsdf, {}, baked=True)
-    layer.record_baked_sources(mat, record)
+    layer.record_baked_sources(mat, record, haze)
     tree = mat.node_tree
     for i, (key, img) in enumerate(sorted(images.items())):
         tex = tree.nodes.new("ShaderNodeTexImage")
         tex.image, tex.interpolation = img, interpolation
         tex.label = f"Converted {layer_graph.BAKED[key][0]}"
+        tex[K.ROLE] = f"{K.CONVERTED_ROLE}{key}"  # (ours: Remove Haze takes it with the layer)
         tex.hide = True
         tex.location = (node.location.x - 420.0, node.location.y - 400.0 - 40.0 * i)
         if vector is not None:

@@ -230,7 +230,7 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
                      f"rough core (a perfect mirror cannot carry a halo)")
     notes += layer.notes(mat)
     msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
-           f"(every input, link and keyframe kept; haziness {h['haziness']:g})")
+           f"(every input, link and keyframe kept; haziness {_shown(h['haziness'])})")
     return "FINISHED", msg, notes
 
 
@@ -242,6 +242,21 @@ def apply_imported_haze(mat, node, haze):
         raise ValueError(msg)
 
 
+def _shown(value):
+    """A haze value in a message: a number, or "a map" where a texture gives it."""
+    return "a map" if value == K.TEXTURED else f"{value:g}"
+
+
+def baked_problem(mat):
+    """Why a haze edit cannot change a layer whose haze was converted into maps."""
+    h = layer.haze_of(mat)
+    at = ", ".join(f"{k} {_shown(v)}" for k, v in h.items()
+                   if k in ("haziness", "coat_haziness") and v)
+    return (f"the haze of “{mat.name}” was converted into its maps{f' ({at})' if at else ''}: "
+            f"convert the maps again to change it (or Remove Haze, then Make Hazy for haze set "
+            f"here)")
+
+
 def _update_layer(mat, given, node):
     """make_hazy on a material that has a layer: its haze values set (the BSDF stays)."""
     if node is not None:
@@ -250,13 +265,17 @@ def _update_layer(mat, given, node):
         if have is not None and name != have.name and not layer.is_legacy(mat):
             return ("ERROR", f"“{mat.name}” has a haze layer on “{have.name}” already (one layer per "
                     f"material): Remove Haze first to put it on “{name}”", [])
+    if layer.is_baked(mat):  # (its group has no haze inputs: nothing would change)
+        return ("ERROR", baked_problem(mat), []) if given else \
+            ("NOOP", f"“{mat.name}” is hazy already: its haze was converted into its maps", [])
     try:
         h = normalise_haze(given, layer.haze_of(mat))
         layer.apply(mat, h)
     except ValueError as exc:
         return "ERROR", plain_message(exc), []
     sync.refresh_derived(mat)  # the EEVEE-only output and the export fallback follow
-    return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness {h['haziness']:g})",
+    return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness "
+                        f"{_shown(h['haziness'])})",
             layer.held_haze(mat, given) + layer.notes(mat))
 
 

@@ -342,6 +342,7 @@ def remove(mat):
     node, core = layer_node(mat), original_node(mat)
     _remove_eevee_nodes(mat)
     layer_animation.own_animation(tree, [n.name for n in (node, core) if n is not None])
+    converted = converted_map_nodes(node)
     if core is None and node is not None:  # the artist deleted the kept BSDF: a new one
         core = _new_core(tree, node)
     if core is not None:
@@ -359,11 +360,30 @@ def remove(mat):
         _restore_node(tree, core, restore)
     elif node is not None:  # the artist's node is gone: keep the layer node as it is
         del node[K.LAYER_NODE_KEY]
+    for tex in converted:  # (their files stay; only the layer node read them)
+        tree.nodes.remove(tex)
     swapped = tagged_layer_node(mat)  # (on another group: the artist's now)
     if swapped is not None and K.LAYER_NODE_KEY in swapped:
         del swapped[K.LAYER_NODE_KEY]
     if K.STAMP in mat:
         del mat[K.STAMP]
+
+
+def converted_map_nodes(node):
+    """The Image Textures a conversion linked into a baked layer node's Converted Maps that
+    feed nothing else (Remove Haze takes them with the layer)."""
+    if node is None or not layer_values.group_config(node).get("baked"):
+        return []
+    out = []
+    for sock in node.inputs:
+        for link in sock.links:
+            tex = link.from_node
+            ours = str(ownership.role(tex) or "").startswith(K.CONVERTED_ROLE) or \
+                tex.label.startswith("Converted ")  # (a file converted before roles)
+            if tex.bl_idname == "ShaderNodeTexImage" and tex not in out and ours and \
+                    all(l.to_node == node for o in tex.outputs for l in o.links):
+                out.append(tex)
+    return out
 
 
 def _followed(restore, node):
@@ -503,6 +523,10 @@ def haze_of(mat):
         return h
     cfg = layer_values.group_config(node)
     h["keep_body_colour"] = bool(cfg.get("body", False))
+    if cfg.get("baked"):  # (no haze inputs: the haze its maps were converted with)
+        baked = (_raw_state(mat) or {}).get("baked_haze", {})
+        h.update({k: tuple(v) if isinstance(v, list) else v for k, v in baked.items()})
+        return h
     vals = {}
     for param in HAZE_SOCKETS:
         sock = _haze_socket(node, param)
@@ -701,9 +725,14 @@ def read(mat):
     return p
 
 
-def record_baked_sources(mat, record):
+def record_baked_sources(mat, record, haze=None):
+    """Record what a baked layer's maps were computed from: the BSDF inputs (``record``:
+    layer_values.input_record) and the haze (HAZE keys; TEXTURE where a map gave it)."""
     raw = dict(_raw_state(mat) or {})
     raw["baked_from"] = record
+    if haze:
+        raw["baked_haze"] = {k: list(v) if isinstance(v, tuple) else v
+                             for k, v in haze.items() if k in HAZE}
     _write_state(mat, raw)
 
 

@@ -390,7 +390,25 @@ def check_layer_node(raw):
                              and isinstance(v, dict) and len(v) == 1
                              and (isinstance(v.get("link"), str) or _finite_number(v.get("value"))
                                   or any(_finite_list(v.get("value"), n) for n in (3, 4)))}
+    baked_haze = raw.get("baked_haze")
+    if isinstance(baked_haze, dict):
+        out["baked_haze"] = {k: v for k, v in baked_haze.items() if _baked_value_reads(k, v)}
     return out
+
+
+def _baked_value_reads(key, value):
+    """Whether a baked layer's recorded haze value is one the API takes ("texture" where a map
+    gave it; an extent's axes each)."""
+    if key not in HAZE_PARAMETERS:
+        return False
+    parts = value if isinstance(value, list) and len(value) == 2 else [value]
+    try:
+        for v in parts:
+            if v != K.TEXTURED:
+                check_value(key, v if len(parts) == 1 else (v, v))
+    except (ValueError, TypeError):
+        return False
+    return True
 
 
 def lost_layer(mat, d):
