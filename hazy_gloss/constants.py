@@ -194,6 +194,7 @@ FILAMENT_CLEARCOAT_F0 = 0.04
 FALLBACK_ROLE = "Export fallback"
 FALLBACK_OUTPUT_ROLE = "Export output"
 RENDER_OUTPUT_ROLE = "Render output"
+TABLE_IMAGE_PREFIX = ".Hazy Gloss table "  # + table name and values' hash: a group's lookup table
 CONVERTED_ROLE = "layer converted "  # + BAKED key: an Image Texture of a baked layer's map
 EEVEE_ROLE = "layer eevee "  # the role of every node blender/actions/eevee_output.py builds starts so
 EEVEE_OUTPUT_ROLE = EEVEE_ROLE + "output"  # blender/actions/eevee_output.py's EEVEE-only Material Output

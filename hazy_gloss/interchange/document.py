@@ -165,6 +165,7 @@ NODEDEFS = {
     "ND_convert_vector3_color3": ("convert", "color3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_convert_color3_vector3": ("convert", "vector3", {"in": ("color3", (0.0, 0.0, 0.0))}),
     "ND_convert_color4_color3": ("convert", "color3", {"in": ("color4", (0.0, 0.0, 0.0, 0.0))}),
+    "ND_convert_vector3_vector2": ("convert", "vector2", {"in": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_dotproduct_vector3": ("dotproduct", "float", {"in1": ("vector3", (0.0, 0.0, 0.0)),
         "in2": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_mix_edf": ("mix", "EDF", {"fg": ("EDF", None), "bg": ("EDF", None), "mix": ("float", 0.0)}),

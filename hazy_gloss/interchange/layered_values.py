@@ -618,7 +618,9 @@ class ValueWriter:
             if mode != "periodic":
                 n.set("uaddressmode", "string", mode)
                 n.set("vaddressmode", "string", mode)
-            self.texcoord(node)
+            uv = self.texcoord(node)
+            if uv is not None:
+                self.put(n, "texcoord", uv, "vector2")
             self.images.append((img.get("name", ""), file))
             img_node = self._values[key] = V(NODEDEFS[nd][1], node=n)
         if oid == "Alpha":
@@ -639,10 +641,16 @@ class ValueWriter:
         return mx_cs
 
     def texcoord(self, node):
+        """The coordinates an Image Texture reads: None for the first UV set (MaterialX's
+        default), a vector2 V where node math computes them (the layer's lookup tables)."""
         vec = node.input("Vector")
         src, out = self._follow(vec)
         if src is None:
             return None  # MaterialX's default: the first UV set (Blender: the active render UV map)
+        if src.type in _COMPUTED_UV:
+            v = self.value(vec, "vector3")
+            if v is not None:
+                return self.convert(v, "vector2")
         if src.type == "ShaderNodeTexCoord" and out is not None and out.identifier == "UV":
             return None
         if src.type == "ShaderNodeUVMap":
@@ -653,6 +661,10 @@ class ValueWriter:
         self.note(f"Image Texture “{node.name}” reads its coordinates from “{src.name}” "
                   f"({src.type.replace('ShaderNode', '')}): written with the first UV set")
         return None
+
+
+#: Nodes whose output an Image Texture's coordinates are written from (exported as math).
+_COMPUTED_UV = {"ShaderNodeVectorMath", "ShaderNodeCombineXYZ", "ShaderNodeMath", "ShaderNodeMix"}
 
 
 def _tangent_kind(node):

@@ -109,6 +109,7 @@ class ExportReport:
     path: str
     flavour: str
     materials: list = field(default_factory=list)  #: (name, MaterialX name, [notes])
+    tables: list = field(default_factory=list)  #: lookup tables written beside the document
     validated: object = None  #: True / False, or None when the materialx package is missing
     validation: str = ""
 

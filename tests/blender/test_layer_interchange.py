@@ -429,8 +429,11 @@ def test_images_keep_their_files_and_colour_spaces(env, tmp_path):
     images = {os.path.normpath(os.path.join(str(tmp_path), n.getInputValue("file"))): n
               for n in ng.getNodes() if n.getCategory() == "image"}
     want = {os.path.normpath(bpy.path.abspath(i.filepath)): i for i in (col, met, nrm)}
-    assert set(images) == set(want)
+    assert set(images) - set(want) == set(rep.tables)  # (the layer's lookup tables, beside)
     for path, n in images.items():
+        if path in rep.tables:
+            assert n.getInput("file").getColorSpace() == "raw"
+            continue
         cs = n.getInput("file").getColorSpace()
         assert cs == ("srgb_texture" if want[path].colorspace_settings.name == "sRGB" else "raw"), (path, cs)
     # the metallic map is the factor of the layer's mix of its parts
@@ -530,6 +533,81 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
     # in Cycles and in the evaluator, in another order
     assert worst["wide"] <= 1e-6 and worst["beta"] <= 2e-6, worst
     assert worst["ior"] <= 1e-5 and worst["F0"] <= 1e-5, worst
+
+
+class _TableLookups(mx_eval.Evaluator):
+    """mx_eval with ``image`` nodes read from their files (OpenEXR, beside the document) as
+    MaterialX's linear filter and clamp address mode read them: texel centres at (i + 0.5)/W,
+    (0, 0) the image's lower left."""
+
+    def __init__(self, graph, folder, read_exr):
+        super().__init__(graph, 1)
+        self.folder, self.read_exr = folder, read_exr
+
+    def _eval(self, node):
+        if node.getCategory() != "image":
+            return super()._eval(node)
+        ch = self.read_exr(os.path.join(self.folder, node.getInputValue("file")))
+        rgb = np.stack([ch[k] for k in ("R", "G", "B")], -1).astype(np.float64)  # row 0: bottom
+        h, w = rgb.shape[:2]
+        uv = np.asarray(self.input(node, "texcoord"), np.float64).reshape(-1, 2)
+        x = np.clip(uv[:, 0] * w - 0.5, 0.0, w - 1.0)
+        y = np.clip(uv[:, 1] * h - 0.5, 0.0, h - 1.0)
+        x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+        x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+        out = (rgb[y0, x0] * (1 - fx) + rgb[y0, x1] * fx) * (1 - fy) + \
+            (rgb[y1, x0] * (1 - fx) + rgb[y1, x1] * fx) * fy
+        return out.astype(np.float32)
+
+
+@pytest.mark.parametrize("distribution", ["GGX", "MULTI_GGX"])
+def test_lookup_tables_are_written_beside_the_document(env, tmp_path, distribution):
+    """A thin film (and Multiscatter GGX) make the layer read lookup tables, packed images:
+    they are written as OpenEXR files beside the document, which reads them through the
+    exported math.  Evaluated with those files, the narrow lobe's specular_color is the
+    Specular Tint Cycles renders (it was written as a constant 4.25 where Cycles renders
+    3.12-3.25, with two notes per table image)."""
+    mat, b = TL.principled("Film", distribution=distribution, **{
+        "Base Color": (0.2, 0.3, 0.5, 1.0), "Roughness": 0.3, "Thin Film Thickness": 400.0,
+        "Thin Film IOR": 1.8})
+    _hazy(env, mat, haziness=0.3)
+    rep = env.api.export_materialx(mat, str(tmp_path / "film.mtlx"))
+    assert rep.validated, rep.validation
+    group = env.layer.layer_node(mat).node_tree
+    tables = {n.image.name for g in [group] + [n.node_tree for n in group.nodes
+                                               if getattr(n, "node_tree", None)]
+              for n in g.nodes if n.bl_idname == "ShaderNodeTexImage"}
+    assert len(rep.tables) == len(tables)  # (4.5's GGX film needs none)
+    assert all(p.startswith(str(tmp_path / "film_tables")) for p in rep.tables)
+    assert not any("without a file on disk" in n or "is not exported" in n for n in rep.notes)
+    again = env.api.export_materialx(mat, str(tmp_path / "film.mtlx"))  # (the files are kept)
+    assert again.tables == rep.tables
+    tree, node = mat.node_tree, env.layer.layer_node(mat)
+    ng = node.node_tree.copy()  # (a copy: the probe outputs stay out of the shared group)
+    tint = next(n for n in ng.nodes if n.name == "A narrow").inputs["Specular Tint"]
+    sep = ng.nodes.new("ShaderNodeSeparateColor")
+    ng.links.new(tint.links[0].from_socket, sep.inputs[0])
+    gout = next(n for n in ng.nodes if n.bl_idname == "NodeGroupOutput")
+    for k, lane in zip("rgb", ("Red", "Green", "Blue")):
+        ng.interface.new_socket(name=f"probe {k}", in_out="OUTPUT", socket_type="NodeSocketFloat")
+        ng.links.new(sep.outputs[lane], gout.inputs[f"probe {k}"])
+    node.node_tree = ng
+    for k in "rgb":
+        _aov(tree, f"tint {k}", node.outputs[f"probe {k}"])
+    scenes.setup_render("CYCLES", samples=1, resolution=(4, 4), bounces=0)
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    scenes.flat_plane_scene(mat)
+    got = _render_aovs(env, [f"tint {k}" for k in "rgb"], (4, 4))
+    want = np.array([np.median(got[f"tint {k}"]) for k in "rgb"])
+    assert np.ptp(want) > 0.05, want  # (the film's colour, not the grey constant)
+    doc = _load(rep.path)
+    ev = _TableLookups(doc.getNodeGraphs()[0], str(tmp_path), env.exr.read_exr)
+    mxv = ev.value(env.doc.valid_name("Principled BSDF/A narrow"), "specular_color")
+    err = float(np.max(np.abs(np.asarray(mxv, np.float64).reshape(3) / want - 1.0)))
+    record("layer_mtlx_tables", {distribution: {"max_rel_specular_color": err}})
+    assert err <= 1e-4, (mxv, want)
 
 
 def test_baked_layer_exports_its_maps(env, tmp_path):

@@ -11,8 +11,10 @@ Blender's own glTF and USD exporters is blender/model/fallback.py.
 import os
 
 import bpy
+import numpy as np
 
 from ... import constants as K
+from ... import imagestream
 from ...convert import ConversionReport, ConversionResult, output_specs
 from ...interchange import layered_tree, materialx, usd
 from .. import compat
@@ -239,7 +241,33 @@ def tree_snapshot(mat):
 
 
 def source_of(mat):
-    """(materialx.Source or None, reason) for one Blender material."""
+    """(materialx.Source or None, reason) for one Blender material; its notes name what is
+    animated (MaterialX and USD get the current frame's values)."""
+    src, why = _source_of(mat)
+    moving = _animated_inputs(mat) if src is not None else []
+    if moving:
+        src.notes.append(f"{', '.join(moving)} {'is' if len(moving) == 1 else 'are'} animated "
+                         f"(keys or drivers): written with frame "
+                         f"{bpy.context.scene.frame_current}'s value"
+                         f"{'' if len(moving) == 1 else 's'} (the file holds no animation)")
+    return src, why
+
+
+def _animated_inputs(mat):
+    """“Node” Input for each input of ``mat``'s tree driven by keys or drivers."""
+    tree = mat.node_tree
+    out = []
+    for path in sorted(compat.animated_paths(tree) if tree is not None else ()):
+        try:
+            sock = tree.path_resolve(path.rsplit(".", 1)[0])
+        except ValueError:
+            continue
+        if isinstance(sock, bpy.types.NodeSocket):
+            out.append(f"“{sock.node.name}” {sock.name}")
+    return out
+
+
+def _source_of(mat):
     p = material_read.read_parameters(mat)
     if p is not None and p.get("layered"):
         if mat.node_tree is None:
@@ -308,16 +336,62 @@ def sources(materials=None):
     return srcs, skipped
 
 
+def write_tables(srcs, path):
+    """The lookup tables the layers' groups read (packed images: the Multiscatter, glass and
+    thin-film tables) written as float OpenEXR files in "<document>_tables/" beside the
+    document ``path``, and the snapshots' images pointed at them, so that the document reads
+    the values Cycles reads (it wrote them as constants: a thin film's specular_color 4.25
+    where Cycles renders 3.1-3.25).  A file already there of the same name holds the same
+    table (the name ends with the hash of its values) and is kept."""
+    folder = os.path.splitext(path)[0] + "_tables"
+    done = {}
+    for src in srcs:
+        snap = src.layer
+        for b in (snap.nodes.values() if snap is not None else ()):
+            img = getattr(b, "image", None)
+            if not img or img.get("path") or not str(img.get("name", "")).startswith(K.TABLE_IMAGE_PREFIX):
+                continue
+            name = img["name"]
+            if name not in done:
+                data = bpy.data.images.get((name, None))
+                if data is None:
+                    continue
+                file = os.path.join(folder, name[len(K.TABLE_IMAGE_PREFIX):].replace(" ", "_") + ".exr")
+                if not os.path.isfile(file):
+                    w, h = data.size
+                    px = np.empty(w * h * 4, np.float32)
+                    data.pixels.foreach_get(px)
+                    rows = px.reshape(h, w, 4)[::-1, :, :3]  # (a file's first row is the top)
+                    os.makedirs(folder, exist_ok=True)
+                    tmp = file + ".partial"
+                    writer = imagestream.ExrStripWriter(tmp, w, h, codec="ZIP")
+                    try:
+                        for y0 in range(0, h, writer.lines):
+                            writer.append(writer.encode(y0, rows[y0:y0 + writer.lines]))
+                        writer.close()
+                        writer.verify()
+                        os.replace(tmp, file)
+                    finally:
+                        if os.path.exists(tmp):
+                            os.remove(tmp)
+                done[name] = file
+            img["path"] = done[name]
+    return sorted(set(done.values()))
+
+
 def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     """Write hazy materials to one MaterialX document; returns a materialx.ExportReport (its
-    ``skipped`` lists materials that are not hazy)."""
+    ``skipped`` lists materials that are not hazy; ``tables`` the lookup tables written beside
+    it, :func:`write_tables`)."""
     srcs, skipped = sources(materials)
     if not srcs:
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
     if not os.fspath(path):
         raise ValueError("no file path given")
+    tables = write_tables(srcs, bpy.path.abspath(os.fspath(path)))
     rep = materialx.write(srcs, bpy.path.abspath(os.fspath(path)), flavour,
                           validate_with_package=validate)
+    rep.tables = tables
     rep.skipped = skipped
     return rep
 
@@ -330,6 +404,7 @@ def export_usd(materials=None, path="", *, preview=True):
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
     if not os.fspath(path):
         raise ValueError("no file path given")
+    write_tables(srcs, bpy.path.abspath(os.fspath(path)))
     path, done = usd.write(srcs, bpy.path.abspath(os.fspath(path)), preview=preview)
     return path, done, skipped
 

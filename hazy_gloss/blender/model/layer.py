@@ -342,7 +342,7 @@ def remove(mat):
     node, core = layer_node(mat), original_node(mat)
     _remove_eevee_nodes(mat)
     layer_animation.own_animation(tree, [n.name for n in (node, core) if n is not None])
-    converted = converted_map_nodes(node)
+    converted = layer_values.converted_map_nodes(node)
     if core is None and node is not None:  # the artist deleted the kept BSDF: a new one
         core = _new_core(tree, node)
     if core is not None:
@@ -367,23 +367,6 @@ def remove(mat):
         del swapped[K.LAYER_NODE_KEY]
     if K.STAMP in mat:
         del mat[K.STAMP]
-
-
-def converted_map_nodes(node):
-    """The Image Textures a conversion linked into a baked layer node's Converted Maps that
-    feed nothing else (Remove Haze takes them with the layer)."""
-    if node is None or not layer_values.group_config(node).get("baked"):
-        return []
-    out = []
-    for sock in node.inputs:
-        for link in sock.links:
-            tex = link.from_node
-            ours = str(ownership.role(tex) or "").startswith(K.CONVERTED_ROLE) or \
-                tex.label.startswith("Converted ")  # (a file converted before roles)
-            if tex.bl_idname == "ShaderNodeTexImage" and tex not in out and ours and \
-                    all(l.to_node == node for o in tex.outputs for l in o.links):
-                out.append(tex)
-    return out
 
 
 def _followed(restore, node):

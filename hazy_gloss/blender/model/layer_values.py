@@ -13,6 +13,7 @@ from ...core import layer_graph
 from ...core.graph import evaluate as evaluate_graph
 from ...schema import HAZE_SOCKETS
 from . import layer_group, stamp
+from ..nodes import ownership
 
 
 def group_config(node):
@@ -123,3 +124,20 @@ def baked_changes(was, node):
                                                 np.atleast_1d(rec["value"]), rtol=1e-6, atol=1e-7):
             changed.append(name)
     return changed
+
+
+def converted_map_nodes(node):
+    """The Image Textures a conversion linked into a baked layer node's Converted Maps that
+    feed nothing else (Remove Haze takes them with the layer)."""
+    if node is None or not group_config(node).get("baked"):
+        return []
+    out = []
+    for sock in node.inputs:
+        for link in sock.links:
+            tex = link.from_node
+            ours = str(ownership.role(tex) or "").startswith(K.CONVERTED_ROLE) or \
+                tex.label.startswith("Converted ")  # (a file converted before roles)
+            if tex.bl_idname == "ShaderNodeTexImage" and tex not in out and ours and \
+                    all(l.to_node == node for o in tex.outputs for l in o.links):
+                out.append(tex)
+    return out

@@ -5,6 +5,7 @@ become three lanes, selects become arithmetic, colours are split with the compos
 Color)."""
 import numpy as np
 
+from ... import constants as K
 from ...core.graph import Expr
 from .. import compat
 
@@ -198,7 +199,7 @@ def table_image(name, data):
 
     import bpy
     digest = hashlib.sha1(np.ascontiguousarray(data, np.float32).tobytes()).hexdigest()[:12]
-    full = f".Hazy Gloss table {name} {digest}"
+    full = f"{K.TABLE_IMAGE_PREFIX}{name} {digest}"
     img = bpy.data.images.get((full, None))  # (a local one: never a linked image)
     if img is not None and img.get("hazy_gloss_table") == digest:
         return img
