@@ -568,12 +568,13 @@ def upgrade_layers(materials, every=False):
         if error:
             notes.append(f"“{mat.name}”: upgraded, but {error[:1].lower()}{error[1:]}")
         done.append(mat.name)
+    failed = bool(notes)
     if linked:
         libs = sorted({bpy.path.basename(m.library.filepath) for m in linked})
         notes.append(f"{len(linked)} linked material{'s' if len(linked) != 1 else ''} with an "
                      f"earlier layer left as they are (read-only here): upgrade "
                      f"{'them' if len(linked) != 1 else 'it'} in {', '.join(libs)}")
-    if not done and (linked or not notes):
+    if not done and not failed:
         return "NOOP", "No haze layer of an earlier Hazy Gloss or another Blender to upgrade", notes
     msg = (f"Upgraded {len(done)} haze layer{'s' if len(done) != 1 else ''} to this Blender's "
            f"layer node"

@@ -2,7 +2,8 @@
 """Whether a layer node renders, in plain words for blender.model.layer.notes: the Material
 Output must reach it through shader links, un-muted (a muted group node has no shader to pass:
 the material renders black), and not through the kept BSDF or a copy of the layer node instead
-(Shift+D copies its tag; the panel and haze edits change the layer node only)."""
+(Shift+D copies its tag; the panel and haze edits change the layer node only); and how many
+closures Cycles counts for the material (its limit is 64: the layer's BSDF copies count)."""
 from __future__ import annotations
 
 from ... import constants as K

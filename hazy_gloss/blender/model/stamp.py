@@ -401,7 +401,9 @@ def _baked_value_reads(key, value):
     gave it; an extent's axes each)."""
     if key not in HAZE_PARAMETERS:
         return False
-    parts = value if isinstance(value, list) and len(value) == 2 else [value]
+    if (key == "haze_extent") != (isinstance(value, list) and len(value) == 2):
+        return False  # (an extent as its two axes, everything else one value)
+    parts = value if key == "haze_extent" else [value]
     try:
         for v in parts:
             if v != K.TEXTURED:
