@@ -183,6 +183,14 @@ def _ior_from_f0(g, f0):
     return g.div(g.mul(sq, sq), g.maximum(g.sub(1.0, f0), 1e-12))
 
 
+#: Haze inputs read through max(0, x): a NaN the socket holds renders as 0 does (it rendered as
+#: no value does: a wide roughness of 0, β 1).  Measured: Cycles' Maximum gives 0 for NaN in
+#: 4.5 and 5.x at run time, and 5.x's constant folding keeps a NaN *first* operand (a < b ? b : a),
+#: so the 0 comes first; its Minimum and Clamp keep a constant NaN.
+_AT_LEAST_ZERO = {"haziness", "coat_haziness", "haze_extent_x", "haze_extent_y", "coat_haze_extent",
+                  "reflectivity_cap"}
+
+
 class _Inputs:
     def __init__(self, g):
         self.g = g
@@ -191,7 +199,10 @@ class _Inputs:
         return self.g.input(input_name(name), vector=vector)
 
     def haze(self, name):
-        return self.g.input(haze_name(name))
+        raw = self.g.input(haze_name(name))
+        if name in _AT_LEAST_ZERO:  # NaN (a script's, a driver's) renders as 0, in 4.5 and 5.x
+            return self.g.maximum(0.0, raw, label=f"{name} (NaN: 0)")
+        return raw
 
 
 def _section(g, title):

@@ -204,7 +204,7 @@ def haze_terms(g, rc_max, p, q, bh, smoothness=None):
         # relative) or near 1 (where the complements carry the digits)
         rq = g.mul(rc_max, q)
         p_minus_rc = g.sub(g.mul(p, omr), rq, label="p - r̂_c")
-        w = g.maximum(smoothness, K.MIN_SMOOTHNESS)
+        w = g.maximum(K.MIN_SMOOTHNESS, smoothness)  # (a NaN w: the bound, layer_graph._AT_LEAST_ZERO)
         ms = g.div(g.sqrt(g.mul(rc_max, omr)), w)
         hyp = g.sqrt(g.madd(p_minus_rc, p_minus_rc, g.mul(ms, ms)))
         den = g.add(g.madd(p, omr, rq), hyp, label="conic denominator")

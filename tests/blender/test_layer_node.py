@@ -787,7 +787,7 @@ def test_entry_points_refuse_what_the_api_refuses_in_one_line(env):
 def test_a_haze_input_out_of_its_range_says_what_it_renders_as(env):
     """Keys, drivers and scripts can put any number in a haze input: the note names it and
     what it renders as — the group's clamp, checked against the static material with that
-    value (equal to the last bit); NaN renders as no value does, and says so."""
+    value (equal to the last bit); NaN renders as the lower end, and says so."""
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3, coat_haziness=0.3)
     node = env.layer.layer_node(mat)
@@ -807,9 +807,18 @@ def test_a_haze_input_out_of_its_range_says_what_it_renders_as(env):
         assert np.array_equal(render(env, mat)["combined"], got), name
         assert not any(name in n for n in env.api.read_parameters(mat)["notes"])
         node.inputs[name].default_value = {"Haze Extent X": 5.0}.get(name, 0.3)
-    node.inputs["Haze Extent Y"].default_value = float("nan")
-    assert any(n.startswith("Haze Extent Y is NaN: it renders as no valid value does")
-               for n in env.api.read_parameters(mat)["notes"])
+    # NaN (bpy takes it) renders as the lower end (it rendered as no value does: a wide
+    # roughness of 0 and β 1 in Cycles, where Minimum passes NaN on in 5.x)
+    for name, lo in (("Haze Extent Y", 0.0), ("Haziness", 0.0), ("Coat Haze Extent", 0.0),
+                     ("Coat Haziness", 0.0), ("Reflectivity Cap", 0.0)):
+        was = node.inputs[name].default_value
+        node.inputs[name].default_value = lo
+        want = render(env, mat)["combined"]
+        node.inputs[name].default_value = float("nan")
+        assert any(n.startswith(f"{name} is NaN: it renders as {lo:g}")
+                   for n in env.api.read_parameters(mat)["notes"]), name
+        assert np.array_equal(render(env, mat)["combined"], want), name
+        node.inputs[name].default_value = was
 
 
 def test_group_cache_key_covers_the_tables(env, monkeypatch, tmp_path):

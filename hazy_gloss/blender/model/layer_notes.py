@@ -17,8 +17,8 @@ from . import layer_values
 
 def out_of_range_notes(node, animated=()):
     """A line for each unlinked haze input whose value is out of its parameter's range: what it
-    renders as (the group clamps it; ``animated``: inputs whose keys or drivers set it), or
-    that NaN renders as no value does."""
+    renders as (the group clamps it, NaN to the lower end; ``animated``: inputs whose keys or
+    drivers set it)."""
     out = []
     for key, (name, *_rest) in HAZE_SOCKETS.items():
         sock = node.inputs.get(name)
@@ -27,9 +27,8 @@ def out_of_range_notes(node, animated=()):
         lo, hi = RANGES[key[:-2] if key.endswith(("_x", "_y")) else key]
         v = float(sock.default_value)
         source = " (from its keys or driver)" if name in animated else ""
-        if np.isnan(v):
-            out.append(f"{name} is NaN{source}: it renders as no valid value does; give it a "
-                       f"number")
+        if np.isnan(v):  # (the group reads it through a Maximum or Clamp node: NaN -> lo)
+            out.append(f"{name} is NaN{source}: it renders as {lo:g}; give it a number")
         elif v < lo or (hi is not None and v > hi):
             rng = f"[{lo:g}, {hi:g}]" if hi is not None and np.isfinite(hi) else f">= {lo:g}"
             shown = max(v, lo) if hi is None else min(max(v, lo), hi)
