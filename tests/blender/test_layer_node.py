@@ -717,9 +717,12 @@ def test_an_edited_layer_group_says_so_and_remove_haze_keeps_it(env):
     math = next(n for n in part.nodes if n.bl_idname == "ShaderNodeMath"
                 and any(not s.is_linked for s in n.inputs))
     free = next(s for s in math.inputs if not s.is_linked)
+    assert not any("edited by hand" in n for n in env.layer.summary(mat)["notes"])
     free.default_value += 0.25  # an edit inside a part, shared with the other material
     for m in (mat, other):
         assert any(f"(“{part.name}”)" in n for n in env.api.read_parameters(m)["notes"]), m.name
+    bpy.context.view_layer.update()  # (a group's depsgraph update clears the panel's cache)
+    assert any(f"(“{part.name}”)" in n for n in env.layer.summary(mat)["notes"])
     with pytest.warns(UserWarning, match=f"the layer group “{re.escape(mine.name)}”, edited by "
                                          f"hand, stays in the file"):
         env.api.remove_haze(mat)

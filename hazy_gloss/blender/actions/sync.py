@@ -134,8 +134,8 @@ def on_depsgraph_update(scene, depsgraph):
     mats = []
     for update in depsgraph.updates:
         idd = getattr(update.id, "original", update.id)
-        if isinstance(idd, bpy.types.NodeTree):
-            layer_group.forget_edits()  # (the panel's note on an edited layer group)
+        if isinstance(idd, bpy.types.NodeTree) and not idd.is_embedded_data:
+            layer_group.forget_edits()  # (a group edited: the panel's note on edited groups)
         if isinstance(idd, bpy.types.Material) and K.STAMP in idd and idd not in mats:
             mats.append(idd)
     if not mats:

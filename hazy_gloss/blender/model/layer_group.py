@@ -142,7 +142,7 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
     if not stale:
         cached = _from_cache(name, config)
         if cached is not None:
-            return cached
+            return _unedited(cached)
     if not stale:
         ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
     before = set(bpy.data.node_groups), set(bpy.data.images)
@@ -155,7 +155,7 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False):
     ng[K.GROUP_STAMP] = _stamp_of(*config)
     _keep_one_copy(ng, *before)
     _to_cache(ng)
-    return ng
+    return _unedited(ng)
 
 
 # --------------------------------------------------------------------------------------------
@@ -575,18 +575,27 @@ _edited_seen = {}  # (group session_uid, sizes) -> edited_parts (forget_edits cl
 
 
 def forget_edits():
-    """Node trees changed: what edited_parts(cached=True) remembered is stale."""
+    """Node groups changed: what edited_parts(cached=True) remembered is stale."""
     _edited_seen.clear()
 
 
+def _edits_key(ng):
+    parts = [ng] + [n.node_tree for n in ng.nodes if getattr(n, "node_tree", None)]
+    return (ng.session_uid,) + tuple((len(g.nodes), len(g.links)) for g in parts)
+
+
+def _unedited(ng):
+    """``ng`` as this code just built or appended it: no edit to look for."""
+    _edited_seen[_edits_key(ng)] = []
+    return ng
+
+
 def edited_parts(ng, cached=False):
-    """Names of the layer group ``ng`` and of its section groups that were edited since they
-    were built (fingerprints that no longer match; a group from before fingerprints: none).
-    ``cached``: as last found until forget_edits or a node or link more or less (hashing a
-    group's ~1000 nodes takes ~7 ms: too long for every redraw of the panel or slider change)."""
+    """Names of the layer group ``ng`` and of its parts edited since they were built (their
+    fingerprints differ; a group from before fingerprints: none).  ``cached``: as last found
+    until forget_edits or a node or link more or less (hashing ~1000 nodes takes ~7 ms)."""
     if cached:  # (keyed also by node and link counts: a script's edit shows at once)
-        parts = [ng] + [n.node_tree for n in ng.nodes if getattr(n, "node_tree", None)]
-        key = (ng.session_uid,) + tuple((len(g.nodes), len(g.links)) for g in parts)
+        key = _edits_key(ng)
         if key not in _edited_seen:
             _edited_seen[key] = edited_parts(ng)
         return _edited_seen[key]
