@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import sys
 
@@ -167,7 +168,6 @@ _FLAG_NAMES = dict(INPUT_FLAGS, smoothness="--smoothness", file_format="--format
 def as_flags(message):
     """``message`` with the parameters it names spelt as flags: snake_case names anywhere (no
     prose has them), a plain word only as the subject it opens with."""
-    import re
     text = str(message)
     names = sorted((n for n in _FLAG_NAMES if "_" in n), key=len, reverse=True)
     if names:

@@ -9,7 +9,7 @@ it can read back (blender.model.material_edits) and is rebuilt.
 """
 from ...core.parameters import DEFAULTS, PARAMETERS, normalise, normalise_haze
 from ..model import layer, material, material_edits, material_read, stamp
-from . import make_hazy, messages, sync
+from . import messages, sync
 from ..model.material_read import edit_problem
 from .messages import plain_message
 
@@ -28,7 +28,7 @@ def update_material(mat, **changes):
         raise ValueError(f"material {mat.name!r} is linked from a library and cannot be edited")
     if layer.is_layered(mat):
         if layer.is_baked(mat):
-            raise ValueError(make_hazy.baked_problem(mat))
+            raise ValueError(material_read.baked_problem(mat))
         normalise_haze(changes)  # unknown names first (did you mean ...)
         problem = stamp.layer_problem(mat, layer.layer_state(mat)["problems"], fixing=changes)
         if problem is not None:  # only setting the damaged haze values repairs the stamp

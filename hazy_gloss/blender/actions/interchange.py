@@ -14,11 +14,11 @@ import bpy
 import numpy as np
 
 from ... import constants as K
-from ... import imagestream
 from ...convert import ConversionReport, ConversionResult, output_specs
 from ...interchange import layered_tree, materialx, usd
 from .. import compat
 from ..model import fallback, layer, layer_group, material, material_read, stamp, surface_build
+from ..model.convert_outputs import _MapFile
 from ..model.convert_wiring import wire_material
 from .messages import plain_message
 from ..nodes.builder import default_value_of
@@ -344,39 +344,41 @@ def write_tables(srcs, path):
     where Cycles renders 3.1-3.25).  A file already there of the same name holds the same
     table (the name ends with the hash of its values) and is kept."""
     folder = os.path.splitext(path)[0] + "_tables"
-    done = {}
-    for src in srcs:
-        snap = src.layer
-        for b in (snap.nodes.values() if snap is not None else ()):
-            img = getattr(b, "image", None)
-            if not img or img.get("path") or not str(img.get("name", "")).startswith(K.TABLE_IMAGE_PREFIX):
-                continue
-            name = img["name"]
-            if name not in done:
-                data = bpy.data.images.get((name, None))
-                if data is None:
-                    continue
-                file = os.path.join(folder, name[len(K.TABLE_IMAGE_PREFIX):].replace(" ", "_") + ".exr")
-                if not os.path.isfile(file):
-                    w, h = data.size
-                    px = np.empty(w * h * 4, np.float32)
-                    data.pixels.foreach_get(px)
-                    rows = px.reshape(h, w, 4)[::-1, :, :3]  # (a file's first row is the top)
-                    os.makedirs(folder, exist_ok=True)
-                    tmp = file + ".partial"
-                    writer = imagestream.ExrStripWriter(tmp, w, h, codec="ZIP")
-                    try:
-                        for y0 in range(0, h, writer.lines):
-                            writer.append(writer.encode(y0, rows[y0:y0 + writer.lines]))
-                        writer.close()
-                        writer.verify()
-                        os.replace(tmp, file)
-                    finally:
-                        if os.path.exists(tmp):
-                            os.remove(tmp)
-                done[name] = file
-            img["path"] = done[name]
-    return sorted(set(done.values()))
+    files = {}  # table image name -> file
+    images = [b.image for src in srcs if src.layer is not None for b in src.layer.nodes.values()
+             if getattr(b, "image", None)]
+    for img in images:
+        name = str(img.get("name", ""))
+        if img.get("path") or not name.startswith(K.TABLE_IMAGE_PREFIX):
+            continue
+        table = bpy.data.images.get((name, None))
+        if name not in files and table is not None:
+            file = os.path.join(folder, name[len(K.TABLE_IMAGE_PREFIX):].replace(" ", "_") + ".exr")
+            if not os.path.isfile(file):
+                os.makedirs(folder, exist_ok=True)
+                _write_table(table, file)
+            files[name] = file
+        if name in files:
+            img["path"] = files[name]
+    return sorted(set(files.values()))
+
+
+def _write_table(image, file):
+    """The packed float ``image`` as the float OpenEXR ``file``: written to a temporary, read
+    back (convert_outputs._MapFile) and only then moved into place."""
+    w, h = image.size
+    px = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(px)
+    tmp = file + ".partial"
+    out = _MapFile("OPEN_EXR", "ZIP", tmp, file, w, h)
+    try:
+        out.append(out.encode(0, px.reshape(h, w, 4)[::-1, :, :3]))  # (a file's top row first)
+        out.finish()
+        os.replace(tmp, file)
+    finally:
+        out.abort()
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 
 def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
@@ -388,9 +390,9 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
     if not os.fspath(path):
         raise ValueError("no file path given")
-    tables = write_tables(srcs, bpy.path.abspath(os.fspath(path)))
-    rep = materialx.write(srcs, bpy.path.abspath(os.fspath(path)), flavour,
-                          validate_with_package=validate)
+    path = bpy.path.abspath(os.fspath(path))
+    tables = write_tables(srcs, path)
+    rep = materialx.write(srcs, path, flavour, validate_with_package=validate)
     rep.tables = tables
     rep.skipped = skipped
     return rep
@@ -404,8 +406,9 @@ def export_usd(materials=None, path="", *, preview=True):
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
     if not os.fspath(path):
         raise ValueError("no file path given")
-    write_tables(srcs, bpy.path.abspath(os.fspath(path)))
-    path, done = usd.write(srcs, bpy.path.abspath(os.fspath(path)), preview=preview)
+    path = bpy.path.abspath(os.fspath(path))
+    write_tables(srcs, path)
+    path, done = usd.write(srcs, path, preview=preview)
     return path, done, skipped
 
 

@@ -20,7 +20,8 @@ from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
 from ..model import fallback, layer, layer_group, material, material_read
 from . import messages, sync
-from ..model.material_read import edit_problem, maps_problem
+from ..model.material_read import baked_problem, edit_problem, maps_problem, shown
+from ..nodes import ownership
 from .messages import plain_message
 
 
@@ -63,19 +64,11 @@ def _rgb(v):
     return tuple(float(np.clip(x, 0.0, 1.0)) for x in tuple(v)[:3])
 
 
-def active_output(tree):
-    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    for n in outs:
-        if n.is_active_output:
-            return n
-    return outs[0] if outs else None
-
-
 def surface_bsdfs(tree):
     """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the active output's
     Surface, directly or through Mix / Add Shader nodes and reroutes, closest to the output
     first; and the node groups met on the way (their insides are not searched)."""
-    out = active_output(tree)
+    out = ownership.output_node(tree, create=False)
     if out is None:
         return [], []
     queue = [_source(out.inputs["Surface"])]
@@ -128,7 +121,7 @@ def replace_with_hazy(mat, replaced, p, links):
     (HazeMapping, names of inputs that could not be linked)."""
     tree = mat.node_tree
     head = replaced[0]
-    out = active_output(tree)
+    out = ownership.output_node(tree, create=False)
     if out is None:
         out = tree.nodes.new("ShaderNodeOutputMaterial")
         out.location = (head.location.x + 300, head.location.y)
@@ -230,7 +223,7 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
                      f"rough core (a perfect mirror cannot carry a halo)")
     notes += layer.notes(mat)
     msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
-           f"(every input, link and keyframe kept; haziness {_shown(h['haziness'])})")
+           f"(every input, link and keyframe kept; haziness {shown(h['haziness'])})")
     return "FINISHED", msg, notes
 
 
@@ -240,21 +233,6 @@ def apply_imported_haze(mat, node, haze):
     status, msg, _ = make_hazy(mat, node=node, **haze)
     if status == "ERROR":
         raise ValueError(msg)
-
-
-def _shown(value):
-    """A haze value in a message: a number, or "a map" where a texture gives it."""
-    return "a map" if value == K.TEXTURED else f"{value:g}"
-
-
-def baked_problem(mat):
-    """Why a haze edit cannot change a layer whose haze was converted into maps."""
-    h = layer.haze_of(mat)
-    at = ", ".join(f"{k} {_shown(v)}" for k, v in h.items()
-                   if k in ("haziness", "coat_haziness") and v)
-    return (f"the haze of “{mat.name}” was converted into its maps{f' ({at})' if at else ''}: "
-            f"convert the maps again to change it (or Remove Haze, then Make Hazy for haze set "
-            f"here)")
 
 
 def _update_layer(mat, given, node):
@@ -275,7 +253,7 @@ def _update_layer(mat, given, node):
         return "ERROR", plain_message(exc), []
     sync.refresh_derived(mat)  # the EEVEE-only output and the export fallback follow
     return ("FINISHED", f"Updated the haze layer of “{mat.name}” (haziness "
-                        f"{_shown(h['haziness'])})",
+                        f"{shown(h['haziness'])})",
             layer.held_haze(mat, given) + layer.notes(mat))
 
 
@@ -348,7 +326,7 @@ _LOBE_NODES = GLOSSY + ("ShaderNodeBsdfMetallic",)
 def find_two_lobe_mix(tree):
     """(mix node, lobe A, lobe B) for a Mix / Add Shader of two Glossy or two Metallic BSDFs
     that feeds the active output's Surface (directly or through other Mix / Add Shaders)."""
-    out = active_output(tree)
+    out = ownership.output_node(tree, create=False)
     if out is None:
         return None
     queue = [_source(out.inputs["Surface"])]
@@ -525,7 +503,7 @@ def import_two_lobe_mix(mat):
 # --------------------------------------------------------------------------------------------
 
 
-def materials_or_all(materials, caller="upgrade_layers"):
+def materials_or_all(materials):
     """``materials`` as a list, or every material of the file when it is None; TypeError (one
     line) for what is not a collection of them (one material is put in a list)."""
     if materials is None:
@@ -533,8 +511,8 @@ def materials_or_all(materials, caller="upgrade_layers"):
     if isinstance(materials, bpy.types.Material):
         return [materials]
     if isinstance(materials, (str, bytes)) or not hasattr(materials, "__iter__"):
-        raise TypeError(f"{caller} expects a list of materials, or None for all of the file's; "
-                        f"got {type(materials).__name__} {materials!r:.40}")
+        raise TypeError(f"upgrade_layers expects a list of materials, or None for all of the "
+                        f"file's; got {type(materials).__name__} {materials!r:.40}")
     return list(materials)
 
 

@@ -8,11 +8,7 @@ from __future__ import annotations
 
 from ... import constants as K
 from . import layer_group
-
-
-def active_output(tree):
-    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    return next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+from ..nodes import ownership
 
 
 def upstream(sock):
@@ -45,7 +41,7 @@ def copies_of(tree, node):
 def wiring_problems(mat, node, original):
     """[one line] on why the layer node ``node`` does not render as the panel shows it."""
     tree = mat.node_tree
-    out = active_output(tree)
+    out = ownership.output_node(tree, create=False)
     if out is None:
         return ["the material has no Material Output"]
     reached = upstream(out.inputs["Surface"])
@@ -87,7 +83,7 @@ def closure_count(tree):
     closure nodes the active output's Surface and Volume reach through un-muted shader links,
     inside groups too (each group node is its own copy).  An upper bound: Cycles also drops a
     Mix Shader's branch where its factor folds to 0 or 1."""
-    out = active_output(tree)
+    out = ownership.output_node(tree, create=False)
     if out is None:
         return 0
     total, queue = 0, [(tree, s, ()) for s in (out.inputs.get("Surface"), out.inputs.get("Volume"))
@@ -104,8 +100,8 @@ def closure_count(tree):
                 continue
             seen.add(key)
             shader_ins = [i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute"]
-            if n.mute:
-                queue += [(t, i, path) for i in shader_ins[:2]]  # (a muted Mix passes its first)
+            if n.mute:  # (a muted Mix Shader passes one input: both counted, an upper bound)
+                queue += [(t, i, path) for i in shader_ins[:2]]
             elif n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
                 inner = n.node_tree
                 gout = next((g for g in inner.nodes if g.bl_idname == "NodeGroupOutput"

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Reading and checking a hazy material: whether it is one (:func:`is_hazy`), the perceptual
 parameters stamped on it (:func:`read_parameters`; :func:`read_parameters_lenient` for the
-panel), and why it cannot be edited (:func:`edit_problem`, :func:`maps_problem`).  Building and
+panel), and why it cannot be edited (:func:`edit_problem`, :func:`maps_problem`,
+:func:`baked_problem`).  Building and
 updating its tree is blender.model.material."""
 import bpy
 
@@ -98,5 +99,21 @@ def maps_problem(mat):
     return None
 
 
+def shown(value):
+    """A haze value in a message: a number, or "a map" where a texture gives it."""
+    return "a map" if value == K.TEXTURED else f"{value:g}"
+
+
+def baked_problem(mat):
+    """Why a haze edit cannot change a layer whose haze was converted into maps (the layer's
+    twin of :func:`maps_problem`)."""
+    h = layer.haze_of(mat)
+    at = ", ".join(f"{k} {shown(v)}" for k, v in h.items()
+                   if k in ("haziness", "coat_haziness") and v)
+    return (f"the haze of “{mat.name}” was converted into its maps{f' ({at})' if at else ''}: "
+            f"convert the maps again to change it (or Remove Haze, then Make Hazy for haze set "
+            f"here)")
+
+
 __all__ = ("read_parameters", "read_parameters_lenient", "check_material", "is_hazy",
-           "edit_problem", "maps_problem")
+           "edit_problem", "maps_problem", "baked_problem", "shown")
