@@ -9,7 +9,7 @@ a way out, operators report ERROR, nothing is deleted.
   takes a damaged layer off restoring what it can;
 - recomposite set-up / clear with stamps of the wrong type;
 - the stamp fuzz (stamp_fuzz.py): every key path of each material type's stamp times every
-  mutation, bounded in time; outcomes counted in out/measurements (docs/verification.md).
+  mutation (every seventh by default); outcomes counted in out/measurements (docs/verification.md).
 """
 import importlib
 import os
@@ -225,7 +225,9 @@ def test_export_stamps_of_the_wrong_type(env, tmp_path):
     assert any("Maps" in str(s) and "damaged" in str(s) for s in rep.skipped)
 
 
-FUZZ_BUDGET = float(os.environ.get("HAZY_GLOSS_FUZZ_SECONDS", "120"))  # CPU seconds of this process
+# No time budget by default: a CPU budget cut CI's slower machine short (590 of 748 cases) and
+# failed the run; the stride bounds the work. HAZY_GLOSS_FUZZ_SECONDS caps it for a quick look.
+FUZZ_BUDGET = float(os.environ["HAZY_GLOSS_FUZZ_SECONDS"]) if os.environ.get("HAZY_GLOSS_FUZZ_SECONDS") else None
 FUZZ_STRIDE = int(os.environ.get("HAZY_GLOSS_FUZZ_STRIDE", "7"))
 
 
@@ -246,5 +248,7 @@ def test_stamp_fuzz(env, tmp_path):
     bad = {k: n for k, n in counts.items() if k[3] not in ("ok", "refused", "noop")}
     examples = {k: v for k, v in fuzz.examples.items() if k[1] not in ("ok", "refused", "noop")}
     assert not bad, (stamp_fuzz.table(bad), examples)
-    assert fuzz.cases >= 0.9 * fuzz.planned and fuzz.planned >= 600, (fuzz.cases, fuzz.planned)  # the budget ran them
+    assert fuzz.planned >= 600, fuzz.planned
+    if FUZZ_BUDGET is None:
+        assert fuzz.cases == fuzz.planned, (fuzz.cases, fuzz.planned)  # every case ran
     assert fuzz.slowest[0] < 5.0, fuzz.slowest
