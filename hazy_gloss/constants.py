@@ -194,6 +194,8 @@ FILAMENT_CLEARCOAT_F0 = 0.04
 FALLBACK_ROLE = "Export fallback"
 FALLBACK_OUTPUT_ROLE = "Export output"
 RENDER_OUTPUT_ROLE = "Render output"
+#: Nodes that read an image: a layer group reads its tables with Environment Textures.
+IMAGE_NODES = ("ShaderNodeTexImage", "ShaderNodeTexEnvironment")
 TABLE_IMAGE_PREFIX = ".Hazy Gloss table "  # + table name and values' hash: a group's lookup table
 CONVERTED_ROLE = "layer converted "  # + BAKED key: an Image Texture of a baked layer's map
 EEVEE_ROLE = "layer eevee "  # the role of every node blender/actions/eevee_output.py builds starts so

@@ -21,11 +21,13 @@ the numpy mapping without rendering.
 - RAMP(x): a Color Ramp node (linear, RGB) as a 1-D table of up to 32 stops, evaluated as
   Cycles does: Blender bakes the ramp into 256 entries (BKE_colorband_evaluate at i/255) and
   the kernel interpolates those linearly (kernel/svm/ramp.h rgb_ramp_lookup).
-- TABLE(u, v): a lookup in a float table of the graph (:meth:`Graph.table`, H x W values, or
-  H x W x 3 for a colour table): an Image Texture of a float Non-Color image (Linear, Extend)
-  read at the texture coordinate (u, v), as Cycles' kernel reads images (kernel/util/image.h
-  interp_linear: x = u W - 0.5, bilinear between texels, indices clamped); a vector with the
-  value in every lane (a colour table: its three channels).
+- TABLE(d): a lookup in a float table of the graph (:meth:`Graph.table`, H x W values, or
+  H x W x 3 for a colour table): an Environment Texture (equirectangular, Linear) of a float
+  Non-Color image, the table with one texel of edge padding, read in the direction ``d`` as
+  Cycles does (kernel/svm/image.h svm_node_tex_environment, direction_to_equirectangular;
+  interp_linear with the periodic wrap of its EXTENSION_REPEAT); a vector with the value in
+  every lane (a colour table: its three channels).  Not an Image Texture: Blender lists every
+  Image Texture inside a material's node groups as a Texture Paint slot.
 - Building folds constants (in float32 with the same semantics, as Cycles' own constant folding
   does) and merges identical sub-expressions, so a graph fed constants emits only the nodes
   that depend on linked inputs, and never two nodes computing the same thing.
@@ -42,7 +44,7 @@ __all__ = ("Expr", "Graph", "evaluate", "ramp_table", "SCALAR_OPS", "VECTOR_OPS"
 SCALAR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "SQRT": 1, "MINIMUM": 2, "MAXIMUM": 2, "LESS_THAN": 2,
               "GREATER_THAN": 2, "COMPARE": 3, "ABSOLUTE": 1, "CLAMP": 3, "FLOOR": 1,
-              "COSINE": 1, "EXPONENT": 1}
+              "COSINE": 1, "SINE": 1, "EXPONENT": 1}
 #: Vector Math node operations used here (SCALE: vector × scalar).
 VECTOR_OPS = {"ADD": 2, "SUBTRACT": 2, "MULTIPLY": 2, "DIVIDE": 2, "MULTIPLY_ADD": 3,
               "POWER": 2, "MINIMUM": 2, "MAXIMUM": 2, "SCALE": 2, "ABSOLUTE": 1, "FLOOR": 1,
@@ -108,7 +110,7 @@ class Graph:
         self.nodes = []  # every non-constant Expr, in creation order (a topological order)
         self._memo = {}
         self.inputs = {}
-        self.tables = {}  # name -> (H, W) float32 (the images TABLE reads)
+        self.tables = {}  # name -> (H + 2, W + 2) float32, edge-padded (the images TABLE reads)
 
     # -- leaves --------------------------------------------------------------------------------
     def input(self, name, *, vector=False):
@@ -252,17 +254,30 @@ class Graph:
         data = np.ascontiguousarray(np.asarray(data, dtype=_F32))
         if data.ndim not in (2, 3) or min(data.shape[:2]) < 1 or data.shape[2:] not in ((), (3,)):
             raise ValueError("a table is an H x W or H x W x 3 array")
+        padded = np.pad(data, ((1, 1), (1, 1)) + ((0, 0),) * (data.ndim - 2), mode="edge")
         have = self.tables.get(name)
-        if have is not None and (have.shape != data.shape or not np.array_equal(have, data)):
+        if have is not None and (have.shape != padded.shape or not np.array_equal(have, padded)):
             raise ValueError(f"table {name!r} is registered with other values")
-        self.tables[name] = data
+        self.tables[name] = padded
         u, v = self.value(u), self.value(v)
         if u.vector or v.vector:
             raise TypeError("a table is read at two scalars")
         if u.is_const and v.is_const:
             with np.errstate(all="ignore"):
                 return self.const(tuple(_table_rgb(data, u.value, v.value)))
-        return self._make("TABLE", (u, v), vector=True, stops=name, **kw)
+        # clamped to the texel centres (EXTEND), then the padded image's coordinates, whose
+        # direction is (sin θ cos φ, sin θ sin φ, cos θ), φ = π - 2π u, θ = π - π v (the inverse
+        # of direction_to_equirectangular); the padding keeps the wrap off the far side
+        h, w = data.shape[:2]
+        pi = math.pi
+        u = self.clamp(u, 0.5 / w, 1.0 - 0.5 / w)
+        v = self.clamp(v, 0.5 / h, 1.0 - 0.5 / h)
+        phi = self.madd(u, -2.0 * pi * w / (w + 2), pi - 2.0 * pi / (w + 2))
+        theta = self.madd(v, -pi * h / (h + 2), pi - pi / (h + 2))
+        sin_t = self.math("SINE", theta)
+        d = self.combine(self.mul(sin_t, self.math("COSINE", phi)),
+                         self.mul(sin_t, self.math("SINE", phi)), self.math("COSINE", theta))
+        return self._make("TABLE", (d,), vector=True, stops=name, **kw)
 
     def vclamp01(self, v, **kw):
         """A vector clamped to [0, 1] per lane, NaN -> 0 (SATURATE: one colour Mix node); a
@@ -367,6 +382,7 @@ _SCALAR = {
     "FLOOR": np.floor,
     "CLAMP": _clamp,
     "COSINE": np.cos,
+    "SINE": np.sin,
     "EXPONENT": np.exp,
 }
 
@@ -422,8 +438,27 @@ def _table_rgb(data, u, v):
     return np.stack([_table_lookup(data[..., c], u, v) for c in range(3)], axis=-1)
 
 
-def _table_lookup(data, u, v):
-    """kernel/util/image.h interp_linear with EXTENSION_EXTEND on a float image, one channel."""
+def _environment_rgb(data, d):
+    """An Environment Texture (equirectangular, Linear) of ``data`` in the directions ``d``
+    (..., 3), as Cycles reads it: safe_normalize, direction_to_equirectangular, interp_linear
+    with EXTENSION_REPEAT (indices wrapped); (..., 3)."""
+    d = np.asarray(d, _F32)
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    length = np.sqrt(x * x + y * y + z * z).astype(_F32)
+    zn = np.where(length > 0, z / np.where(length > 0, length, _F32(1)), z).astype(_F32)
+    zero = length == 0  # (direction_to_equirectangular of the zero vector: (0, 0))
+    u = np.where(zero, _F32(0), (np.arctan2(y, x).astype(_F32) - _F32(math.pi)) / _F32(-2.0 * math.pi))
+    v = np.where(zero, _F32(0), (np.arccos(np.clip(zn, -1, 1)).astype(_F32) - _F32(math.pi))
+                 / _F32(-math.pi))
+    u, v = np.asarray(u, _F32), np.asarray(v, _F32)
+    chans = [data] if data.ndim == 2 else [data[..., c] for c in range(3)]
+    out = [_table_lookup(c, u, v, wrap=True) for c in chans]
+    return np.repeat(out[0][..., None], 3, axis=-1) if data.ndim == 2 else np.stack(out, axis=-1)
+
+
+def _table_lookup(data, u, v, wrap=False):
+    """kernel/util/image.h interp_linear with EXTENSION_EXTEND (``wrap``: REPEAT) on a float
+    image, one channel."""
     h, w = data.shape
     u, v = np.asarray(u, _F32), np.asarray(v, _F32)
     x = (u * _F32(w) - _F32(0.5)).astype(_F32)
@@ -432,8 +467,12 @@ def _table_lookup(data, u, v):
     iy = np.where(np.isfinite(y), np.floor(y), 0.0).astype(np.int64)
     tx = np.where(np.isfinite(x), x - ix.astype(_F32), _F32(0)).astype(_F32)
     ty = np.where(np.isfinite(y), y - iy.astype(_F32), _F32(0)).astype(_F32)
-    nix, niy = np.clip(ix + 1, 0, w - 1), np.clip(iy + 1, 0, h - 1)
-    ix, iy = np.clip(ix, 0, w - 1), np.clip(iy, 0, h - 1)
+    if wrap:  # EXTENSION_REPEAT: wrap_periodic
+        nix, niy = (ix + 1) % w, (iy + 1) % h
+        ix, iy = ix % w, iy % h
+    else:
+        nix, niy = np.clip(ix + 1, 0, w - 1), np.clip(iy + 1, 0, h - 1)
+        ix, iy = np.clip(ix, 0, w - 1), np.clip(iy, 0, h - 1)
     one = _F32(1)
     out = ((one - ty) * (one - tx) * data[iy, ix] + (one - ty) * tx * data[iy, nix]
            + ty * (one - tx) * data[niy, ix] + ty * tx * data[niy, nix])
@@ -455,9 +494,8 @@ def _apply_arrays(op, vals, vector_args, clamp, lane, stops):
         if table is None:
             table = _RAMP_CACHE.setdefault(stops, ramp_table(stops))
         return _ramp_lookup(table, vals[0])
-    if op == "TABLE":  # (stops: the table itself, handed in by evaluate)
-        u, v = np.broadcast_arrays(vals[0], vals[1])
-        return _table_rgb(stops, u, v)
+    if op == "TABLE":  # (stops: the padded table itself, handed in by evaluate)
+        return _environment_rgb(stops, vals[0])
     if op == "VDOT_PRODUCT":
         a, b = np.broadcast_arrays(*(v if is_vec else np.repeat(v[..., None], 3, -1)
                                      for v, is_vec in zip(vals, vector_args)))

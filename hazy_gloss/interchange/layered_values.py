@@ -6,6 +6,7 @@ semantics, folding constants in float64.  interchange/layered.py's Writer adds t
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 
@@ -382,6 +383,8 @@ class ValueWriter:
             return _c("color3", node.outputs[0].value if node.outputs[0].value is not None else (0, 0, 0))
         if t == "ShaderNodeTexImage":
             return self.image(node, oid)
+        if t == "ShaderNodeTexEnvironment":
+            return self.environment(node, oid)
         if t == "ShaderNodeMath":
             return self.math(node)
         if t == "ShaderNodeVectorMath":
@@ -444,6 +447,7 @@ class ValueWriter:
              "ABSOLUTE": lambda: self.unary("absval", a, n, np.abs),
              "FLOOR": lambda: self.unary("floor", a, n, np.floor),
              "COSINE": lambda: self.unary("cos", a, n, np.cos),
+             "SINE": lambda: self.unary("sin", a, n, np.sin),
              "EXPONENT": lambda: self.unary("exp", a, n, np.exp),
              "SIGN": lambda: self.unary("sign", a, n, np.sign)}.get(op)
         if r is None:
@@ -587,14 +591,42 @@ class ValueWriter:
         self.taken |= set(self.g.nodes)
         return t
 
-    def image(self, node, oid):
+    def environment(self, node, oid):
+        """An Environment Texture read in a computed direction (the layer's lookup tables): the
+        image at the direction's equirectangular coordinates, as Cycles maps them
+        (direction_to_equirectangular: u = (atan2(y, x) - π) / -2π, v = (acos(z / |d|) - π) / -π)."""
+        if node.props.get("projection", "EQUIRECTANGULAR") != "EQUIRECTANGULAR":
+            self.note(f"Environment Texture “{node.name}”: {node.props['projection']} projection "
+                      f"is not exported")
+            return None
+        vec = node.input("Vector")
+        src, _ = self._follow(vec)
+        d = self.value(vec, "vector3") if src is not None else None
+        if d is None:
+            self.note(f"Environment Texture “{node.name}” reads no computed direction: not exported")
+            return None
+        n = node.name
+        x, y, z = (self.lane(d, i) for i in range(3))
+        length = self.sqrt(self.dot(d, d, n + "_dd"), n + "_len")
+        if all(c.is_const for c in (x, y, z)):
+            yx = _c("float", float(np.arctan2(y.const, x.const)))
+        else:
+            yx = V("float", node=self.node("ND_atan2_float", n + "_atan2", iny=y, inx=x))
+        c = self.div(z, length, n + "_cos")
+        ac = self.unary("acos", c, n + "_acos", np.arccos)
+        u = self.div(self.sub(yx, _c("float", math.pi), n + "_u0"), _c("float", -2.0 * math.pi), n + "_u")
+        v = self.div(self.sub(ac, _c("float", math.pi), n + "_v0"), _c("float", -math.pi), n + "_v")
+        return self.image(node, oid, self.convert(self.combine((u, v, _c("float", 0.0)), n + "_uv"),
+                                                  "vector2"))
+
+    def image(self, node, oid, texcoord=None):
         img = node.image
         if not img or not img.get("path"):
             what = f"“{img['name']}”" if img else "no image"
             self.note(f"Image Texture “{node.name}” has {what} without a file on disk (packed or "
                       f"generated): written at the socket's value")
             return None
-        if node.props.get("projection", "FLAT") != "FLAT":
+        if texcoord is None and node.props.get("projection", "FLAT") != "FLAT":
             self.note(f"Image Texture “{node.name}”: {node.props['projection']} projection written "
                       f"as a flat UV lookup")
         key = ("image", node.name)
@@ -618,7 +650,7 @@ class ValueWriter:
             if mode != "periodic":
                 n.set("uaddressmode", "string", mode)
                 n.set("vaddressmode", "string", mode)
-            uv = self.texcoord(node)
+            uv = texcoord if texcoord is not None else self.texcoord(node)
             if uv is not None:
                 self.put(n, "texcoord", uv, "vector2")
             self.images.append((img.get("name", ""), file))

@@ -537,8 +537,8 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
 
 class _TableLookups(mx_eval.Evaluator):
     """mx_eval with ``image`` nodes read from their files (OpenEXR, beside the document) as
-    MaterialX's linear filter and clamp address mode read them: texel centres at (i + 0.5)/W,
-    (0, 0) the image's lower left."""
+    MaterialX's linear filter and address modes (periodic or clamp) read them: texel centres at
+    (i + 0.5)/W, (0, 0) the image's lower left."""
 
     def __init__(self, graph, folder, read_exr):
         super().__init__(graph, 1)
@@ -551,8 +551,17 @@ class _TableLookups(mx_eval.Evaluator):
         rgb = np.stack([ch[k] for k in ("R", "G", "B")], -1).astype(np.float64)  # row 0: bottom
         h, w = rgb.shape[:2]
         uv = np.asarray(self.input(node, "texcoord"), np.float64).reshape(-1, 2)
-        x = np.clip(uv[:, 0] * w - 0.5, 0.0, w - 1.0)
-        y = np.clip(uv[:, 1] * h - 0.5, 0.0, h - 1.0)
+        x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5
+        if self.input(node, "uaddressmode") == "periodic":  # (the layer's: Environment Textures)
+            assert self.input(node, "vaddressmode") == "periodic"
+            x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+            x1, y1 = (x0 + 1) % w, (y0 + 1) % h
+            fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+            x0, y0 = x0 % w, y0 % h
+            out = (rgb[y0, x0] * (1 - fx) + rgb[y0, x1] * fx) * (1 - fy) + \
+                (rgb[y1, x0] * (1 - fx) + rgb[y1, x1] * fx) * fy
+            return out.astype(np.float32)
+        x, y = np.clip(x, 0.0, w - 1.0), np.clip(y, 0.0, h - 1.0)
         x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
         x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
         fx, fy = (x - x0)[:, None], (y - y0)[:, None]
@@ -577,7 +586,7 @@ def test_lookup_tables_are_written_beside_the_document(env, tmp_path, distributi
     group = env.layer.layer_node(mat).node_tree
     tables = {n.image.name for g in [group] + [n.node_tree for n in group.nodes
                                                if getattr(n, "node_tree", None)]
-              for n in g.nodes if n.bl_idname == "ShaderNodeTexImage"}
+              for n in g.nodes if n.bl_idname == "ShaderNodeTexEnvironment"}
     assert len(rep.tables) == len(tables)  # (4.5's GGX film needs none)
     assert all(p.startswith(str(tmp_path / "film_tables")) for p in rep.tables)
     assert not any("without a file on disk" in n or "is not exported" in n for n in rep.notes)

@@ -193,6 +193,32 @@ def test_add_haziness_map(env):
     assert rel_diff(a, b) <= 1e-6
 
 
+def test_texture_paint_lists_the_haziness_map_only(env):
+    """Texture Paint's slots: the haziness map, made the active one, and not the layer's lookup
+    tables (Multiscatter GGX and a thin film read four; Blender lists every Image Texture inside
+    a material's node groups, so the tables were read with those, an artist could paint over
+    them)."""
+    mat, _ = principled("Painted", distribution="MULTI_GGX", **{"Thin Film Thickness": 300.0})
+    mesh = bpy.data.meshes.new("Painted")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [], [(0, 1, 2, 3)])
+    mesh.uv_layers.new()
+    mesh.materials.append(mat)
+    ob = bpy.data.objects.new("Painted", mesh)
+    bpy.context.scene.collection.objects.link(ob)
+    bpy.context.view_layer.objects.active = ob
+    env.api.make_hazy(mat, haziness=0.3)
+    tables = {n.image.name for g in bpy.data.node_groups for n in g.nodes
+              if getattr(n, "image", None) is not None}
+    assert len(tables) >= 3, tables  # (the layer does read tables here)
+    env.api.add_haziness_map(mat, size=16)
+    bpy.ops.object.mode_set(mode="TEXTURE_PAINT")
+    try:
+        slots = [i.name for i in mat.texture_paint_images]
+        assert slots == [f"{mat.name} Haziness"] and mat.paint_active_slot == 0, slots
+    finally:
+        bpy.ops.object.mode_set(mode="OBJECT")
+
+
 def test_a_painted_haziness_map_is_saved_with_the_paint(env, tmp_path):
     """Painting changes the image in memory; Blender writes a packed image's old bytes unless it
     is packed again: the add-on packs its painted maps before each save."""
@@ -881,7 +907,7 @@ def test_configurations_share_their_sections_and_tables(env, monkeypatch, tmp_pa
         assert not parts[0] & parts[2], how  # GGX's math is its own
         tables = {i.name for i in bpy.data.images if i.name.startswith(".Hazy Gloss table")}
         used = {n.image.name for g in parts[0] | parts[2] for n in g.nodes
-                if n.bl_idname == "ShaderNodeTexImage"}
+                if n.bl_idname == "ShaderNodeTexEnvironment"}
         assert tables and tables == used, (how, tables)
         assert all(g.users > 0 for g in bpy.data.node_groups), how  # nothing left over
         assert not bpy.data.libraries, how  # (an append's Library entry included)

@@ -2,9 +2,10 @@
 """A small numpy evaluator of MaterialX standard-library value nodes, for the tests.
 
 Written from the MaterialX 1.39 specification (stdlib: add, subtract, multiply, divide, power,
-sqrt, modulo, min, max, clamp, absval, floor, sign, ifgreater, ifgreatereq, ifequal, mix, extract,
-combine2, combine3, convert, dotproduct, invert, roughness_anisotropy; nodes defined by a library
-node graph through that graph) and evaluated in float32 like a GPU
+sqrt, modulo, min, max, clamp, absval, floor, sign, sin, cos, acos, atan2, ifgreater,
+ifgreatereq, ifequal, mix, extract, combine2, combine3, convert, dotproduct, invert,
+roughness_anisotropy; nodes defined by a library node graph through that graph) and evaluated
+in float32 like a GPU
 shader, independently of hazy_gloss: documents are read with the real ``materialx`` package,
 values come out of the nodes' inputs as MaterialX parses them.  ``image`` nodes (and any node
 named in ``given``) take their values from the caller: the texels a test feeds.
@@ -112,9 +113,12 @@ class Evaluator:
                      "divide": np.divide, "min": np.minimum, "max": np.maximum,
                      "power": np.power}[c]
                 return np.asarray(f(a, b), dtype=F32) * np.ones_like(a)
-            if c in ("sqrt", "absval", "floor", "sign"):
-                f = {"sqrt": np.sqrt, "absval": np.abs, "floor": np.floor, "sign": np.sign}[c]
+            if c in ("sqrt", "absval", "floor", "sign", "sin", "cos", "acos"):
+                f = {"sqrt": np.sqrt, "absval": np.abs, "floor": np.floor, "sign": np.sign,
+                     "sin": np.sin, "cos": np.cos, "acos": np.arccos}[c]
                 return np.asarray(f(i("in")), dtype=F32)
+            if c == "atan2":
+                return np.asarray(np.arctan2(i("iny"), i("inx")), dtype=F32)
             if c == "clamp":
                 return np.asarray(np.minimum(np.maximum(i("in"), bcast(i("low"))), bcast(i("high"))), F32)
             if c in ("ifgreater", "ifgreatereq", "ifequal"):

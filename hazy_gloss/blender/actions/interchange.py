@@ -92,7 +92,7 @@ def _bnode(n, core=None, prefix="", into=None):
     b = layered_tree.BNode(prefix + n.name, n.bl_idname, [_snap_socket(x, True, into) for x in n.inputs],
                       [_snap_socket(x, False, into) for x in n.outputs], props, n.label,
                       material.role(n), core is not None and n == core, bool(n.mute))
-    if n.bl_idname == "ShaderNodeTexImage":
+    if n.bl_idname in K.IMAGE_NODES:
         b.image = _image_info(n.image)
     if n.bl_idname == "ShaderNodeValToRGB":
         r = n.color_ramp

@@ -61,7 +61,7 @@ def _same_layer_group(new, old):
                 lg._fingerprint(a) != (stamp.group(a, K.GROUP_STAMP) or {}).get("print"):
             return False
         for inner in a.nodes:
-            if inner.bl_idname == "ShaderNodeTexImage":
+            if inner.bl_idname in K.IMAGE_NODES:
                 other = b.nodes.get(inner.name)
                 img = getattr(other, "image", None)
                 if inner.image is not img and (inner.image is None or img is None

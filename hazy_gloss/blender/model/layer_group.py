@@ -31,7 +31,7 @@ from ..nodes.emit import emit
 from .groups import rebuild_interface
 
 #: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
-GROUP_VERSION = 2  # 2: transmission and thin films keep the IOR (the tint raises F0)
+GROUP_VERSION = 3  # 2: films and glass keep the IOR (the tint raises F0); 3: Environment tables
 
 BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
               "GLOSSY": "ShaderNodeBsdfGlossy"}
@@ -310,7 +310,7 @@ def _uses(ng, out):
         if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and \
                 node.node_tree not in out:
             _uses(node.node_tree, out)
-        elif node.bl_idname == "ShaderNodeTexImage" and node.image is not None:
+        elif node.bl_idname in K.IMAGE_NODES and node.image is not None:
             out.add(node.image)
     return out
 
@@ -342,7 +342,7 @@ def _share_parts(ng, groups_before, images_before, new_groups, new_images):
             node.node_tree = groups[sub]
         elif sub in new_groups and images:
             for inner in sub.nodes:
-                old = images.get(inner.image) if inner.bl_idname == "ShaderNodeTexImage" else None
+                old = images.get(inner.image) if inner.bl_idname in K.IMAGE_NODES else None
                 if old is not None and _same_table(inner.image, old):
                     inner.image = old
     used = _uses(ng, set())

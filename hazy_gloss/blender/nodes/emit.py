@@ -45,9 +45,6 @@ def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_
             emitter.visit(e)
             if nodes_by_expr is not None and e.op != "input":
                 nodes_by_expr[e.index] = emitter.sockets[e.index].node
-                helper = getattr(emitter, "helpers", {}).get(e.index)
-                if helper is not None:  # (a table's coordinate node, placed with it)
-                    nodes_by_expr[e.index - 0.5] = helper
     finally:
         tb.reuse = None
     return _replace(outputs, emitter.value)
@@ -76,7 +73,6 @@ class _ShaderEmitter:
         self.sockets = {}
         self.depth = {}
         self.separated = {}
-        self.helpers = {}  # expression index -> a node made beside its own (a table's UV)
 
     def value(self, e):
         return _const(e) if e.is_const else self.sockets[e.index]
@@ -163,15 +159,11 @@ class _ShaderEmitter:
             tb.feed(n.inputs["Fac"], self.value(e.args[0]))
             self.sockets[e.index] = n.outputs["Color"]
             return
-        if e.op == "TABLE":  # an Image Texture of the table's float image at (u, v)
-            n = self._node("ShaderNodeTexImage", e, interpolation="Linear", extension="EXTEND")
+        if e.op == "TABLE":  # an Environment Texture of the table's float image (core.graph)
+            n = self._node("ShaderNodeTexEnvironment", e, interpolation="Linear",
+                           projection="EQUIRECTANGULAR")
             n.image = table_image(e.value, self.tables[e.value])
-            uv = self.tb.node("ShaderNodeCombineXYZ")
-            self.helpers[e.index] = uv
-            self.tb.place(uv, max(self.depth[e.index] - 1, 0))
-            tb.feed(uv.inputs[0], self.value(e.args[0]))
-            tb.feed(uv.inputs[1], self.value(e.args[1]))
-            tb.link(uv.outputs[0], n.inputs["Vector"])
+            tb.feed(n.inputs["Vector"], self.value(e.args[0]))
             self.sockets[e.index] = n.outputs["Color"]
             return
         if e.op.startswith("V"):
