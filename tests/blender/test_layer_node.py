@@ -430,19 +430,26 @@ def test_a_setting_saved_by_a_newer_blender_is_refused_in_one_line(env):
 
 def test_a_layer_on_another_blenders_group_moves_to_this_ones(env):
     """A file saved by another Blender keeps that Blender's group (its Multiscatter correction
-    reads that Blender's tables): the layer says so, and Upgrade Haze Layers or a haze edit
-    moves it to this Blender's group with its values and links."""
+    reads that Blender's tables): the layer says so (and not "edited by hand": that group's
+    nodes hash otherwise here), and Upgrade Haze Layers or a haze edit moves it to this
+    Blender's group with its values and links."""
     lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
     mats = [car_paint(), car_paint()]
     for m in mats:
         env.api.make_hazy(m, haziness=0.4, coat_haziness=0.2)
     ng = env.layer.layer_node(mats[0]).node_tree
     _as_made_by(ng, lg, "4.2")
+    # another Blender's nodes hash otherwise (its own sockets and defaults): not "edited by hand"
+    part = next(n.node_tree for n in ng.nodes if getattr(n, "node_tree", None) is not None)
+    free = next(s for n in part.nodes if n.bl_idname == "ShaderNodeMath" for s in n.inputs
+                if not s.is_linked and s.enabled)
+    free.default_value += 0.25
     tex = mats[0].node_tree.nodes.new("ShaderNodeValue")
     mats[0].node_tree.links.new(tex.outputs[0], env.layer.layer_node(mats[0]).inputs["Roughness"])
     for m in mats:
-        assert any("made by Blender 4.2: Upgrade Haze Layers" in n
-                   for n in env.api.read_parameters(m)["notes"]), m.name
+        notes = env.api.read_parameters(m)["notes"]
+        assert any("made by Blender 4.2: Upgrade Haze Layers" in n for n in notes), m.name
+        assert not any("edited by hand" in n for n in notes), notes
     env.api.update_material(mats[0], haziness=0.5)
     assert env.api.upgrade_layers() == [mats[1].name]
     for m, h in zip(mats, (0.5, 0.4)):

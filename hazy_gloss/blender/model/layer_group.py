@@ -11,6 +11,7 @@ group's own, except those the mapping computes) and their Mix Shaders.  Two outp
 """
 from __future__ import annotations
 
+import hashlib
 import re
 import sys
 
@@ -191,7 +192,6 @@ SHIPPED = (
 def _code_digest():
     """A hash of the code that builds groups (a cached group from other code is not taken)."""
     if not _digest:
-        import hashlib
         h = hashlib.sha256()
         for path in [module.__file__ for module in _SOURCES] + tables.files():
             with open(path, "rb") as fh:
@@ -592,16 +592,18 @@ def _unedited(ng):
 
 def edited_parts(ng, cached=False):
     """Names of the layer group ``ng`` and of its parts edited since they were built (their
-    fingerprints differ; a group from before fingerprints: none).  ``cached``: as last found
-    until forget_edits or a node or link more or less (hashing ~1000 nodes takes ~7 ms)."""
+    fingerprints differ; none for a group from before fingerprints, or another Blender's: it
+    hashes otherwise, and its note says Upgrade).  ``cached``: as last found until
+    forget_edits or a node or link more or less (hashing ~1000 nodes takes ~7 ms)."""
     if cached:  # (keyed also by node and link counts: a script's edit shows at once)
         key = _edits_key(ng)
         if key not in _edited_seen:
             _edited_seen[key] = edited_parts(ng)
         return _edited_seen[key]
-    out = []
-    if isinstance(ng.get(K.GROUP_PRINT), str) and ng[K.GROUP_PRINT] != _fingerprint(ng):
-        out.append(ng.name)
+    if (stamp.group(ng, K.GROUP_STAMP) or {}).get("blender") != version_tag():
+        return []
+    out = [ng.name] if isinstance(ng.get(K.GROUP_PRINT), str) and \
+        ng[K.GROUP_PRINT] != _fingerprint(ng) else []
     for n in ng.nodes:
         sub = getattr(n, "node_tree", None)
         made = (sub.get(K.GROUP_STAMP) if sub is not None else None)
@@ -662,7 +664,6 @@ def _exprs(outputs):
 
 
 def _short_tag(cfg):
-    import hashlib
     return hashlib.sha1(repr((cfg.key(), GROUP_VERSION)).encode()).hexdigest()[:6]
 
 
@@ -679,7 +680,6 @@ def _part_stamp():
 def _fingerprint(ng):
     """What a section group holds: its nodes (name, type, operation, unlinked input values)
     and how many links (so a part the artist edited is told from ours)."""
-    import hashlib
     h = hashlib.sha1(str(len(ng.links)).encode())
     for n in ng.nodes:
         h.update(f"{n.name}|{n.bl_idname}|{getattr(n, 'operation', '')}".encode())
