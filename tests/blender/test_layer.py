@@ -709,6 +709,31 @@ def test_refuses_what_it_cannot_keep(env):
     assert signature(mat) == sig and not api.is_hazy(mat)
 
 
+def test_a_bsdf_feeding_a_shader_mixing_group_is_found(env):
+    """A node group of the artist's that mixes the shader it is given (Group Input -> Mix Shader
+    with a Transparent BSDF -> Group Output): the Principled feeding it is the material's BSDF
+    (Make Hazy refused it as "inside the node group", which holds no BSDF)."""
+    mat, b = principled("Mixed in a group", **{"Roughness": 0.3})
+    tree = mat.node_tree
+    group = bpy.data.node_groups.new("Mixer", "ShaderNodeTree")
+    group.interface.new_socket("Shader", in_out="INPUT", socket_type="NodeSocketShader")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    gin, gout = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    mix, clear = group.nodes.new("ShaderNodeMixShader"), group.nodes.new("ShaderNodeBsdfTransparent")
+    group.links.new(gin.outputs[0], mix.inputs[1])
+    group.links.new(clear.outputs[0], mix.inputs[2])
+    group.links.new(mix.outputs[0], gout.inputs[0])
+    gnode = tree.nodes.new("ShaderNodeGroup")
+    gnode.node_tree = group
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    tree.links.new(b.outputs[0], gnode.inputs[0])
+    tree.links.new(gnode.outputs[0], out.inputs["Surface"])
+    env.api.make_hazy(mat, haziness=0.5)
+    node = env.layer.layer_node(mat)
+    assert node is not None and node.outputs[0].links[0].to_node == gnode
+    assert not any("connected" in n for n in env.api.read_parameters(mat)["notes"])
+
+
 def test_picks_the_bsdf_and_names_the_others(env):
     mat, b = principled("Two BSDFs", **{"Roughness": 0.3})
     tree = mat.node_tree

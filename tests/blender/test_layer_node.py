@@ -724,6 +724,65 @@ def test_a_muted_copied_or_regrouped_layer_node_says_so(env):
     assert node.node_tree == mine and not env.api.is_hazy(mat)
 
 
+def test_a_hazy_coat_says_what_it_dims(env):
+    """A hazy coat keeps its peak by reflecting more, so the base and its emission under it dim
+    (QA: emission at 0.49 of before at Coat Haziness 0.6, and nothing said): the notes give the
+    coat's F(0) before and after; a rougher coat needs less of a raise."""
+    def passes(coat_roughness, coat_haziness):
+        mat, _ = principled("Glowing lacquer", **{"Coat Weight": 1.0, "Coat Roughness": coat_roughness,
+                                                  "Emission Strength": 2.0})
+        env.api.make_hazy(mat, coat_haziness=coat_haziness)
+        notes = [n for n in env.api.read_parameters(mat)["notes"] if "Coat Haziness raises" in n]
+        if not notes:
+            return None
+        m = re.search(r"from 0\.040 to (\S+) .*lets (\d+)% of the light", notes[0])
+        assert m, notes
+        f0 = float(m.group(1))
+        assert int(m.group(2)) == round(100 * (1 - f0) / (1 - 0.04)), notes  # (1.5: F0 0.04)
+        return f0
+    assert passes(0.03, 0.0) is None
+    smooth, rough = passes(0.03, 0.6), passes(0.3, 0.6)
+    assert 0.5 < smooth < 0.7 and 0.04 < rough < smooth, (smooth, rough)
+
+
+def _node_editor(tree):
+    """A context override with a Node Editor showing ``tree`` (Ctrl+G / Ctrl+Alt+G run there)."""
+    win = bpy.context.window_manager.windows[0]
+    area = max(win.screen.areas, key=lambda a: a.width * a.height)
+    area.type = "NODE_EDITOR"
+    space = area.spaces.active
+    space.tree_type = "ShaderNodeTree"
+    space.shader_type = "OBJECT"
+    space.pin = True
+    space.node_tree = tree
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    return dict(window=win, screen=win.screen, area=area, region=region, space_data=space)
+
+
+@pytest.mark.parametrize("how", ["group_make", "group_ungroup"])
+def test_a_grouped_or_ungrouped_layer_node_still_renders_and_remove_haze_says_so(env, how):
+    """Ctrl+G (the layer node into a group of the artist's) or Ctrl+Alt+G (its parts into the
+    tree): the haze still renders, so Remove Haze refuses in one line naming where the layer is
+    and keeps the record (it said "deleted", dropped the record and left the haze rendering)."""
+    mat, _ = principled("Grouped", **{"Roughness": 0.2})
+    env.api.make_hazy(mat, haziness=0.8)
+    tree, node = mat.node_tree, env.layer.layer_node(mat)
+    for n in tree.nodes:
+        n.select = n == node
+    tree.nodes.active = node
+    with bpy.context.temp_override(**_node_editor(tree)):
+        getattr(bpy.ops.node, how)()
+    assert env.layer.layer_node(mat) is None
+    where = "inside the group node" if how == "group_make" else "was ungrouped: its parts (“.HG "
+    with pytest.raises(ValueError, match=re.escape(where)):
+        env.api.read_parameters(mat)
+    before = len(tree.nodes)
+    with pytest.raises(ValueError, match="Cannot remove the haze of “Grouped”: its layer node " +
+                       re.escape("“Principled BSDF” is inside" if how == "group_make" else "was ungrouped")):
+        env.api.remove_haze(mat)
+    assert env.api.is_hazy(mat) and len(tree.nodes) == before
+
+
 def test_an_edited_layer_group_says_so_and_remove_haze_keeps_it(env):
     """A layer group edited by hand (Make Single User, then a node added inside, or a part's
     math changed) renders what the panel does not show: the notes say so, in the panel too once

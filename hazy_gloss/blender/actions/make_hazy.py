@@ -18,7 +18,7 @@ from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
-from ..model import fallback, layer, layer_group, material, material_read
+from ..model import fallback, layer, layer_group, layer_wiring, material, material_read
 from . import messages, sync
 from ..model.material_read import baked_problem, edit_problem, maps_problem, shown
 from ..nodes import ownership
@@ -66,8 +66,9 @@ def _rgb(v):
 
 def surface_bsdfs(tree):
     """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the active output's
-    Surface, directly or through Mix / Add Shader nodes and reroutes, closest to the output
-    first; and the node groups met on the way (their insides are not searched)."""
+    Surface, directly or through Mix / Add Shader nodes, reroutes and the shader inputs of node
+    groups, closest to the output first; and the node groups met on the way that hold such a
+    BSDF (their insides are not searched: other materials may share them)."""
     out = ownership.output_node(tree, create=False)
     if out is None:
         return [], []
@@ -82,11 +83,24 @@ def surface_bsdfs(tree):
         if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
             found.append(node)
         elif node.bl_idname == "ShaderNodeGroup":
-            groups.append(node)
+            if _holds_bsdf(node.node_tree, set()):
+                groups.append(node)
+            # (a group that mixes shaders it is given: the BSDFs feeding it are the material's)
+            queue.extend(_source(s) for s in node.inputs if s.type == "SHADER")
         elif node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
             queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
                          node.bl_idname == "NodeReroute")
     return found, groups
+
+
+def _holds_bsdf(ng, seen):
+    """Whether the node group ``ng`` (or one nested in it) has a Principled, Metallic or Glossy
+    BSDF."""
+    if ng is None or ng.name in seen:
+        return False
+    seen.add(ng.name)
+    return any(n.bl_idname in CORE_NODES or (n.bl_idname == "ShaderNodeGroup"
+                                              and _holds_bsdf(n.node_tree, seen)) for n in ng.nodes)
 
 
 def find_core_bsdf(tree):
@@ -267,6 +281,10 @@ def remove_haze(mat):
         return "ERROR", problem, []
     state = layer.layer_state(mat) or {}
     kept, lnode = layer.original_node(mat), layer.layer_node(mat)
+    if not state.get("legacy") and lnode is None and layer.tagged_layer_node(mat) is None:
+        where = layer_wiring.misplaced_layer(mat.node_tree)
+        if where is not None:  # (it still renders: removing the record would hide it)
+            return "ERROR", f"Cannot remove the haze of “{mat.name}”: {where}", []
     if not state.get("legacy") and kept is not None and lnode is not None and (
             not kept.mute or kept.outputs[0].is_linked):
         # (Remove Haze gives that node the layer node's values and links: the artist's edits)

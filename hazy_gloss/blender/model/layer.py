@@ -192,7 +192,8 @@ def _problems(mat, raw):
         return []
     node = tagged_layer_node(mat)
     if node is None:
-        return [("its layer node is gone (deleted or ungrouped)", None)]
+        return [(layer_wiring.misplaced_layer(mat.node_tree) or "its layer node is gone (deleted)",
+                 None)]
     other = f"“{node.node_tree.name}”" if node.node_tree is not None else "no group"
     return [(f"its layer node “{node.name}” uses {other}, not a Hazy Gloss layer group", None)]
 
@@ -764,6 +765,9 @@ def notes(mat, quick=True):
         note = layer_notes.body_note(node, vals, linked)
         if note:
             out.append(note)
+    coat = layer_notes.coat_note(node, vals, linked)
+    if coat:
+        out.append(coat)
     film = layer_notes.film_peak_change(node, vals, linked)
     if film is not None and abs(film) > 1e-5:
         out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "

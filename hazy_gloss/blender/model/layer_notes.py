@@ -48,6 +48,9 @@ def outputs_for_notes(node):
         keys.add("tint narrow")
     if layer_values.group_config(node).get("body"):
         keys |= {"roughness wide", "IOR dielectric"}
+    coat = inp.get("Coat Haziness")
+    if coat is not None and (coat.is_linked or coat.default_value > 0.0):
+        keys.add("coat IOR")
     return {k: shown[k] for k in keys if k in shown}
 
 
@@ -120,6 +123,23 @@ def room_notes(node, vals, linked, haze):
             out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
                        f"through the Specular Tint; lower Haziness")
     return out
+
+
+def coat_note(node, vals, linked):
+    """The coat's raised F(0) (Eq. 2 keeps the coat's peak: a hazier coat reflects more), and
+    what it leaves of the light through it at normal incidence (1 - F(0)): the base and its
+    emission under the coat render that much darker.  None where small or unknown."""
+    ior, weight = node.inputs.get("Coat IOR"), node.inputs.get("Coat Weight")
+    if "coat IOR" not in vals or ior is None or weight is None or "Coat IOR" in linked or \
+            "Coat Haziness" in linked or (not weight.is_linked and weight.default_value <= 0.0):
+        return None
+    was, now = _f0(float(ior.default_value)), _f0(float(vals["coat IOR"]))
+    passes = (1.0 - now) / max(1.0 - was, 1e-6)
+    if passes > 0.99:
+        return None
+    return (f"Coat Haziness raises the coat's F(0) from {was:.3f} to {now:.3f} (to keep its peak): "
+            f"face-on it lets {100 * passes:.0f}% of the light through that it did, so the base "
+            f"and its emission under the coat render darker (a rougher coat needs less)")
 
 
 def film_peak_change(node, vals=None, linked=None):

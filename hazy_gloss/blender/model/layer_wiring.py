@@ -7,7 +7,7 @@ closures Cycles counts for the material (its limit is 64: the layer's BSDF copie
 from __future__ import annotations
 
 from ... import constants as K
-from . import layer_group
+from . import layer_group, stamp
 from ..nodes import ownership
 
 
@@ -36,6 +36,43 @@ def copies_of(tree, node):
     (Shift+D, or a Group node given the layer's group)."""
     return [n for n in tree.nodes if n != node and n.bl_idname == "ShaderNodeGroup"
             and (n.get(K.LAYER_NODE_KEY) or layer_group.is_layer_group(n.node_tree))]
+
+
+def misplaced_layer(tree):
+    """Where a layer node no longer in ``tree`` went, in one line, or None: grouped with other
+    nodes (Ctrl+G: a layer group node inside one of the tree's node groups) or ungrouped
+    (Ctrl+Alt+G: the layer group's section groups among the tree's nodes).  Either way it still
+    renders, so Remove Haze must not report it gone."""
+    parts = [n.node_tree.name for n in tree.nodes if n.bl_idname == "ShaderNodeGroup" and n.node_tree
+             is not None and (stamp.group(n.node_tree, K.GROUP_STAMP) or {}).get("kind") == "layer part"]
+    if parts:
+        shown = ", ".join(f"“{p}”" for p in parts[:3]) + (", ..." if len(parts) > 3 else "")
+        return (f"its layer node was ungrouped: its parts ({shown}) are in the tree and still "
+                f"render; undo the ungroup (Ctrl+Z), or delete them and connect the BSDF yourself")
+    path = _grouped_layer(tree, [], set())
+    if path:
+        return (f"its layer node “{path[-1]}” is inside the group node "
+                f"{' > '.join(f'“{p}”' for p in path[:-1])} and still renders: ungroup it "
+                f"(Ctrl+Alt+G) to edit or remove the haze")
+    return None
+
+
+def _grouped_layer(tree, path, seen):
+    """[group node names..., layer node name] of a layer group node nested in ``tree``'s
+    (user) node groups, or []."""
+    for n in tree.nodes:
+        ng = getattr(n, "node_tree", None) if n.bl_idname == "ShaderNodeGroup" else None
+        if ng is None or ng.name in seen:
+            continue
+        if layer_group.is_layer_group(ng):
+            if path:
+                return path + [n.name]
+            continue
+        seen.add(ng.name)
+        found = _grouped_layer(ng, path + [n.name], seen)
+        if found:
+            return found
+    return []
 
 
 def wiring_problems(mat, node, original):
