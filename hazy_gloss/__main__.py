@@ -410,9 +410,15 @@ def _need_bpy(prog):
     return None
 
 
-def _open_blend(path):
+def _open_blend(prog, path):
+    """Open ``path`` in bpy; a one-line error's exit code when Blender cannot read it."""
     from .blender.actions import cli
-    cli.open_blend(path)
+    try:
+        cli.open_blend(path)
+    except RuntimeError as exc:  # (not a .blend, truncated, from a newer Blender: Blender's words)
+        why = str(exc).replace("Error: ", "").strip().splitlines()
+        return _fail(prog, f"Blender cannot open {path!r}: {why[0] if why else 'unreadable'}")
+    return None
 
 
 def _export(args):
@@ -422,7 +428,9 @@ def _export(args):
         return rc
     if not os.path.isfile(args.blend):
         return _fail(prog, f"no file {args.blend!r}")
-    _open_blend(args.blend)
+    rc = _open_blend(prog, args.blend)
+    if rc is not None:
+        return rc
     from . import api
     names = [n.strip() for n in args.materials.split(",")] if args.materials else None
     try:
@@ -477,6 +485,9 @@ def _import(args):
             rc = _need_bpy(prog)
             if rc is not None:
                 return rc
+            folder = os.path.dirname(os.path.abspath(args.blend))
+            if not os.path.isdir(folder):  # (checked first: the import would be lost on save)
+                return _fail(prog, f"--blend: no folder {folder!r} to save {os.path.basename(args.blend)!r} in")
             from . import api
             from .blender.actions import cli
             cli.empty_file()
@@ -485,7 +496,10 @@ def _import(args):
             except (ValueError, RuntimeError, OSError) as exc:
                 return _fail(prog, str(exc))
             found = res.report
-            cli.save_blend(args.blend)
+            try:
+                cli.save_blend(args.blend)
+            except RuntimeError as exc:
+                return _fail(prog, f"--blend: cannot save {args.blend!r}: {str(exc).strip()}")
         else:
             try:
                 found = _read_any(args.path, progress=bar)
@@ -523,11 +537,19 @@ def _engines(args):
         rc = _need_bpy(prog)
         if rc is not None:
             return rc
-        _open_blend(args.path)
+        rc = _open_blend(prog, args.path)
+        if rc is not None:
+            return rc
         from .blender.actions import cli
-        params = cli.hazy_parameters()
+        params, skipped = cli.hazy_parameters()
+        for name, why in skipped.items():  # (as api.engine_parameters refuses them)
+            print(f"hazy_gloss {prog}: skipped “{name}”: {why}", file=sys.stderr)
     else:
-        for im in _read_any(args.path):
+        try:
+            found = _read_any(args.path)
+        except (ValueError, RuntimeError, OSError) as exc:
+            return _fail(prog, str(exc))
+        for im in found:
             if im.parameters is not None:
                 params[im.name] = normalise(im.parameters)
     out = {}

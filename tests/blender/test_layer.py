@@ -734,6 +734,17 @@ def test_a_bsdf_feeding_a_shader_mixing_group_is_found(env):
     assert not any("connected" in n for n in env.api.read_parameters(mat)["notes"])
 
 
+def test_make_hazy_on_a_hazy_material_names_a_missing_node(env):
+    """node= naming no BSDF on a hazy material: "no ... BSDF named" (it said "Remove Haze first
+    to put it on “Nope”", as if that could work)."""
+    mat, _ = principled("Named", **{"Roughness": 0.3})
+    env.api.make_hazy(mat, haziness=0.4)
+    for name in ("Nope", "Material Output"):
+        with pytest.raises(ValueError, match=f"has no Principled, Metallic or Glossy BSDF named “{name}”"):
+            env.api.make_hazy(mat, haziness=0.5, node=name)
+    assert env.api.read_parameters(mat)["haziness"] == pytest.approx(0.4)
+
+
 def test_picks_the_bsdf_and_names_the_others(env):
     mat, b = principled("Two BSDFs", **{"Roughness": 0.3})
     tree = mat.node_tree

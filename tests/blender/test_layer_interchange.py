@@ -360,6 +360,36 @@ def test_operator_and_cli_write_layered_materials(env, tmp_path, capsys):
     assert im.source == "hazy_gloss layer" and env.api.is_hazy(im.material)
     haze = env.api.read_parameters(im.material)
     assert haze["haziness"] == pytest.approx(0.4) and haze["coat_haziness"] == pytest.approx(0.3)
+    # engines: a layer is skipped in one line, as api.engine_parameters refuses it (it printed
+    # fits that ignored the coat; a painted Haziness raised)
+    capsys.readouterr()
+    env.api.add_haziness_map(bpy.data.materials["Car Paint"], size=16)  # (the CLI opened the file)
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    assert cli.main(["engines", blend]) == 0
+    err = capsys.readouterr().err
+    assert "engines: skipped “Car Paint”: a haze layer on its own BSDF" in err, err
+
+
+def test_cli_bad_files_get_one_line(env, tmp_path, capsys):
+    """Not a .blend, a truncated one, malformed MaterialX, a --blend in no folder: one line and
+    exit 2 (they raised tracebacks, exit 1; the import was done, then lost on save)."""
+    cli = importlib.import_module(env.hg.__name__ + ".__main__")
+    bad = tmp_path / "bad.blend"
+    bad.write_text("garbage")
+    scene = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(scene))
+    short = tmp_path / "short.blend"
+    short.write_bytes(scene.read_bytes()[:5000])
+    mtlx = tmp_path / "bad.mtlx"
+    mtlx.write_text("<materialx")
+    for argv in (["export-materialx", str(bad), str(tmp_path / "o.mtlx")],
+                 ["export-materialx", str(short), str(tmp_path / "o.mtlx")],
+                 ["engines", str(bad)], ["engines", str(mtlx)],
+                 ["import-materialx", str(mtlx), "--blend", str(tmp_path / "no" / "x.blend")]):
+        capsys.readouterr()
+        assert cli.main(argv) == 2, argv
+        err = [line for line in capsys.readouterr().err.splitlines() if "hazy_gloss" in line]
+        assert len(err) == 1 and "error:" in err[0], (argv, err)
 
 
 # --------------------------------------------------------------------------------------------

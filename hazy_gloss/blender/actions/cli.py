@@ -26,10 +26,19 @@ def save_blend(path, keep=()):
 
 
 def hazy_parameters():
-    """{material name: perceptual parameters} of the open file's hazy materials."""
-    out = {}
+    """({material name: perceptual parameters} of the open file's hazy materials made with New
+    Hazy Material, {name: why skipped} of the others: haze layers on the artist's own BSDF,
+    whose lobes are the BSDF's (engine fits are for the mapping's own lobes), and damaged ones)."""
+    out, skipped = {}, {}
     for m in bpy.data.materials:
-        p = material_read.read_parameters(m)
-        if p is not None:
+        try:
+            p = material_read.read_parameters(m)
+        except ValueError as exc:
+            skipped[m.name] = str(exc)
+            continue
+        if p is not None and p.get("layered"):
+            skipped[m.name] = ("a haze layer on its own BSDF: engine parameters are for materials "
+                               "made with New Hazy Material (api.create_material)")
+        elif p is not None:
             out[m.name] = p
-    return out
+    return out, skipped

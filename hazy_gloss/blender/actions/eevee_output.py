@@ -187,8 +187,10 @@ def build_eevee_output(mat, *, mode="auto"):
     final = node.outputs["BSDF"]
     if problem is None:
         path, problem = _path(user_out, final)
-    if problem is not None:
-        return dict(added=False, reason=problem + ": EEVEE renders the full layer", nodes=0)
+    if problem is not None:  # (EEVEE renders what the artist's own EEVEE output has, if any)
+        what = ("EEVEE renders what that output is given" if "EEVEE output of its own" in problem
+                else "EEVEE renders the full layer")
+        return dict(added=False, reason=f"{problem}: {what}", nodes=0)
     made = []
     copies = {}
 

@@ -254,6 +254,11 @@ def _update_layer(mat, given, node):
     if node is not None:
         name = node if isinstance(node, str) else node.name
         have = layer.layer_node(mat)
+        other = mat.node_tree.nodes.get(name)
+        if have is not None and name != have.name and (
+                other is None or other.bl_idname not in CORE_NODES or material.is_ours(other)):
+            return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF named "
+                    f"“{name}” (its haze layer is on “{have.name}”)", [])
         if have is not None and name != have.name and not layer.is_legacy(mat):
             return ("ERROR", f"“{mat.name}” has a haze layer on “{have.name}” already (one layer per "
                     f"material): Remove Haze first to put it on “{name}”", [])
