@@ -543,7 +543,7 @@ def _engines(args):
         from .blender.actions import cli
         params, skipped = cli.hazy_parameters()
         for name, why in skipped.items():  # (as api.engine_parameters refuses them)
-            print(f"hazy_gloss {prog}: skipped “{name}”: {why}", file=sys.stderr)
+            print(f"hazy_gloss {prog}: skipped: {why}", file=sys.stderr)
     else:
         try:
             found = _read_any(args.path)

@@ -363,8 +363,7 @@ def engine_parameters(mat, engines=None, *, measure=True):
         if p is None:
             raise ValueError(f"{getattr(mat, 'name', mat)!r} is not a hazy material")
         if p.get("layered"):
-            raise ValueError(f"{mat.name!r} is a haze layer on its own BSDF: engine parameters "
-                             f"are for materials made with create_material")
+            raise ValueError(_material_read.engine_problem(mat))
     return _engines.engine_parameters(lobes_of(p), engines or _engines.ENGINES, measure=measure)
 
 

@@ -367,7 +367,7 @@ def test_operator_and_cli_write_layered_materials(env, tmp_path, capsys):
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     assert cli.main(["engines", blend]) == 0
     err = capsys.readouterr().err
-    assert "engines: skipped “Car Paint”: a haze layer on its own BSDF" in err, err
+    assert "engines: skipped: “Car Paint” is a haze layer on its own BSDF" in err, err
 
 
 def test_cli_bad_files_get_one_line(env, tmp_path, capsys):

@@ -37,8 +37,7 @@ def hazy_parameters():
             skipped[m.name] = str(exc)
             continue
         if p is not None and p.get("layered"):
-            skipped[m.name] = ("a haze layer on its own BSDF: engine parameters are for materials "
-                               "made with New Hazy Material (api.create_material)")
+            skipped[m.name] = material_read.engine_problem(m)
         elif p is not None:
             out[m.name] = p
     return out, skipped

@@ -150,10 +150,11 @@ def _eevee_output_of_user(tree):
     outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
             and not ownership.is_ours(n)]  # an export fallback's outputs are not the user's
     if any(n.target == "EEVEE" for n in outs):
-        return None, "the material already has an EEVEE output of its own"
+        return None, ("the material already has an EEVEE output of its own: EEVEE renders what "
+                      "that output is given")
     alls = [n for n in outs if n.target == "ALL"]
     if not alls:
-        return None, "the material has no output for all engines"
+        return None, "the material has no output for all engines: EEVEE renders the full layer"
     return next((n for n in alls if n.is_active_output), alls[0]), None
 
 
@@ -187,10 +188,10 @@ def build_eevee_output(mat, *, mode="auto"):
     final = node.outputs["BSDF"]
     if problem is None:
         path, problem = _path(user_out, final)
-    if problem is not None:  # (EEVEE renders what the artist's own EEVEE output has, if any)
-        what = ("EEVEE renders what that output is given" if "EEVEE output of its own" in problem
-                else "EEVEE renders the full layer")
-        return dict(added=False, reason=f"{problem}: {what}", nodes=0)
+        if problem is not None:
+            problem += ": EEVEE renders the full layer"
+    if problem is not None:
+        return dict(added=False, reason=problem, nodes=0)
     made = []
     copies = {}
 

@@ -104,6 +104,13 @@ def shown(value):
     return "a map" if value == K.TEXTURED else f"{value:g}"
 
 
+def engine_problem(mat):
+    """Why engine parameters (api.engine_parameters, the CLI's engines) skip a haze layer: its
+    lobes are the artist's BSDF's, the fits are for the mapping's own lobes."""
+    return (f"“{mat.name}” is a haze layer on its own BSDF: engine parameters are for materials "
+            f"made with New Hazy Material (api.create_material)")
+
+
 def baked_problem(mat):
     """Why a haze edit cannot change a layer whose haze was converted into maps (the layer's
     twin of :func:`maps_problem`)."""
