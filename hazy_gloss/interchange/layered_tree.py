@@ -56,7 +56,7 @@ class BNode:
     role: str = None  #: the add-on's role (hazy_gloss_role), None for the user's nodes
     core: bool = False  #: the layer's core (the user's BSDF)
     mute: bool = False
-    image: dict = None  #: Image Texture: name, path (absolute), colorspace, source, packed
+    image: dict = None  #: Image or Environment Texture: name, path (absolute), colorspace, source, packed
     ramp: dict = None  #: Color Ramp: color_mode, interpolation, elements [(pos, rgba)]
     base: dict = None  #: the core: the user's own value / link of each owned input
 

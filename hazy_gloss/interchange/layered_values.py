@@ -623,7 +623,8 @@ class ValueWriter:
         img = node.image
         if not img or not img.get("path"):
             what = f"“{img['name']}”" if img else "no image"
-            self.note(f"Image Texture “{node.name}” has {what} without a file on disk (packed or "
+            kind = "Environment Texture" if node.type == "ShaderNodeTexEnvironment" else "Image Texture"
+            self.note(f"{kind} “{node.name}” has {what} without a file on disk (packed or "
                       f"generated): written at the socket's value")
             return None
         if texcoord is None and node.props.get("projection", "FLAT") != "FLAT":
