@@ -475,12 +475,16 @@ def _driven(tree):
     return out
 
 
-@pytest.mark.parametrize("change", ["smoothness", "keep_body_colour", "another_blender"])
+@pytest.mark.parametrize("change", ["smoothness", "keep_body_colour", "another_blender",
+                                    "another_blenders_bsdf"])
 def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change):
     """Smoothness, Keep Body Colour or another Blender's group give the layer node a group with
     other sockets: keys, drivers, links (a muted one stays muted) and the values under links
     stay on the inputs of the same name (Blender keeps them by position and identifier: keys
-    on Coat Haziness moved to Reflectivity Cap, a link into Coat Haze Extent to Coat Haziness)."""
+    on Coat Haziness moved to Reflectivity Cap, a link into Coat Haze Extent to Coat Haziness).
+    *another_blenders_bsdf*: a group whose BSDF has an input fewer (5.2's Principled against
+    5.3's): setting the group moves the curves by identifier, and moving them again by the
+    old positions put Coat Weight's keys on Coat Roughness, Haziness's driver on Haze Extent X."""
     mat = car_paint()
     tree = mat.node_tree
     rough = tree.nodes.new("ShaderNodeValue")
@@ -488,6 +492,16 @@ def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change
     tree.links.new(rough.outputs[0], bsdf.inputs["Roughness"]).is_muted = True
     env.api.make_hazy(mat, haziness=0.4, coat_haziness=0.2)
     node = env.layer.layer_node(mat)
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    if change == "another_blenders_bsdf":  # (an input before Coat Weight gone, as in 5.2's)
+        older = node.node_tree.copy()
+        older.interface.remove(next(i for i in older.interface.items_tree
+                                    if getattr(i, "name", "") == "Specular Tint"))
+        _as_made_by(older, lg, "5.1")
+        node.node_tree = older
+        for frame, value in ((1, 0.2), (10, 0.9)):
+            node.inputs["Coat Weight"].default_value = value
+            node.inputs["Coat Weight"].keyframe_insert("default_value", frame=frame)
     assert node.inputs["Roughness"].links[0].is_muted  # (a muted link renders nothing)
     for frame, value in ((1, 0.1), (10, 0.6)):
         node.inputs["Coat Haziness"].default_value = value
@@ -500,14 +514,16 @@ def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change
     before = _driven(tree)
     old = node.node_tree
     if change == "another_blender":
-        _as_made_by(old, importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group"),
-                    "4.2")
+        _as_made_by(old, lg, "4.2")
+    if change.startswith("another_blender"):
         env.api.upgrade_layers()
     else:
         env.api.update_material(mat, **{change: 2.0 if change == "smoothness" else True})
     assert node.node_tree != old
-    assert _driven(tree) == before == {(node.name, "Coat Haziness"): "key",
-                                       (node.name, "Haziness"): "driver"}
+    keyed = {(node.name, "Coat Haziness"): "key", (node.name, "Haziness"): "driver"}
+    if change == "another_blenders_bsdf":
+        keyed[(node.name, "Coat Weight")] = "key"
+    assert _driven(tree) == before == keyed
     assert [l.from_node for l in node.inputs["Coat Haze Extent"].links] == [ext]
     assert node.inputs["Coat Haze Extent"].default_value == pytest.approx(7.0)
     assert not node.inputs["Coat Haziness"].is_linked
@@ -515,7 +531,9 @@ def test_a_group_change_keeps_keys_drivers_and_links_on_their_inputs(env, change
     name = node.name
     env.api.remove_haze(mat)
     assert tree.nodes[name].bl_idname == "ShaderNodeBsdfPrincipled"
-    assert _driven(tree) == {}  # (the haze inputs' curves go with the layer node, none moved)
+    # (the haze inputs' curves go with the layer node, the BSDF's back onto it)
+    assert _driven(tree) == ({(name, "Coat Weight"): "key"} if change == "another_blenders_bsdf"
+                             else {})
 
 
 def test_setting_an_animated_or_linked_haze_value_says_what_decides_it(env):

@@ -594,7 +594,7 @@ def swap_group(node, ng):
     which differ between groups)."""
     tree = node.id_data
     layer_animation.own_animation(tree, [node.name])  # (a shared action stays the other's)
-    names = [s.name for s in node.inputs]
+    curves = layer_animation.input_curves(tree, node)
     vals = {s.name: layer_values.plain(s.default_value) for s in node.inputs
             if hasattr(s, "default_value")}
     ins = [(s.name, l.from_socket, l.is_muted) for s in node.inputs for l in s.links]
@@ -616,7 +616,7 @@ def swap_group(node, ng):
         s = node.outputs.get(name)
         if s is not None:
             tree.links.new(s, dst).is_muted = muted
-    layer_animation.follow_names(tree, node, names)
+    layer_animation.follow_names(node, curves)
 
 
 def upgrade(mat):

@@ -67,19 +67,27 @@ def move_animation(tree, src, dst):
         fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
 
 
-def follow_names(tree, node, old_names):
-    """After ``node``'s sockets changed (another group): its inputs' keyframes and drivers, which
-    Blender keys by position, follow their input's name (``old_names``: the names by position
-    before); one whose input is gone keys it by name, so nothing drives the wrong input."""
-    index = {s.name: i for i, s in enumerate(node.inputs)}
+def input_curves(tree, node):
+    """[(curve, input name, rest of the path)] of the keyframes and drivers on ``node``'s inputs,
+    taken before its sockets change (another group): Blender moves such paths itself when
+    ``node_tree`` is set, by socket identifier, which differ in meaning between groups."""
+    out = []
     for fc in _fcurves(tree):
         m = _INPUT_PATH.match(fc.data_path)
         if m is None or m.group(1).replace('\\"', '"') != node.name:
             continue
         i = int(m.group(2))
-        if i >= len(old_names):
-            continue
-        name = old_names[i]
-        head = f'nodes["{bpy.utils.escape_identifier(node.name)}"].inputs'
+        if i < len(node.inputs):
+            out.append((fc, node.inputs[i].name, m.group(3)))
+    return out
+
+
+def follow_names(node, curves):
+    """After ``node``'s sockets changed: the ``curves`` (input_curves, taken before) drive the
+    input of the same name; one whose input is gone keys it by name, so nothing drives the
+    wrong input."""
+    index = {s.name: i for i, s in enumerate(node.inputs)}
+    head = f'nodes["{bpy.utils.escape_identifier(node.name)}"].inputs'
+    for fc, name, rest in curves:
         fc.data_path = (f"{head}[{index[name]}]" if name in index else
-                        f'{head}["{bpy.utils.escape_identifier(name)}"]') + m.group(3)
+                        f'{head}["{bpy.utils.escape_identifier(name)}"]') + rest
