@@ -860,6 +860,28 @@ def test_remove_haze_keeps_the_layer_nodes_name_label_frame_and_place(env):
     assert tuple(bsdf.location) == pytest.approx((was[0], was[1] - 60.0))
 
 
+def test_a_mirror_core_says_the_same_true_thing_everywhere(env):
+    """Roughness below the mapping's smallest (0.004): Make Hazy, update_material and
+    read_parameters give the same note (only Make Hazy gave one, and it said no halo could
+    show, which renders); the halo is the one of roughness 0.004, the core stays a mirror."""
+    lv = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_values")
+    mat, _ = principled("Mirror", Roughness=0.0)
+    notes = env.api.make_hazy(mat, haziness=0.7)
+    said = [n for n in notes if n.startswith("Roughness 0 is below 0.004")]
+    assert len(said) == 1, notes
+    assert said == [n for n in env.api.read_parameters(mat)["notes"] if n.startswith("Roughness")]
+    assert said == [n for n in env.api.update_material(mat, haziness=0.5)
+                    if n.startswith("Roughness")]
+    node = env.layer.layer_node(mat)
+    wide_at_0 = lv.values(node)[0]["roughness wide"]
+    node.inputs["Roughness"].default_value = 0.004
+    assert not any(n.startswith("Roughness") for n in env.api.read_parameters(mat)["notes"])
+    assert lv.values(node)[0]["roughness wide"] == pytest.approx(wide_at_0, rel=1e-6)
+    assert wide_at_0 > 0.004  # (a halo wider than the clamped core: it renders)
+    node.inputs["Roughness"].default_value = 0.0
+    assert not any(n.startswith("Roughness") for n in env.api.update_material(mat, haziness=0.0))
+
+
 def test_messages_name_keywords_as_typed(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

@@ -231,10 +231,6 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
         notes.append(f"also found {', '.join('“' + n + '”' for n in others)}, not hazed (one "
                      f"layer per material: pick the BSDF with the operator's Node option)")
     lnode = layer.layer_node(mat)
-    r = lnode.inputs.get("Roughness") if lnode is not None else None
-    if r is not None and not r.is_linked and r.default_value < K.MIN_ROUGHNESS:
-        notes.append(f"roughness {r.default_value:.4g} is below {K.MIN_ROUGHNESS}: haze needs a "
-                     f"rough core (a perfect mirror cannot carry a halo)")
     notes += layer.notes(mat)
     msg = (f"Made “{mat.name}” hazy: its {node.bl_label} is now the haze layer node “{lnode.name}” "
            f"(every input, link and keyframe kept; haziness {shown(h['haziness'])})")

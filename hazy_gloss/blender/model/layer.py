@@ -730,6 +730,7 @@ def notes(mat, quick=True):
     if node is None:
         return out
     out += layer_notes.out_of_range_notes(node, animated_inputs(node))
+    out += layer_notes.mirror_core_notes(node)
     closures = layer_wiring.closure_count(mat.node_tree)
     if closures > layer_wiring.MAX_CLOSURES:
         out.append(f"Cycles counts up to {closures} closures in this material, over its "

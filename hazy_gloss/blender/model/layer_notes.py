@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import constants as K
 from ...core import body_colour, thin_film
 from ...core.parameters import RANGES
 from ...schema import HAZE_SOCKETS
@@ -35,6 +36,23 @@ def out_of_range_notes(node, animated=()):
             out.append(f"{name} is {v:g}{source}, outside {rng}: it renders as {shown:g}")
     return out
 
+
+
+def mirror_core_notes(node):
+    """A line for a core (or coat) roughness below the smallest the haze mapping takes, where
+    it has haze: the lobe stays the mirror it is, and the halo is sized as for that smallest
+    roughness (the group clamps the mapping's input, not the narrow lobe's own)."""
+    lo = K.min_roughness(layer_values.group_config(node).get("settings", {}).get("distribution"))
+    out = []
+    for rough, haze in (("Roughness", "Haziness"), ("Coat Roughness", "Coat Haziness")):
+        r, h = node.inputs.get(rough), node.inputs.get(haze)
+        if r is None or h is None or r.is_linked or not (h.is_linked or h.default_value > 0):
+            continue
+        v = float(r.default_value)
+        if v < lo:  # (NaN compares False: the out-of-range and NaN notes are the BSDF's own)
+            out.append(f"{rough} {v:.4g} is below {lo:g}: that lobe stays a mirror and its halo "
+                       f"is sized as for {rough} {lo:g} (the haze mapping's smallest)")
+    return out
 
 def outputs_for_notes(node):
     """The shown values the notes read for this node (evaluating all of them costs ~10 ms: the
