@@ -293,6 +293,28 @@ def legacy_file(env, tmp_path):
     return path
 
 
+def test_a_4_5_layers_keys_and_drivers_stay_on_their_inputs_in_every_blender(env, tmp_path):
+    """A layer node keyed and driven in 4.5, beside a Principled BSDF of its name: 5.2 opens the
+    file moving the layer node's curves at inputs 5-30 up one (its versioning for the
+    Principled's Thin Wall input takes every node of a Principled's name; Coat Weight's keys
+    drove Coat Roughness, Haziness's Haze Extent X).  The add-on puts them back on load; keys
+    on two inputs Blender put on one position are told apart by their values."""
+    path = tmp_path / "animated.blend"
+    path.write_bytes(open(os.path.join(DATA, "animated_layer_4_5.blend"), "rb").read())
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    mat = bpy.data.materials["Animated layer"]
+    tree = mat.node_tree
+    want = sorted((name, index) for _, index, name in json.loads(mat["expected_curves"]))
+    anim = tree.animation_data
+    curves = list(anim.drivers) + [fc for layer in anim.action.layers for strip in layer.strips
+                                   for bag in strip.channelbags for fc in bag.fcurves] \
+        if bpy.app.version >= (4, 4) else []
+    got = sorted((tree.path_resolve(fc.data_path.rsplit(".", 1)[0]).name, fc.array_index)
+                 for fc in curves)
+    assert got == want
+    assert env.api.last_error(mat) is None
+
+
 VIEWS = [((30.0, 0.0), (0.0, 0.0)), ((0.0, 0.0), (0.0, 0.0)), ((45.0, 30.0), (20.0, 200.0))]
 
 

@@ -11,15 +11,16 @@ node on the first edit of its core after the file was opened.  Scripts
 that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
 When the file's node groups change in number (an append), the copies of the layer's groups and
 tables an append of hazy materials brought give way to the file's (group_copies.merge_copies);
-before a save, painted haziness maps are packed again (``save_pre``).
+before a save, painted haziness maps are packed again (``save_pre``); after a load, the layer
+nodes' curves Blender 5.2's versioning moved are put back (``repair_thin_wall_shift``).
 """
 import bpy
 from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import (fallback, group_copies, layer, layer_group, legacy_layer, material_edits,
-                     material_read, stamp)
+from ..model import (fallback, group_copies, layer, layer_animation, layer_group, legacy_layer,
+                     material_edits, material_read, stamp)
 from .messages import plain_message
 
 _fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
@@ -156,6 +157,57 @@ def on_depsgraph_update(scene, depsgraph):
 @persistent
 def on_load(_dummy=None):
     _fingerprints.clear()
+    repair_thin_wall_shift()
+
+
+#: Blender 5.2's versioning of a file older than 5.2.36 (the Principled BSDF gained Thin Wall
+#: at input 5) moves the curves at nodes["X"].inputs[5..30] up by one for every name X of a
+#: Principled BSDF in the file, in every material: a layer node named as a Principled
+#: elsewhere is moved too, though its inputs did not move (5.3 moves the Principled's own).
+#: Measured in 5.2.3; the versions it is repaired in.
+THIN_WALL_SHIFT = {"blender": ((5, 2, 0), (5, 2, 3)), "file_before": (5, 2, 36),
+                   "orig": 5, "offset": 1, "total": 31}
+
+
+def repair_thin_wall_shift():
+    """After a file from before 5.2.36 is opened in 5.2: the layer nodes' input curves Blender
+    moved (THIN_WALL_SHIFT) go back to their inputs.  Returns {material name: [inputs whose
+    curve could not be told apart]} of the materials repaired."""
+    lo, hi = THIN_WALL_SHIFT["blender"]
+    if not lo <= tuple(bpy.app.version) <= hi or \
+            tuple(bpy.data.version) >= THIN_WALL_SHIFT["file_before"]:
+        return {}
+    names = {n.name for t in _shader_trees() for n in t.nodes
+             if n.bl_idname == "ShaderNodeBsdfPrincipled"}
+    frame = bpy.context.scene.frame_current if bpy.context.scene is not None else 1
+    done = {}
+    for mat in bpy.data.materials:
+        if mat.library is not None or K.STAMP not in mat or mat.node_tree is None:
+            continue
+        node = layer.layer_node(mat)
+        if node is None or node.name not in names:
+            continue
+        unsure = layer_animation.unshift_inputs(
+            mat.node_tree, node, THIN_WALL_SHIFT["orig"], THIN_WALL_SHIFT["offset"],
+            THIN_WALL_SHIFT["total"], frame)
+        done[mat.name] = unsure
+        if unsure:
+            messages.last_error[mat.session_uid] = (
+                f"Blender {bpy.app.version_string} moved the keyframes of this file's layer "
+                f"node “{node.name}” when it opened it; the curve now on "
+                f"{', '.join(unsure)} may be the one of the input before it: check it")
+    return done
+
+
+def _shader_trees():
+    """Every shader node tree of the file (materials', worlds', lights' and node groups)."""
+    for coll in (bpy.data.materials, bpy.data.worlds, bpy.data.lights):
+        for idb in coll:
+            if getattr(idb, "node_tree", None) is not None:
+                yield idb.node_tree
+    for ng in bpy.data.node_groups:
+        if ng.bl_idname == "ShaderNodeTree":
+            yield ng
 
 
 @persistent

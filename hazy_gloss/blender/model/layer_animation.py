@@ -91,3 +91,47 @@ def follow_names(node, curves):
     for fc, name, rest in curves:
         fc.data_path = (f"{head}[{index[name]}]" if name in index else
                         f'{head}["{bpy.utils.escape_identifier(name)}"]') + rest
+
+
+def unshift_inputs(tree, node, orig, offset, total, frame):
+    """Undo Blender's versioning shift of ``node``'s input curves (it moved positions
+    orig..total-1 to orig+offset..total-1+offset, as for the BSDF that gained an input, though
+    ``node`` is a group).  A curve at a position both a moved and an unmoved curve can hold
+    (total..total-1+offset) is told by its value at ``frame`` (the socket holds the value the
+    right curve gave when the file was saved).  Returns the names of the inputs whose curve
+    could not be told apart (left where it is)."""
+    head = f'nodes["{bpy.utils.escape_identifier(node.name)}"].inputs'
+    found = {}
+    for fc in _fcurves(tree):
+        m = _INPUT_PATH.match(fc.data_path)
+        if m is not None and m.group(1).replace('\\"', '"') == node.name:
+            found.setdefault(int(m.group(2)), []).append((fc, m.group(3)))
+    unsure = []
+    for i, curves in sorted(found.items()):
+        if not orig + offset <= i < total + offset:
+            continue
+        for fc, rest in curves:
+            moved = True if i < total else _moved(fc, node, i - offset, i, frame)
+            if moved is None:
+                unsure.append(node.inputs[i].name if i < len(node.inputs) else f"input {i}")
+            elif moved:
+                fc.data_path = f"{head}[{i - offset}]{rest}"
+    return unsure
+
+
+def _moved(fc, node, old, now, frame):
+    """Whether the curve ``fc`` belongs to input ``old`` (it gives that input's value at
+    ``frame``, not input ``now``'s), to ``now`` (the other way round), or None: cannot tell
+    (the same value, neither, or a driver's curve)."""
+    if getattr(fc, "driver", None) is not None:
+        return None
+    value = fc.evaluate(frame)
+
+    def holds(k):
+        if k >= len(node.inputs) or not hasattr(node.inputs[k], "default_value"):
+            return False
+        v = node.inputs[k].default_value
+        v = v[fc.array_index] if hasattr(v, "__len__") else v
+        return abs(float(v) - value) <= 1e-6 * max(1.0, abs(value))
+    at_old, at_now = holds(old), holds(now)
+    return None if at_old == at_now else at_old
