@@ -186,11 +186,24 @@ def _error(message, code=K.EXIT_BAD_INPUT):
 
 
 def _convert(args):
+    def interrupted(name, committed):
+        if committed:
+            return (f"{PROG}: interrupted ({name}) after every map was written and verified; "
+                    "the new maps are in place")
+        return (f"{PROG}: interrupted ({name}); the maps of this run were removed and the "
+                "output folder is as it was")
+    return _signalled(_run_convert, args, interrupted)
+
+
+def _signalled(run, args, interrupted):
+    """``run(args, signals)`` under the CLI's SIGINT / SIGTERM handling (:class:`_Signals`): an
+    interruption is the one line ``interrupted(signal name, committed)`` and exit 130 / 143
+    (``committed``: the signal came after the output was in place)."""
     signals = _Signals()
     try:
         try:
-            code = _run_convert(args, signals)
-            if code == K.EXIT_OK and signals.pending:  # arrived after the maps were in place
+            code = run(args, signals)
+            if code == K.EXIT_OK and signals.pending:  # arrived after the output was in place
                 exc = Interrupted(signals.pending[0])
                 exc.committed = True
                 raise exc
@@ -203,13 +216,38 @@ def _convert(args):
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         name = signal.Signals(signum).name
-        if getattr(exc, "committed", False):
-            print(f"{PROG}: interrupted ({name}) after every map was written and verified; the "
-                  "new maps are in place", file=sys.stderr)
-        else:
-            print(f"{PROG}: interrupted ({name}); the maps of this run were removed and the "
-                  "output folder is as it was", file=sys.stderr)
+        print(interrupted(name, getattr(exc, "committed", False)), file=sys.stderr)
         return K.EXIT_INTERRUPTED.get(int(signum), 128 + int(signum))
+
+
+def _same_file(a, b):
+    """Whether the paths ``a`` and ``b`` name one file (links and spellings included)."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.normcase(os.path.abspath(a)) == os.path.normcase(os.path.abspath(b))
+
+
+def _blend_problem(path, inputs=()):
+    """Why ``--blend path`` cannot be saved (one line), or None; checked before anything is
+    read or written, so that a refused --blend leaves nothing behind."""
+    name = os.path.basename(path)
+    if not name.lower().endswith(".blend"):
+        return f"--blend {path!r}: not a .blend file name"
+    if any(_same_file(path, p) for p in inputs):
+        return f"--blend {path!r} is the input file: give another .blend"
+    if os.path.exists(path) and not os.path.isfile(path):
+        return f"--blend {path}: not a file"
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        return f"--blend: no folder {folder!r} to save {name!r} in"
+    if not os.access(folder, os.W_OK | os.X_OK):  # (Blender saves through a temporary there)
+        return f"--blend: the folder {folder!r} is not writable"
+    if os.path.exists(path) and not os.access(path, os.R_OK):
+        return f"--blend {path!r} cannot be read"
+    return None
 
 
 def _run_convert(args, signals):
@@ -225,8 +263,9 @@ def _run_convert(args, signals):
         inputs["alpha"] = inputs.pop("opacity")
     if (args.blend or args.name) and not pbr and not args.batch:
         return _error("--blend and --name are for PBR sets (--base-color, --metallic, ...)")
-    if args.blend and os.path.exists(args.blend) and not os.path.isfile(args.blend):
-        return _error(f"--blend {args.blend}: not a file")
+    problem = _blend_problem(args.blend) if args.blend else None
+    if problem is not None:
+        return _error(problem)
     try:
         from .blender.actions import cli  # imports bpy (the conversion reads and writes images with it)
     except ImportError as exc:
@@ -245,13 +284,19 @@ def _run_convert(args, signals):
             return _run_batch(args, inputs, progress, bar, cli, signals)
         if pbr:
             if args.blend and os.path.isfile(args.blend):
-                cli.open_blend(args.blend)
+                rc = _open_blend("convert", args.blend)
+                if rc is not None:
+                    bar.close()
+                    return rc
             result = api.convert_maps(inputs, args.out, smoothness=args.smoothness,
                                       distribution=args.distribution, prefix=args.prefix,
                                       exr_codec=args.exr_codec, name=args.name,
                                       progress=progress)
             if args.blend:
-                cli.save_blend(args.blend, keep=(result.material,))
+                rc = _save_blend("convert", args.blend, (result.material,))
+                if rc is not None:
+                    bar.close()
+                    return rc
         else:
             result = api.convert_maps(inputs, args.out, kind=args.kind,
                                       smoothness=args.smoothness, distribution=args.distribution,
@@ -334,14 +379,20 @@ def _run_batch(args, inputs, progress, bar, cli, signals):
         bar.close()
         return _error(f"--batch {args.batch}: not a folder")
     if args.blend and os.path.isfile(args.blend):
-        cli.open_blend(args.blend)
+        rc = _open_blend("convert", args.blend)
+        if rc is not None:
+            bar.close()
+            return rc
     try:
         report = drain(convert_library_steps(args.batch, args.out, haze=haze, progress=progress))
     except ConversionError as exc:
         bar.close()
         return _error(exc)
     if args.blend and report.done:
-        cli.save_blend(args.blend, keep=[r.material for _, r in report.done])
+        rc = _save_blend("convert", args.blend, [r.material for _, r in report.done])
+        if rc is not None:
+            bar.close()
+            return rc
     signals.hold()
     bar.close()
     for name, why in report.failed:
@@ -364,7 +415,8 @@ _INTERCHANGE_COMMANDS = (
      "graph of the standard pbr library), or with --usd to USD (UsdShade MaterialX networks, "
      "needs usd-core).  Runs on the bpy module.",
      ((("blend",), dict(help="the .blend file")),
-      (("out",), dict(help="output .mtlx (or .usda/.usdc with --usd)")),
+      (("out",), dict(help="output .mtlx (or .usd/.usda/.usdc with --usd); an existing file "
+                           "is replaced only when it is a document of that kind")),
       (("--flavour",), dict(default="eq1", choices=("eq1", "openpbr_1.2"),
                             help="eq1 (default, exact) or openpbr_1.2 (approximate, unreleased 1.2)")),
       (("--materials",), dict(default=None, help="comma-separated names (default: all hazy)")),
@@ -374,9 +426,10 @@ _INTERCHANGE_COMMANDS = (
      "Read the materials of a .mtlx (or USD, needs usd-core) file: library surfaces (OpenPBR, "
      "standard_surface, gltf_pbr, UsdPreviewSurface) as Principled BSDF materials, OpenPBR 1.2 "
      "haze as a haze layer, two-lobe mixes as hazy materials; prints what each becomes and what "
-     "is not exact.  With --blend, creates them in a new .blend (needs bpy).",
+     "is not exact.  With --blend, creates them in a .blend (needs bpy).",
      ((("path",), {}),
-      (("--blend",), dict(default=None, help="save the imported materials to this .blend")),
+      (("--blend",), dict(default=None, help="save the imported materials to this .blend (added "
+                                             "to it if it exists; kept with a fake user)")),
       (("--json",), dict(action="store_true")),
       (("--quiet",), dict(action="store_true",
                           help="no progress bar (files of 1 MB and more show one on stderr)")))),
@@ -421,41 +474,90 @@ def _open_blend(prog, path):
     return None
 
 
+def _save_blend(prog, path, keep):
+    """Save the open file as ``path`` keeping ``keep``; a one-line error's exit code when
+    Blender cannot."""
+    from .blender.actions import cli
+    try:
+        cli.save_blend(path, keep=keep)
+    except RuntimeError as exc:
+        why = str(exc).replace("Error: ", "").strip().splitlines()
+        return _fail(prog, f"--blend: cannot save {path!r}: {why[0] if why else 'failed'}")
+    return None
+
+
+def _os_message(exc):
+    """One line for an OSError, naming the user's file (not a temporary)."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror}: {exc.filename}" if exc.filename else exc.strerror
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
 def _export(args):
+    out = os.path.abspath(args.out)
+    state = {}
+
+    def interrupted(name, committed):
+        if committed or state.get("before", False) not in (False, _identity(out)):
+            return (f"hazy_gloss export-materialx: interrupted ({name}) after {out} was "
+                    f"written; it is complete")
+        return (f"hazy_gloss export-materialx: interrupted ({name}); nothing was written "
+                f"({out} and its tables are as they were)")
+    return _signalled(lambda a, signals: _run_export(a, signals, out, state), args, interrupted)
+
+
+def _identity(path):
+    from .interchange.materialx import file_identity
+    return file_identity(path)
+
+
+def _run_export(args, signals, out, state):
     prog = "export-materialx"
+    if not os.path.isfile(args.blend):
+        return _fail(prog, f"no file {args.blend!r}")
+    if _same_file(args.blend, out):
+        return _fail(prog, f"the output {args.out!r} is the input .blend: give another file name")
+    from .interchange.materialx import output_problem, validate
+    problem = output_problem(out, "usd" if args.usd else "mtlx")  # (before Blender starts)
+    if problem is not None:
+        return _fail(prog, problem)
+    state["before"] = _identity(out)
     rc = _need_bpy(prog)
     if rc is not None:
         return rc
-    if not os.path.isfile(args.blend):
-        return _fail(prog, f"no file {args.blend!r}")
+    from . import api
+    from .blender.actions import interchange as _  # noqa: F401  (imported before the signals raise)
+    signals.arm()
     rc = _open_blend(prog, args.blend)
     if rc is not None:
         return rc
-    from . import api
     names = [n.strip() for n in args.materials.split(",")] if args.materials else None
     try:
         if args.usd:
-            path, done, skipped = api.export_usd(names, os.path.abspath(args.out))
-            out = {"path": path, "materials": [{"name": n, "prim": p, "notes": no} for n, p, no in done],
+            path, done, skipped = api.export_usd(names, out)
+            res = {"path": path, "materials": [{"name": n, "prim": p, "notes": no} for n, p, no in done],
                    "skipped": skipped}
         else:
-            rep = api.export_materialx(names, os.path.abspath(args.out), flavour=args.flavour)
-            out = {"path": rep.path, "flavour": rep.flavour, "validated": rep.validated,
-                   "validation": rep.validation,
+            rep = api.export_materialx(names, out, flavour=args.flavour, validate=False)
+            res = {"path": rep.path, "flavour": rep.flavour, "validated": None,
+                   "validation": "",
                    "materials": [{"name": n, "materialx": m, "notes": no} for n, m, no in rep.materials],
                    "skipped": rep.skipped}
     except (ValueError, RuntimeError, OSError) as exc:
-        return _fail(prog, str(exc))
+        return _fail(prog, _os_message(exc))
+    signals.hold()  # the output is in place: a signal now is reported after the summary
+    if not args.usd:
+        res["validated"], res["validation"] = validate(res["path"])
     if args.json:
-        print(json.dumps(out, indent=1))
+        print(json.dumps(res, indent=1))
     else:
-        print(f"wrote {len(out['materials'])} materials to {out['path']}")
-        if out.get("validated") is not None:
-            print(f"MaterialX validate(): {'ok' if out['validated'] else out['validation']}")
-        for m in out["materials"]:
+        print(f"wrote {len(res['materials'])} materials to {res['path']}")
+        if res.get("validated") is not None:
+            print(f"MaterialX validate(): {'ok' if res['validated'] else res['validation']}")
+        for m in res["materials"]:
             for note in m["notes"]:
                 print(f"note: {m['name']}: {note}")
-    return 0 if out.get("validated") is not False else 1
+    return 0 if res.get("validated") is not False else 1
 
 
 def _read_any(path, progress=None):
@@ -482,29 +584,33 @@ def _import(args):
     bar = TextProgress("import-materialx", quiet=args.quiet or not big)
     try:
         if args.blend:
+            problem = _blend_problem(args.blend, (args.path,))  # (first: nothing is lost)
+            if problem is not None:
+                return _fail(prog, problem)
             rc = _need_bpy(prog)
             if rc is not None:
                 return rc
-            folder = os.path.dirname(os.path.abspath(args.blend))
-            if not os.path.isdir(folder):  # (checked first: the import would be lost on save)
-                return _fail(prog, f"--blend: no folder {folder!r} to save {os.path.basename(args.blend)!r} in")
             from . import api
             from .blender.actions import cli
-            cli.empty_file()
+            if os.path.isfile(args.blend):  # added to it, as convert --blend does
+                rc = _open_blend(prog, args.blend)
+                if rc is not None:
+                    return rc
+            else:
+                cli.empty_file()
             try:
                 res = api.import_materialx(os.path.abspath(args.path), progress=bar)
             except (ValueError, RuntimeError, OSError) as exc:
-                return _fail(prog, str(exc))
+                return _fail(prog, _os_message(exc))
             found = res.report
-            try:
-                cli.save_blend(args.blend)
-            except RuntimeError as exc:
-                return _fail(prog, f"--blend: cannot save {args.blend!r}: {str(exc).strip()}")
+            rc = _save_blend(prog, args.blend, res)  # (kept: no object uses them)
+            if rc is not None:
+                return rc
         else:
             try:
                 found = _read_any(args.path, progress=bar)
             except (ValueError, RuntimeError, OSError) as exc:
-                return _fail(prog, str(exc))
+                return _fail(prog, _os_message(exc))
     finally:
         bar.close()
     if args.json:
@@ -548,7 +654,7 @@ def _engines(args):
         try:
             found = _read_any(args.path)
         except (ValueError, RuntimeError, OSError) as exc:
-            return _fail(prog, str(exc))
+            return _fail(prog, _os_message(exc))
         for im in found:
             if im.parameters is not None:
                 params[im.name] = normalise(im.parameters)

@@ -318,10 +318,17 @@ def import_materialx(path, *, progress=None):
     A damaged input is read the way MaterialX 1.39.5 reads it and reported; a damaged material
     is reported and the rest of the file read.  ``progress``: callable(fraction, message).
     Returns the list of new materials with ``.report`` (one entry per material found:
-    ``exact``, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``)."""
+    ``exact`` — False whenever a note says something was not reproduced, a missing texture
+    included —, ``source``, ``notes``, ``parameters`` or ``surface``, ``material``).
+    The new materials get a fake user: no object uses them yet, and a material library
+    imported from a file must survive the next save (Blender drops datablocks without users);
+    clear ``use_fake_user`` for the ones you assign or do not want."""
     from .blender.actions import interchange as _ix
     from .blender.actions import make_hazy as _make
-    return _ix.import_materialx(path, progress=progress, apply_haze=_make.apply_imported_haze)
+    res = _ix.import_materialx(path, progress=progress, apply_haze=_make.apply_imported_haze)
+    for mat in res:
+        mat.use_fake_user = True
+    return res
 
 
 def export_usd(materials=None, path="", *, preview=True):

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
@@ -54,12 +55,13 @@ from ..core.parameters import PARAMETERS, normalise
 from . import engines, layered
 from .builder import Builder
 from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, Document, Input, Node,
-                       NodeGraph, format_value, valid_name, write_xml)
+                       NodeGraph, format_value, to_xml_string, valid_name)
 # the reading side (re-exported: materialx.read is the reader's entry point)
 from .materialx_import import LOBES as _LOBES, ImportedMaterial, _f, _t, lobes_of, read, recognise
 
 __all__ = ("FLAVOURS", "Source", "ImportedMaterial", "ExportReport", "lobes_of", "build_document",
-           "write", "read", "recognise", "validate", "materialx_available")
+           "write", "read", "recognise", "validate", "materialx_available", "output_problem",
+           "file_identity", "USD_EXTENSIONS")
 
 FLAVOURS = ("eq1", "openpbr_1.2")
 _ATTR = K.MATERIALX_ATTR
@@ -536,12 +538,89 @@ def validate(path):
     return bool(ok), msg
 
 
-def write(sources, path, flavour="eq1", *, validate_with_package=True, **options):
-    """Write ``sources`` to one MaterialX document at ``path``; returns an ExportReport."""
+#: The USD layers the exporter writes (usd-core cannot create a .usdz package: one is zipped
+#: from layers, e.g. with usdzip).
+USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+_SNIFF = 1 << 16  # bytes read to tell what an existing file is
+
+
+def _is_document(path, kind):
+    """Whether the existing file ``path`` is a ``kind`` document ("mtlx" / "usd"), or empty."""
+    with open(path, "rb") as f:
+        head = f.read(_SNIFF)
+    if not head:
+        return True  # (nothing to lose)
+    if kind == "usd":
+        return head.startswith((b"#usda", b"PXR-USDC", b"PK\x03\x04"))
+    text = head.decode("utf-8", "replace").lstrip("\ufeff \t\r\n")
+    return text.startswith("<") and re.search(r"<materialx[\s>/]", text) is not None
+
+
+def output_problem(path, kind="mtlx"):
+    """Why ``path`` must not be written as a ``kind`` document ("mtlx" or "usd"), in one line
+    naming it, or None.  Refused: a folder, a USD extension usd-core cannot write, a folder
+    that cannot hold it, and an existing file that is not a document of that kind (a .blend,
+    an image: it would be lost).  Writing over an earlier export is allowed."""
     path = os.path.abspath(os.fspath(path))
+    if os.path.isdir(path):
+        return f"{path} is a folder: give the name of the file to write"
+    ext = os.path.splitext(path)[1].lower()
+    if kind == "usd" and ext not in USD_EXTENSIONS:
+        why = "usd-core cannot create a .usdz package" if ext == ".usdz" else \
+            f"not {ext or 'a name without an extension'}"
+        return f"{path}: USD export writes {', '.join(USD_EXTENSIONS)} files ({why})"
+    if os.path.lexists(path):
+        what = "a USD layer" if kind == "usd" else "a MaterialX document"
+        try:
+            ok = os.path.isfile(path) and _is_document(path, kind)
+        except OSError as exc:
+            return f"{path} cannot be read ({exc.strerror or exc}): not overwritten"
+        if not ok:
+            return f"{path} exists and is not {what}: not overwritten (give another file name)"
+    folder = os.path.dirname(path)
+    while not os.path.lexists(folder):  # (missing folders are created: the nearest that exists)
+        folder = os.path.dirname(folder)
+    if not os.path.isdir(folder):
+        return f"{path}: {folder} is a file, not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{path}: the folder {folder} is not writable"
+    return None
+
+
+def file_identity(path):
+    """What tells whether ``path`` was replaced (None: there is no such file)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
+def _write_text(text, path):
+    """``text`` into ``path`` through a temporary beside it that is removed whatever stops the
+    write (an error, Ctrl+C): ``path`` is the old file or the new one, never a part."""
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:  # (named by the user's path, not the temporary's)
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if os.path.lexists(tmp):
+            os.remove(tmp)
+
+
+def write(sources, path, flavour="eq1", *, validate_with_package=True, **options):
+    """Write ``sources`` to one MaterialX document at ``path``; returns an ExportReport.
+    ValueError (one line) when ``path`` must not be written (:func:`output_problem`)."""
+    path = os.path.abspath(os.fspath(path))
+    problem = output_problem(path)
+    if problem is not None:
+        raise ValueError(problem)
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     doc, done = build_document(sources, flavour, directory=os.path.dirname(path), **options)
-    write_xml(doc, path)
+    _write_text(to_xml_string(doc), path)
     rep = ExportReport(path, flavour, done)
     if validate_with_package:
         rep.validated, rep.validation = validate(path)

@@ -519,9 +519,33 @@ def _openpbr_stored(ev, mat, label, shader, graph):
 # --------------------------------------------------------------------------------------------
 
 
+#: The IOR input of each library surface (for the notes), and the largest IOR Blender's
+#: Principled BSDF takes.
+_IOR_INPUT = {"open_pbr_surface": "specular_ior", "standard_surface": "specular_IOR",
+              "gltf_pbr": "ior", "UsdPreviewSurface": "ior"}
+_IOR_MAX = 1000.0
+
+
+def _valid_ior(spec, category):
+    """An IOR below 1 (0 made the Principled's IOR 0.0) is outside the Principled's range: the
+    IOR ≥ 1 with the same F(0) = ((η-1)/(η+1))² instead, capped at Blender's largest, and a
+    note — as the other inputs beyond what Cycles takes are capped with one."""
+    eta = spec.inputs.get("IOR")
+    if not isinstance(eta, (int, float)) or isinstance(eta, bool) or not math.isfinite(eta) \
+            or eta >= 1.0:
+        return
+    new = min(1.0 / eta, _IOR_MAX) if eta > 0.0 else _IOR_MAX
+    spec.inputs["IOR"] = new
+    spec.notes.append(f"{_IOR_INPUT.get(category, 'IOR')} {eta:g} is below 1, outside the "
+                      f"Principled's IOR range: imported as IOR {new:.4g}, the one with the same "
+                      f"F(0) (refraction differs)")
+    spec.lossy += 1
+
+
 def _surface(doc, mat, label, shader, graph):
     notes = _Notes()
     spec = surfaces.principled_of(doc, shader, graph, label, notes)
+    _valid_ior(spec, shader.category)
     if spec.haze_target is not None:
         spec.notes.append("specular_haze: a haze layer (api.make_hazy) reproduces OpenPBR 1.2's "
                           "blend of the core and haze lobes (docs/interchange.md §2)")
@@ -674,6 +698,8 @@ def recognise(doc, *, use_stored=True, progress=None):
     ev = _Eval(doc)
     out = []
     mats = doc.materials()
+    includes = [n.attrs.get("href") or "?" for n in doc.nodes.values()
+                if n.category == "xi:include"]
     step = max(1, len(mats) // 100)
     for i, mat in enumerate(mats):
         label = mat.attrs.get(f"{_ATTR}_name") or mat.name
@@ -683,9 +709,27 @@ def recognise(doc, *, use_stored=True, progress=None):
                 OverflowError, RecursionError) as exc:  # a damaged material: said, the rest read
             what = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
             out.append(ImportedMaterial(label, None, False, "", [f"damaged, not imported: {what}"]))
+        if includes:
+            _blame_includes(out[-1], includes)
         if progress is not None and (i % step == 0 or i == len(mats) - 1):
             progress((i + 1) / len(mats), "recognising materials")
     return out
+
+
+_DANGLING = " is connected to nothing that exists"
+
+
+def _blame_includes(im, includes):
+    """In a document with xi:include, what points at nothing most likely is in the included
+    file (the reader does not follow includes): one note saying so instead of one per input."""
+    missing = [n for n in im.notes if _DANGLING in n or n == "no surface shader"]
+    if not missing:
+        return
+    where = [n.split(_DANGLING)[0] for n in missing if _DANGLING in n]
+    takes = "takes its default" if len(where) == 1 else "take their defaults"
+    what = f"{', '.join(where)} {takes}" if where else "its surface shader is not in this file"
+    im.notes[:] = [n for n in im.notes if n not in missing] + [
+        f"includes are not followed (xi:include of {', '.join(includes)}): {what}"]
 
 
 def _finite(v):

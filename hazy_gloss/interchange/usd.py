@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 
 from .. import constants as K
 from . import engines, layered
 from .document import NODEDEFS, Document, Input, Node, valid_name
-from .materialx import build_document, lobes_of, recognise
+from .materialx import build_document, lobes_of, output_problem, recognise
 
 __all__ = ("available", "write", "read", "read_document", "USD_MISSING")
 
@@ -48,6 +49,17 @@ def available():
     except ImportError:
         return False
     return True
+
+
+def pxr_message(exc):
+    """The first meaningful line of a pxr error (its text is lines of "Error in '<C++ function>'
+    at line N in file <source> : '<message>'"): the message alone."""
+    for line in str(exc).splitlines():
+        line = line.strip()
+        m = re.match(r"Error in '.*?' at line \d+ in file .*? : '(.*)'$", line)
+        if m or line:
+            return (m.group(1) if m else line)[:300]
+    return type(exc).__name__
 
 
 def _sdf_type(t):
@@ -237,10 +249,21 @@ def write(sources, path, *, preview=True, bind=None):
     entry bound to the material (handy for viewers).  Returns (path, [(name, prim path, notes)])."""
     if not available():
         raise RuntimeError(USD_MISSING)
-    from pxr import Usd, UsdGeom, UsdShade
+    from pxr import Tf
     path = os.path.abspath(os.fspath(path))
+    problem = output_problem(path, "usd")
+    if problem is not None:
+        raise ValueError(problem)
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     doc, done = build_document(sources, "eq1", directory=os.path.dirname(path))
+    try:
+        return _write_stage(path, sources, doc, done, preview, bind)
+    except Tf.ErrorException as exc:  # (pxr's text is many lines of C++ locations)
+        raise RuntimeError(f"{path}: USD could not write it ({pxr_message(exc)})") from None
+
+
+def _write_stage(path, sources, doc, done, preview, bind):
+    from pxr import Usd, UsdGeom, UsdShade
     stage = Usd.Stage.CreateNew(path)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     root = UsdGeom.Xform.Define(stage, "/root")
@@ -304,8 +327,16 @@ def read_document(stage_or_path):
     surface network (outputs:mtlx:surface)."""
     if not available():
         raise RuntimeError(USD_MISSING)
-    from pxr import Usd, UsdShade
-    stage = stage_or_path if hasattr(stage_or_path, "Traverse") else Usd.Stage.Open(os.fspath(stage_or_path))
+    from pxr import Tf, Usd, UsdShade
+    stage = stage_or_path
+    if not hasattr(stage, "Traverse"):
+        try:
+            stage = Usd.Stage.Open(os.fspath(stage_or_path))
+        except Tf.ErrorException as exc:  # (pxr's text is many lines of C++ locations)
+            raise ValueError(f"{os.fspath(stage_or_path)}: not a readable USD file "
+                             f"({pxr_message(exc)})") from None
+        if stage is None:
+            raise ValueError(f"{os.fspath(stage_or_path)}: not a readable USD file")
     doc = Document(source=str(stage.GetRootLayer().realPath))
     paths = {}
     for prim in stage.Traverse():

@@ -9,6 +9,7 @@ interchange/layered.py writes node by node (docs/interchange.md §5).  The expor
 Blender's own glTF and USD exporters is blender/model/fallback.py.
 """
 import os
+import shutil
 
 import bpy
 import numpy as np
@@ -336,6 +337,11 @@ def sources(materials=None):
     return srcs, skipped
 
 
+def tables_folder(path):
+    """The folder :func:`write_tables` writes the tables of the document ``path`` into."""
+    return os.path.splitext(path)[0] + "_tables"
+
+
 def write_tables(srcs, path):
     """The lookup tables the layers' groups read (packed images: the Multiscatter, glass and
     thin-film tables) written as float OpenEXR files in "<document>_tables/" beside the
@@ -343,7 +349,7 @@ def write_tables(srcs, path):
     the values Cycles reads (it wrote them as constants: a thin film's specular_color 4.25
     where Cycles renders 3.1-3.25).  A file already there of the same name holds the same
     table (the name ends with the hash of its values) and is kept."""
-    folder = os.path.splitext(path)[0] + "_tables"
+    folder = tables_folder(path)
     files = {}  # table image name -> file
     images = [b.image for src in srcs if src.layer is not None for b in src.layer.nodes.values()
              if getattr(b, "image", None)]
@@ -381,18 +387,68 @@ def _write_table(image, file):
             os.remove(tmp)
 
 
+class _Undone:
+    """What an export adds beside its document (the tables, missing folders) taken away again
+    when the export does not finish (an error, Ctrl+C): nothing partial is left.  Once the
+    document is in place (renamed over the old one) it stays with its tables: complete."""
+
+    def __init__(self, path):
+        self.path, self.before = path, materialx.file_identity(path)
+        self.tables = tables_folder(path)
+        self.had = set(os.listdir(self.tables)) if os.path.isdir(self.tables) else None
+        self.made, folder = [], os.path.dirname(path)
+        while folder and not os.path.lexists(folder):  # (the writers create them)
+            self.made.append(folder)
+            folder = os.path.dirname(folder)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if kind is None or materialx.file_identity(self.path) != self.before:
+            return False
+        if self.had is None:
+            shutil.rmtree(self.tables, ignore_errors=True)
+        elif os.path.isdir(self.tables):
+            for name in set(os.listdir(self.tables)) - self.had:
+                try:
+                    os.remove(os.path.join(self.tables, name))
+                except OSError:
+                    pass
+        for folder in self.made:  # deepest first; only while empty
+            try:
+                os.rmdir(folder)
+            except OSError:
+                break
+        return False
+
+
+def _output(path, kind):
+    """``path`` made absolute; ValueError (one line) when it must not be written."""
+    if not os.fspath(path):
+        raise ValueError("no file path given")
+    path = os.path.abspath(bpy.path.abspath(os.fspath(path)))
+    problem = materialx.output_problem(path, kind)
+    if problem is not None:
+        raise ValueError(problem)
+    return path
+
+
 def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
     """Write hazy materials to one MaterialX document; returns a materialx.ExportReport (its
     ``skipped`` lists materials that are not hazy; ``tables`` the lookup tables written beside
-    it, :func:`write_tables`)."""
+    it, :func:`write_tables`).  ValueError when ``path`` is a folder or an existing file that
+    is not a MaterialX document (materialx.output_problem); a failed or interrupted export
+    leaves nothing behind."""
     srcs, skipped = sources(materials)
     if not srcs:
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
-    if not os.fspath(path):
-        raise ValueError("no file path given")
-    path = bpy.path.abspath(os.fspath(path))
-    tables = write_tables(srcs, path)
-    rep = materialx.write(srcs, path, flavour, validate_with_package=validate)
+    path = _output(path, "mtlx")
+    with _Undone(path):
+        tables = write_tables(srcs, path)
+        rep = materialx.write(srcs, path, flavour, validate_with_package=False)
+    if validate:  # (after the write: the document is complete whatever happens here)
+        rep.validated, rep.validation = materialx.validate(path)
     rep.tables = tables
     rep.skipped = skipped
     return rep
@@ -400,15 +456,18 @@ def export_materialx(materials=None, path="", flavour="eq1", *, validate=True):
 
 def export_usd(materials=None, path="", *, preview=True):
     """Write hazy materials as UsdShade MaterialX networks (+ UsdPreviewSurface of the core)
-    with usd-core; raises RuntimeError when ``pxr`` is not installed."""
+    with usd-core; raises RuntimeError when ``pxr`` is not installed, ValueError when ``path``
+    is not a .usd/.usda/.usdc name or an existing file that is not a USD layer; a failed or
+    interrupted export leaves nothing behind."""
     srcs, skipped = sources(materials)
     if not srcs:
         raise ValueError("no hazy material to export" + (f" ({'; '.join(skipped)})" if skipped else ""))
-    if not os.fspath(path):
-        raise ValueError("no file path given")
-    path = bpy.path.abspath(os.fspath(path))
-    write_tables(srcs, path)
-    path, done = usd.write(srcs, path, preview=preview)
+    path = _output(path, "usd")
+    if not usd.available():
+        raise RuntimeError(usd.USD_MISSING)
+    with _Undone(path):
+        write_tables(srcs, path)
+        path, done = usd.write(srcs, path, preview=preview)
     return path, done, skipped
 
 
@@ -473,6 +532,7 @@ def import_materialx(path, progress=None, apply_haze=None):
     step = max(1, len(found) // 100)
     for i, im in enumerate(found):
         im.material = None
+        said = len(im.notes)
         try:
             if im.maps is not None:
                 mat = _map_material(im)
@@ -484,10 +544,13 @@ def import_materialx(path, progress=None, apply_haze=None):
                 continue
         except (ValueError, OSError) as exc:
             im.notes.append(f"not created: {plain_message(exc)}")
+            im.exact = False
             continue
         finally:
             if progress is not None and (i % step == 0 or i == len(found) - 1):
                 progress(0.5 + 0.5 * (i + 1) / len(found), "making materials")
+        if len(im.notes) > said:  # (a missing texture, an input this Blender lacks: not reproduced)
+            im.exact = False
         mat[IMPORT_STAMP] = {"file": path, "exact": int(bool(im.exact)), "source": im.source,
                              "notes": "\n".join(im.notes)}
         im.material = mat
