@@ -144,7 +144,7 @@ class Layer:
         """Every Expr the closure trees read (for emitting)."""
         out = {}
         for tree in (self.cycles, self.eevee):
-            for node in _walk(tree):
+            for node in walk(tree):
                 if isinstance(node, Slot):
                     out.update({(node.role, k): v for k, v in node.writes.items()})
                 elif not node.add:
@@ -152,18 +152,19 @@ class Layer:
         return out
 
 
-def _walk(tree):
+def walk(tree):
+    """The Mix and Slot nodes of a closure tree, parents first."""
     if isinstance(tree, Slot):
         yield tree
         return
     yield tree
-    yield from _walk(tree.a)
-    yield from _walk(tree.b)
+    yield from walk(tree.a)
+    yield from walk(tree.b)
 
 
 def slots_of(tree):
     """The BSDF slots of a closure tree, in order."""
-    return [n for n in _walk(tree) if isinstance(n, Slot)]
+    return [n for n in walk(tree) if isinstance(n, Slot)]
 
 
 # --------------------------------------------------------------------------------------------

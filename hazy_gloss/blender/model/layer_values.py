@@ -31,16 +31,19 @@ def inputs_of(node):
             linked.append(s.name)
         v = s.default_value
         v = tuple(float(x) for x in v)[:3] if hasattr(v, "__len__") else float(v)
-        vals[layer_graph.input_name(s.name)] = v
-    for param, (sname, *_rest) in HAZE_SOCKETS.items():
-        key = layer_graph.input_name(sname)
-        if key in vals:
-            vals[layer_graph.haze_name(param)] = vals.pop(key)
-    for bkey, (sname, _) in layer_graph.BAKED.items():
-        key = layer_graph.input_name(sname)
-        if key in vals:
-            vals[layer_graph.baked_name(bkey)] = vals.pop(key)
+        vals[graph_input_name(s.name)] = v
     return vals, linked
+
+
+def graph_input_name(socket_name):
+    """The core.layer_graph input a layer node's input (by socket name) feeds."""
+    for param, (name, *_rest) in HAZE_SOCKETS.items():
+        if name == socket_name:
+            return layer_graph.haze_name(param)
+    for key, (name, _) in layer_graph.BAKED.items():
+        if name == socket_name:
+            return layer_graph.baked_name(key)
+    return layer_graph.input_name(socket_name)
 
 
 _LAYERS = {}
@@ -78,6 +81,78 @@ def evaluate(node, outputs, lazy=False):
     out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
+
+
+def cycles_closures(node, per_slot):
+    """How many closures Cycles counts for the layer node's Cycles output (``per_slot``: a BSDF
+    copy's count): a Mix Shader of the group whose factor Cycles folds to a constant <= 0 or
+    >= 1 keeps one branch (MixClosureNode::constant_fold), the others keep both."""
+    lay = graph_of(node)
+    vals, linked = inputs_of(node)
+    known = set(vals) - {graph_input_name(name) for name in linked}
+    mixes = [t for t in layer_graph.walk(lay.cycles) if isinstance(t, layer_graph.Mix) and not t.add]
+    value = _cycles_constants(lay.graph, [t.factor for t in mixes], vals, known)
+
+    def count(t):
+        if isinstance(t, layer_graph.Slot):
+            return per_slot
+        f = None if t.add else value(t.factor)
+        if f is not None and float(np.max(f)) <= 0.0:
+            return count(t.a)
+        if f is not None and float(np.min(f)) >= 1.0:
+            return count(t.b)
+        return count(t.a) + count(t.b)
+    return count(lay.cycles)
+
+
+#: Operand positions whose constant zero makes a Math result a constant in Cycles' folding
+#: (scene/constant_fold.cpp fold_math: 0 x = x 0 = 0, 0 / x = 0), and POWER's x^0 = 1^x = 1.
+_ZERO_MAKES_CONSTANT = {"MULTIPLY": (0, 1), "DIVIDE": (0,), "VMULTIPLY": (0, 1),
+                        "VSCALE": (0, 1), "VDOT_PRODUCT": (0, 1)}
+
+
+def _cycles_constants(graph, outputs, vals, known):
+    """value(expr): what Cycles' constant folding makes of an expression of ``outputs`` (their
+    value), or None where it keeps computing it per shading point: the graph's inputs in
+    ``known`` are constants (the node's unlinked inputs), lookups (TABLE) never fold, a Mix
+    node with a constant factor of 0 or 1 is its kept operand, and 0 x, x 0, 0 / x, x^0, 1^x
+    fold whatever x is.  Values come from one evaluation with 0.5 for the other inputs (those
+    identities hold for any finite x)."""
+    used = graph.used(outputs)
+    fill = {}
+    for e in used:
+        if e.op == "input":
+            v = vals.get(e.name, 0.5) if e.name in known else 0.5
+            fill[e.name] = (np.broadcast_to(np.asarray(v, np.float32), (3,)) if e.vector
+                            else np.float32(v if np.ndim(v) == 0 else v[0]))
+    got = evaluate_graph(used, fill, graph.tables) if used else []
+    at = {e.index: np.asarray(v, np.float64) for e, v in zip(used, got)}
+    const = {}
+
+    def is_const(a):
+        return a.is_const or const.get(a.index, False)
+
+    def v(a):
+        return np.asarray(a.value, np.float64) if a.is_const else at[a.index]
+
+    for e in used:
+        if e.op == "input":
+            const[e.index] = e.name in known
+        elif e.op == "TABLE":
+            const[e.index] = False
+        elif e.op in ("MIX", "VMIX") and is_const(e.args[0]):
+            t = v(e.args[0])
+            keep = e.args[1] if np.all(t == 0.0) else e.args[2] if np.all(t == 1.0) else None
+            const[e.index] = is_const(keep) if keep is not None else all(map(is_const, e.args))
+        elif any(is_const(e.args[k]) and np.all(v(e.args[k]) == 0.0)
+                 for k in _ZERO_MAKES_CONSTANT.get(e.op, ())):
+            const[e.index] = True
+        elif e.op == "POWER" and ((is_const(e.args[1]) and np.all(v(e.args[1]) == 0.0)) or
+                                  (is_const(e.args[0]) and np.all(v(e.args[0]) == 1.0))):
+            const[e.index] = True
+        else:
+            const[e.index] = all(map(is_const, e.args))
+    return lambda e: v(e) if is_const(e) else None
 
 
 def values(node):

@@ -7,7 +7,7 @@ closures Cycles counts for the material (its limit is 64: the layer's BSDF copie
 from __future__ import annotations
 
 from ... import constants as K
-from . import layer_group, stamp
+from . import layer_group, layer_values, stamp
 from ..nodes import ownership
 
 
@@ -115,11 +115,20 @@ _NOT_CLOSURES = {"ShaderNodeMixShader", "ShaderNodeAddShader", "NodeReroute", "S
                  "NodeGroupInput", "ShaderNodeEeveeSpecular", "ShaderNodeShaderToRGB"}
 
 
+def _slot_closures(node):
+    """What Cycles counts for one BSDF copy of the layer node's group."""
+    cfg = layer_values.group_config(node)
+    bsdf = {"PRINCIPLED": "ShaderNodeBsdfPrincipled"}.get(cfg.get("bsdf"), "")
+    multi = cfg.get("settings", {}).get("distribution") == "MULTI_GGX"
+    return CLOSURES.get(bsdf, 2 if multi else 1)
+
+
 def closure_count(tree):
     """How many closures Cycles counts for the material ``tree`` (its limit MAX_CLOSURES): the
     closure nodes the active output's Surface and Volume reach through un-muted shader links,
-    inside groups too (each group node is its own copy).  An upper bound: Cycles also drops a
-    Mix Shader's branch where its factor folds to 0 or 1."""
+    inside groups too (each group node is its own copy); a layer node's copies as Cycles folds
+    its Mix Shaders (layer_values.cycles_closures).  The artist's own Mix Shaders are counted
+    with both branches: an upper bound where their factor folds to 0 or 1."""
     out = ownership.output_node(tree, create=False)
     if out is None:
         return 0
@@ -139,6 +148,9 @@ def closure_count(tree):
             shader_ins = [i for i in n.inputs if i.type == "SHADER" or n.bl_idname == "NodeReroute"]
             if n.mute:  # (a muted Mix Shader passes one input: both counted, an upper bound)
                 queue += [(t, i, path) for i in shader_ins[:2]]
+            elif n.bl_idname == "ShaderNodeGroup" and link.from_socket.name == "BSDF" and \
+                    layer_group.is_layer_group(n.node_tree):
+                total += layer_values.cycles_closures(n, _slot_closures(n))
             elif n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
                 inner = n.node_tree
                 gout = next((g for g in inner.nodes if g.bl_idname == "NodeGroupOutput"
