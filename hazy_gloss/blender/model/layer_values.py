@@ -89,6 +89,11 @@ def cycles_closures(node, per_slot):
     >= 1 keeps one branch (MixClosureNode::constant_fold), the others keep both."""
     lay = graph_of(node)
     vals, linked = inputs_of(node)
+    key = (id(lay), per_slot, tuple(sorted(linked)), tuple(sorted(vals.items())))
+    if key in _CLOSURES:  # (the panel's notes ask on every redraw: 6 ms to work out)
+        return _CLOSURES[key]
+    if len(_CLOSURES) > 256:
+        _CLOSURES.clear()
     known = set(vals) - {graph_input_name(name) for name in linked}
     mixes = [t for t in layer_graph.walk(lay.cycles) if isinstance(t, layer_graph.Mix) and not t.add]
     value = _cycles_constants(lay.graph, [t.factor for t in mixes], vals, known)
@@ -102,7 +107,11 @@ def cycles_closures(node, per_slot):
         if f is not None and float(np.min(f)) >= 1.0:
             return count(t.b)
         return count(t.a) + count(t.b)
-    return count(lay.cycles)
+    _CLOSURES[key] = count(lay.cycles)
+    return _CLOSURES[key]
+
+
+_CLOSURES = {}
 
 
 #: Operand positions whose constant zero makes a Math result a constant in Cycles' folding
