@@ -9,6 +9,7 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 from types import SimpleNamespace
 
 import bpy
@@ -191,6 +192,22 @@ def test_add_haziness_map(env):
     mat.node_tree.links.remove(sock.links[0])
     b = render(env, mat, (25.0, 0.0), (0.0, 0.0))["combined"]
     assert rel_diff(a, b) <= 1e-6
+
+
+def test_a_map_on_an_animated_haziness_says_it_replaces_the_keys(env):
+    """Add Haziness Map on a keyed Haziness: the map holds this frame's value and the keys no
+    longer do anything: it says so (it said nothing, QA)."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.3)
+    sock = env.layer.layer_node(mat).inputs["Haziness"]
+    for frame, value in ((1, 0.2), (10, 0.9)):
+        sock.default_value = value
+        sock.keyframe_insert("default_value", frame=frame)
+    with pytest.warns(UserWarning, match="Haziness was animated: the map .* decides it now"):
+        env.api.add_haziness_map(mat, size=16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (Coat Haziness is not animated: nothing to say)
+        env.api.add_haziness_map(mat, size=16, param="coat_haziness")
 
 
 def test_texture_paint_lists_the_haziness_map_only(env):

@@ -622,6 +622,10 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     tree.links.new(tex.outputs["Color"], sock)
     tree.nodes.active = tex
     notes = []
+    if sock.name in layer.animated_inputs(node):  # (linked, the input no longer reads them)
+        notes.append(f"{sock.name} was animated: the map (filled with this frame's value, "
+                     f"{value:.4g}) decides it now, and its keys or driver do nothing while "
+                     f"the map is linked")
     objs = [o for o in bpy.data.objects if o.type == "MESH" and
             any(s.material == mat for s in o.material_slots)]
     if objs and not any(o.data.uv_layers for o in objs):
