@@ -9,6 +9,7 @@ import math
 import os
 
 from .document import NODEDEFS, OPENPBR_12_INPUTS
+from .layered_tree import LUMA
 from .surface_nodes import C, _map, _t3, Link, Val
 
 #: MaterialX colour spaces -> Blender's (the default OCIO config's names).
@@ -37,6 +38,11 @@ _OPENPBR_12 = dict(NODEDEFS["ND_open_pbr_surface_surfaceshader"][2], **OPENPBR_1
                    emission_weight=("float", 0.0))
 _N3 = {"color3": 3, "vector3": 3, "color4": 3, "vector4": 3, "vector2": 3}
 _ORDER = {"x": 0, "y": 1, "z": 2, "w": 3, "r": 0, "g": 1, "b": 2, "a": 3}
+#: MaterialX unary nodes the export writes for Math nodes -> (Blender operation, its fold);
+#: Vector Math has no Exponent, so exp is read for floats only.
+_UNARY = {"floor": ("FLOOR", lambda x: float(math.floor(x))), "sin": ("SINE", math.sin),
+          "cos": ("COSINE", math.cos), "sign": ("SIGN", lambda x: float((x > 0) - (x < 0))),
+          "exp": ("EXPONENT", lambda x: math.exp(x) if x < 709.0 else math.inf)}
 
 
 def surface_defaults(node):
@@ -241,6 +247,18 @@ class Upstream:
         if c == "mix":
             return b.mix(self._in(n, g, "mix", "float", 0.0), self._in(n, g, "bg", typ, z),
                          self._in(n, g, "fg", typ, z))
+        if c == "dotproduct":  # the export's colour / vector -> float (luma or mean weights)
+            return self.dot(self._in(n, g, "in1", "vector3", (0, 0, 0)),
+                            self._in(n, g, "in2", "vector3", (0, 0, 0)))
+        if c in ("ifgreater", "ifgreatereq"):  # the export's Math comparisons and Ramp segments
+            v1 = self._in(n, g, "value1", "float", 1.0)
+            v2 = self._in(n, g, "value2", "float", 0.0)
+            t = b.greater(v1, v2) if c == "ifgreater" else b.sub(C(1.0), b.greater(v2, v1))
+            return b.mix(t, self._in(n, g, "in2", typ, z), self._in(n, g, "in1", typ, z))
+        if c in _UNARY and (n3 == 1 or c != "exp"):
+            a = self._in(n, g, "in", typ, z)
+            op, f = _UNARY[c]
+            return Val(a.n, _map(f, a.const)) if a.is_const else b._node_op(op, a)
         if c in ("dot", "convert"):
             src = self._in(n, g, "in", typ, None)
             if src is None:
@@ -269,6 +287,32 @@ class Upstream:
             return self._in(n, g, "in", typ, z)
         self.notes.lose(f"{where} is fed by a {c} node, which is not imported: the default is used")
         return None
+
+    def dot(self, a, w):
+        """a · w (MaterialX dotproduct): a Vector Math Dot Product, or one scaled channel when w
+        is a constant axis (the export's colour -> float is a dot with constant weights)."""
+        b = self.b
+        if a.is_const and w.is_const:
+            return C(sum(x * y for x, y in zip(_t3(a.const), _t3(w.const))))
+        if a.is_const:
+            a, w = w, a
+        if w.is_const:
+            wt = _t3(w.const)
+            used = [i for i, x in enumerate(wt) if x != 0.0]
+            if not used:
+                return C(0.0)
+            if a.n == 1:  # a float reads as (f, f, f)
+                return b.affine(a, sum(wt), 0.0)
+            if len(used) == 1:
+                return b.affine(b.channel(a, used[0]), wt[used[0]], 0.0)
+            if all(abs(x - y) <= 1e-7 for x, y in zip(wt, LUMA)):
+                # the export's colour -> float: back to Blender's own conversion (its luma
+                # coefficients, which round LUMA differently), so a round trip is exact
+                key = b.node("ShaderNodeRGBToBW", {}, {"Color": b.socket(a, 3)})
+                return Val(1, link=Link(key, "Val"))
+        key = b.node("ShaderNodeVectorMath", {"operation": "DOT_PRODUCT"},
+                     {"Vector": b.socket(a, 3), "Vector_001": b.socket(w, 3)})
+        return Val(1, link=Link(key, "Value"))
 
     # -- textures ------------------------------------------------------------------------------
     def _file(self, n, g):

@@ -335,3 +335,97 @@ def test_damaged_texture_files_get_a_placeholder_and_a_note(api, tmp_path):
         else:  # made by images.new(name, 1, 1), not images.load: 1 where load leaves 1024
             assert img.source == "FILE" and img.generated_width == 1, name
             assert Path(bpy.path.abspath(img.filepath)) == tmp_path / file
+
+
+def _aov_render(hg, tree, sockets, resolution):
+    """Cycles' values of ``sockets`` ({name: socket}) per pixel, as Value AOVs: a colour socket
+    reads as Blender's Color -> Float conversion (the luminance), as it does into Metallic."""
+    vl = bpy.context.view_layer
+    for name, sock in sockets.items():
+        if name not in vl.aovs:
+            a = vl.aovs.add()
+            a.name, a.type = name, "VALUE"
+        out = tree.nodes.new("ShaderNodeOutputAOV")
+        out.aov_name = name
+        tree.links.new(sock, out.inputs["Value"])
+    sc = bpy.context.scene
+    st = sc.render.image_settings
+    if hasattr(st, "media_type"):
+        st.media_type = "MULTI_LAYER_IMAGE"
+    st.file_format, st.color_depth = "OPEN_EXR_MULTILAYER", "32"
+    sc.render.filepath = os.path.join(bpy.app.tempdir or "/tmp", f"hg_aov_{os.getpid()}.exr")
+    bpy.ops.render.render(write_still=True)
+    ch = importlib.import_module(hg.__name__ + ".exr").read_exr(sc.render.filepath)
+    os.remove(sc.render.filepath)
+    return {n: np.asarray(next(v for k, v in ch.items() if k.split(".")[-2] == n), np.float64)
+            for n in sockets}
+
+
+def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
+    """A metallic map (a colour EXR, Non-Color) and a colour texture into Roughness (sRGB PNG)
+    of a hazy Principled: the export converts each colour to a float by a dotproduct with the
+    luminance weights; imported into a fresh file, the same images feed Metallic and Roughness
+    and Cycles reads the same values there as from the original links, per pixel; the metallic
+    values are Rec.709 luminances of the texels (Blender's Color -> Float link)."""
+    rng = np.random.default_rng(7)
+    size = 32
+    texels = rng.uniform(0.0, 1.0, (size, size, 3))
+    texels[..., 1] *= 0.3  # channels unlike each other: the luminance is not their mean
+    metal = bpy.data.images.new("hg_metal", size, size, float_buffer=True, is_data=True)
+    metal.pixels.foreach_set(np.concatenate([texels, np.ones((size, size, 1))], -1)
+                             .astype(np.float32).ravel())
+    metal.filepath_raw, metal.file_format = str(tmp_path / "metal.exr"), "OPEN_EXR"
+    metal.save()
+    rough = bpy.data.images.new("hg_rough", size, size)
+    rough.pixels.foreach_set(np.concatenate([texels[::-1, :, ::-1], np.ones((size, size, 1))], -1)
+                             .astype(np.float32).ravel())
+    rough.filepath_raw, rough.file_format = str(tmp_path / "rough.png"), "PNG"
+    rough.save()
+    mat = _bsdf_material("mapped", "ShaderNodeBsdfPrincipled", **{"Base Color": (0.9, 0.6, 0.3)})
+    tree = mat.node_tree
+    b = _principled(mat)
+    texs = {}
+    for key, img in (("Metallic", metal), ("Roughness", rough)):
+        t = texs[key] = tree.nodes.new("ShaderNodeTexImage")
+        t.image, t.interpolation = img, "Closest"
+        tree.links.new(t.outputs["Color"], b.inputs[key])
+    api.make_hazy(mat, haziness=0.5, haze_extent=4.0)
+    rep = api.export_materialx(mat, str(tmp_path / "mapped.mtlx"))
+    assert rep.validated is True, rep.validation
+    res = 16  # the camera sees uv 0.375-0.625: texels 12-19, 2 x 2 pixels each
+    scenes.setup_render("CYCLES", samples=1, resolution=(res, res), bounces=0)
+    scenes.flat_plane_scene(mat)
+    want = _aov_render(hg, tree, {k: t.outputs["Color"] for k, t in texs.items()}, (res, res))
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    out = api.import_materialx(str(tmp_path / "mapped.mtlx"))
+    (im,) = out.report
+    assert im.exact, im.notes
+    new = _principled(im.material)
+    files = {"Metallic": "metal.exr", "Roughness": "rough.png"}
+    for key, file in files.items():
+        sock = new.inputs[key]
+        assert sock.is_linked, (key, im.notes)
+        stack, found = [sock.links[0].from_node], []
+        while stack:  # the Image Texture upstream of the input
+            n = stack.pop()
+            if n.bl_idname == "ShaderNodeTexImage":
+                found.append(Path(bpy.path.abspath(n.image.filepath)).resolve())
+            stack += [lk.from_node for s in n.inputs for lk in s.links]
+        assert found == [(tmp_path / file).resolve()], (key, found)
+    scenes.setup_render("CYCLES", samples=1, resolution=(res, res), bounces=0)
+    scenes.flat_plane_scene(im.material)
+    probes = {k: new.inputs[k].links[0].from_socket for k in files}
+    for i in range(3):  # Blender's luminance weights (from its colour config: ≈ Rec.709's)
+        rgb = im.material.node_tree.nodes.new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = tuple(float(i == j) for j in range(3)) + (1.0,)
+        probes[f"w{i}"] = rgb.outputs[0]
+    got = _aov_render(hg, im.material.node_tree, probes, (res, res))
+    for key in files:
+        assert np.max(np.abs(got[key] - want[key])) <= 1e-6, (key, got[key], want[key])
+    weights = np.array([got[f"w{i}"][0, 0] for i in range(3)])
+    assert np.allclose(weights, (0.2126, 0.7152, 0.0722), atol=1e-4), weights
+    idx = 12 + np.arange(res) // 2  # (row 0: the bottom, in the image and in the render)
+    luma = texels[idx][:, idx] @ weights
+    assert np.max(np.abs(got["Metallic"] - luma)) <= 1e-6
+    assert np.max(np.abs(got["Metallic"] - texels[idx][:, idx].mean(-1))) > 1e-2  # (not the mean)
