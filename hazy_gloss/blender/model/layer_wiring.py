@@ -7,6 +7,7 @@ closures Cycles counts for the material (its limit is 64: the layer's BSDF copie
 from __future__ import annotations
 
 from ... import constants as K
+from ...core import layer_graph
 from . import layer_group, layer_values, stamp
 from ..nodes import ownership
 
@@ -123,12 +124,13 @@ def _slot_closures(node):
     return CLOSURES.get(bsdf, 2 if multi else 1)
 
 
-def closure_count(tree):
+def closure_count(tree, fold=True):
     """How many closures Cycles counts for the material ``tree`` (its limit MAX_CLOSURES): the
     closure nodes the active output's Surface and Volume reach through un-muted shader links,
     inside groups too (each group node is its own copy); a layer node's copies as Cycles folds
     its Mix Shaders (layer_values.cycles_closures).  The artist's own Mix Shaders are counted
-    with both branches: an upper bound where their factor folds to 0 or 1."""
+    with both branches: an upper bound where their factor folds to 0 or 1.  ``fold`` False:
+    every copy of the layer counted (a quicker upper bound)."""
     out = ownership.output_node(tree, create=False)
     if out is None:
         return 0
@@ -150,7 +152,9 @@ def closure_count(tree):
                 queue += [(t, i, path) for i in shader_ins[:2]]
             elif n.bl_idname == "ShaderNodeGroup" and link.from_socket.name == "BSDF" and \
                     layer_group.is_layer_group(n.node_tree):
-                total += layer_values.cycles_closures(n, _slot_closures(n))
+                per_slot = _slot_closures(n)
+                total += layer_values.cycles_closures(n, per_slot) if fold else \
+                    per_slot * len(layer_graph.slots_of(layer_values.graph_of(n).cycles))
             elif n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
                 inner = n.node_tree
                 gout = next((g for g in inner.nodes if g.bl_idname == "NodeGroupOutput"
