@@ -145,6 +145,8 @@ NODEDEFS = {
     "ND_sign_float": ("sign", "float", {"in": ("float", 0.0)}),
     "ND_modulo_float": ("modulo", "float", {"in1": ("float", 0.0), "in2": ("float", 1.0)}),
     "ND_sign_vector3": ("sign", "vector3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
+    "ND_exp_float": ("exp", "float", {"in": ("float", 0.0)}),
+    "ND_exp_vector3": ("exp", "vector3", {"in": ("vector3", (0.0, 0.0, 0.0))}),
     "ND_ifgreater_float": ("ifgreater", "float", {"value1": ("float", 1.0),
         "value2": ("float", 0.0), "in1": ("float", 0.0), "in2": ("float", 0.0)}),
     "ND_ifgreater_vector3": ("ifgreater", "vector3", {"value1": ("float", 1.0),

@@ -520,7 +520,7 @@ class ValueWriter:
             i = min(int(f), len(table) - 1)
             t = f - i
             j = min(i + 1, len(table) - 1)
-            return _c("vector3", (1.0 - t) * table[i] + t * table[j])
+            return _c("color3", (1.0 - t) * table[i] + t * table[j])
         # the table's linear interpolant as a sum of clamped ramps over its kinks
         xs = np.arange(len(table)) / (len(table) - 1.0)
         slopes = np.diff(table, axis=0) / np.diff(xs)[:, None]
@@ -547,7 +547,7 @@ class ValueWriter:
         v = line(len(keep) - 1)
         for k in range(len(keep) - 2, -1, -1):
             v = self.select("ifgreater", _c("float", knots[k + 1]), x, line(k), v, f"{node.name}_seg{k}")
-        return v
+        return self.convert(v, "color3")  # (a colour: into a float socket by luma, not the mean)
 
     def layer_weight(self, node, oid):
         """Facing = 1 - |N·I| at Blend 0.5 (Cycles svm_node_layer_weight); Fresnel not exported."""

@@ -113,9 +113,9 @@ class Evaluator:
                      "divide": np.divide, "min": np.minimum, "max": np.maximum,
                      "power": np.power}[c]
                 return np.asarray(f(a, b), dtype=F32) * np.ones_like(a)
-            if c in ("sqrt", "absval", "floor", "sign", "sin", "cos", "acos"):
+            if c in ("sqrt", "absval", "floor", "sign", "sin", "cos", "acos", "exp"):
                 f = {"sqrt": np.sqrt, "absval": np.abs, "floor": np.floor, "sign": np.sign,
-                     "sin": np.sin, "cos": np.cos, "acos": np.arccos}[c]
+                     "sin": np.sin, "cos": np.cos, "acos": np.arccos, "exp": np.exp}[c]
                 return np.asarray(f(i("in")), dtype=F32)
             if c == "atan2":
                 return np.asarray(np.arctan2(i("iny"), i("inx")), dtype=F32)

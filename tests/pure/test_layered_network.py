@@ -189,7 +189,8 @@ def _math(name, op, a, b=0.0, c=0.0, clamp=False):
 
 OPS = [("ADD", 2), ("SUBTRACT", 2), ("MULTIPLY", 2), ("DIVIDE", 2), ("MULTIPLY_ADD", 3),
        ("POWER", 2), ("SQRT", 1), ("MINIMUM", 2), ("MAXIMUM", 2), ("LESS_THAN", 2),
-       ("GREATER_THAN", 2), ("COMPARE", 3), ("ABSOLUTE", 1)]
+       ("GREATER_THAN", 2), ("COMPARE", 3), ("ABSOLUTE", 1), ("FLOOR", 1), ("SINE", 1),
+       ("COSINE", 1), ("EXPONENT", 1)]  # (EXPONENT: the export raised KeyError)
 
 
 @pytest.mark.parametrize("op,arity", OPS)
@@ -255,6 +256,30 @@ def test_color_ramp_is_the_table_cycles_looks_up(tmp_path, lib):
     g = Graph()
     cycles = evaluate(g.ramp(g.input("x"), stops), {"x": x}).astype(np.float64)
     assert np.max(np.abs(got - cycles)) < 2e-5
+
+
+def test_a_color_ramp_into_a_float_input_reads_its_luma(tmp_path, lib):
+    """A Color Ramp's colour into Roughness: Blender converts a colour into a float socket by
+    its Rec.709 luma; the export read the ramp as a vector (mean of the channels, 0.14 off on
+    this ramp, QA)."""
+    stops = ((0.0, (0.9, 0.1, 0.0)), (1.0, (0.0, 0.2, 1.0)))
+    ramp = L.BNode("Ramp", "ShaderNodeValToRGB", [S("Fac", "VALUE", 0.0, ("tex", "Alpha"))],
+                   [S("Color", "RGBA"), S("Alpha", "VALUE")],
+                   ramp=dict(color_mode="RGB", interpolation="LINEAR",
+                             elements=[(p, c + (1.0,)) for p, c in stops]))
+    alpha = S("Alpha", "VALUE")
+    alpha.linked = True
+    img = L.BNode("tex", "ShaderNodeTexImage", [S("Vector", "VECTOR")], [S("Color", "RGBA"), alpha], {},
+                  image=dict(name="t", path=str(tmp_path / "t.exr"), colorspace="Non-Color", is_data=True))
+    core = principled("Core", core=True, links={"Roughness": ("Ramp", "Color")})
+    doc, _ = write(tree(img, ramp, core, out=output("Core")), tmp_path, lib)
+    x = np.linspace(0.0, 1.0, 11).astype(np.float32)
+    ev = mx_eval.Evaluator(doc.getNodeGraph("NG_Hand"), x.size, {"tex": np.repeat(x[:, None], 4, 1)})
+    got = ev.value("Core", "specular_roughness").astype(np.float64)
+    colour = (1.0 - x[:, None]) * np.array(stops[0][1]) + x[:, None] * np.array(stops[1][1])
+    want = colour @ np.array([0.2126, 0.7152, 0.0722])  # (ITU-R BT.709 luma, linear)
+    assert np.max(np.abs(got - want)) < 1e-5
+    assert np.max(np.abs(colour.mean(axis=1) - want)) > 0.1  # (the mean would be far off)
 
 
 def test_unsupported_nodes_are_said_and_written_at_the_socket_value(tmp_path, lib):
