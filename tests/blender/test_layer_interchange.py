@@ -969,3 +969,30 @@ def test_fallback_follows_edits_of_the_core(env, tmp_path):
     fb = env.ix.material.ours(mat.node_tree)["Export fallback"]
     assert fb.inputs["Roughness"].default_value == pytest.approx(0.45)
     assert fb.inputs["IOR"].default_value == pytest.approx(1.7)
+
+
+def test_a_painted_haziness_map_is_written_beside_the_document(env, tmp_path):
+    """A packed haziness map (Add Haziness Map, painted) has no file on disk: the export
+    writes its values beside the document and reads them from there (it wrote the socket's
+    value instead, with a note, and the re-import rendered 23 % off, QA)."""
+    mat = _hazy(env, TL.car_paint(), haziness=0.4)
+    img = env.api.add_haziness_map(mat, size=16)
+    px = np.zeros((16, 16, 4), np.float32)
+    px[..., 0] = np.linspace(0.0, 0.8, 16)[None, :]  # (a painted gradient, left to right)
+    px[..., 3] = 1.0
+    img.pixels.foreach_set(px.ravel())
+    rep = env.api.export_materialx(mat, str(tmp_path / "painted.mtlx"))
+    assert rep.validated, rep.validation
+    notes = [n for _, _, ns in rep.materials for n in ns]
+    assert not any("without a file on disk" in n for n in notes), notes
+    written = [p for p in rep.tables if os.path.basename(p).startswith(img.name.replace(" ", "_"))]
+    assert len(written) == 1 and written[0].startswith(str(tmp_path / "painted_tables"))
+    red = env.exr.read_exr(written[0])["R"]  # (rows bottom first, as Image.pixels)
+    assert red.shape == (16, 16) and np.allclose(red, px[..., 0], atol=1e-7)
+    doc = _load(rep.path)
+    files = {i.getValueString() for n in doc.traverseTree() if n.isA(mx.Node) and n.getCategory() == "image"
+             for i in n.getInputs() if i.getName() == "file"}
+    assert os.path.relpath(written[0], tmp_path) in files
+    img.pixels.foreach_set(np.ones(16 * 16 * 4, np.float32))  # (painted again: a new file)
+    again = env.api.export_materialx(mat, str(tmp_path / "painted.mtlx"))
+    assert set(again.tables) - set(rep.tables)

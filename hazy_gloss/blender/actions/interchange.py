@@ -8,7 +8,9 @@ menu) are blender/ui/interchange_ops.py.  A material with a haze layer (Make Haz
 interchange/layered.py writes node by node (docs/interchange.md §5).  The export fallback for
 Blender's own glTF and USD exporters is blender/model/fallback.py.
 """
+import hashlib
 import os
+import re
 import shutil
 
 import bpy
@@ -343,38 +345,56 @@ def tables_folder(path):
 
 
 def write_tables(srcs, path):
-    """The lookup tables the layers' groups read (packed images: the Multiscatter, glass and
-    thin-film tables) written as float OpenEXR files in "<document>_tables/" beside the
-    document ``path``, and the snapshots' images pointed at them, so that the document reads
-    the values Cycles reads (it wrote them as constants: a thin film's specular_color 4.25
-    where Cycles renders 3.1-3.25).  A file already there of the same name holds the same
-    table (the name ends with the hash of its values) and is kept."""
+    """The images the documents read that have no file on disk, written as float OpenEXR files
+    in "<document>_tables/" beside the document ``path``, and the snapshots' images pointed at
+    them: the layers' lookup tables (Multiscatter, glass, thin film: written as constants, the
+    document gave a thin film's specular_color 4.25 where Cycles renders 3.1-3.25) and packed
+    or generated images of the artist's (a painted haziness map: written at the socket's value,
+    it rendered 23 % off).  A file's name ends with the hash of its values, so one already
+    there of that name holds them and is kept.  Returns the files."""
     folder = tables_folder(path)
-    files = {}  # table image name -> file
+    files = {}  # image name -> file
     images = [b.image for src in srcs if src.layer is not None for b in src.layer.nodes.values()
-             if getattr(b, "image", None)]
+              if getattr(b, "image", None)]
     for img in images:
         name = str(img.get("name", ""))
-        if img.get("path") or not name.startswith(K.TABLE_IMAGE_PREFIX):
+        if img.get("path"):
             continue
-        table = bpy.data.images.get((name, None))
-        if name not in files and table is not None:
-            file = os.path.join(folder, name[len(K.TABLE_IMAGE_PREFIX):].replace(" ", "_") + ".exr")
+        image = bpy.data.images.get((name, None)) or bpy.data.images.get(name)
+        if name not in files and image is not None and image.size[0] * image.size[1] > 0:
+            if name.startswith(K.TABLE_IMAGE_PREFIX):  # (its name ends with its hash)
+                stem, px = name[len(K.TABLE_IMAGE_PREFIX):].replace(" ", "_"), None
+            else:
+                px = _pixels(image)
+                digest = hashlib.sha1(px.tobytes()).hexdigest()[:12]
+                stem = _SAFE_NAME.sub("_", name).strip("_") + "_" + digest
+            file = os.path.join(folder, stem + ".exr")
             if not os.path.isfile(file):
                 os.makedirs(folder, exist_ok=True)
-                _write_table(table, file)
+                _write_table(image, file, px)
             files[name] = file
         if name in files:
             img["path"] = files[name]
     return sorted(set(files.values()))
 
 
-def _write_table(image, file):
-    """The packed float ``image`` as the float OpenEXR ``file``: written to a temporary, read
-    back (convert_outputs._MapFile) and only then moved into place."""
+#: What a file name keeps of an image's name.
+_SAFE_NAME = re.compile(r"[^\w.-]+")
+
+
+def _pixels(image):
     w, h = image.size
     px = np.empty(w * h * 4, np.float32)
     image.pixels.foreach_get(px)
+    return px
+
+
+def _write_table(image, file, px=None):
+    """``image`` (its pixels ``px`` when read already) as the float OpenEXR ``file``, in the
+    values it holds (its colour space stays the snapshot's): written to a temporary, read back
+    (convert_outputs._MapFile) and only then moved into place."""
+    w, h = image.size
+    px = _pixels(image) if px is None else px
     tmp = file + ".partial"
     out = _MapFile("OPEN_EXR", "ZIP", tmp, file, w, h)
     try:
