@@ -921,6 +921,20 @@ def test_a_mirror_core_says_the_same_true_thing_everywhere(env):
     assert not any(n.startswith("Roughness") for n in env.api.update_material(mat, haziness=0.0))
 
 
+@pytest.mark.skipif(bpy.app.version >= (5, 0, 0), reason="5.x always renders a material's nodes")
+def test_a_material_not_using_its_nodes_is_refused_in_one_line(env):
+    """4.5: Use Nodes off, or no node tree: Make Hazy said "Made hazy" and nothing rendered it;
+    Import Two-Lobe Mix raised AttributeError (QA)."""
+    bare = bpy.data.materials.new("Bare")
+    off, _ = principled("Off")
+    off.use_nodes = False
+    for mat, why in ((bare, "has no node tree"), (off, "does not use its nodes")):
+        for op in (bpy.ops.hazy_gloss.make_hazy, bpy.ops.hazy_gloss.import_two_lobe_mix):
+            with pytest.raises(RuntimeError, match=why):
+                op(material=mat.name)
+    assert not off.use_nodes and not env.api.is_hazy(off)
+
+
 def test_messages_name_keywords_as_typed(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

@@ -178,6 +178,16 @@ def replace_with_hazy(mat, replaced, p, links):
     return m, dropped
 
 
+def tree_problem(mat):
+    """Why ``mat``'s nodes are not what renders it (one line), or None."""
+    if getattr(mat, "node_tree", None) is None:
+        return f"“{mat.name}” has no node tree (turn Use Nodes on in its Surface panel)"
+    if bpy.app.version < (5, 0, 0) and not mat.use_nodes:  # (5.x always renders the nodes)
+        return (f"“{mat.name}” does not use its nodes (Use Nodes is off in its Surface panel): "
+                f"turn Use Nodes on first")
+    return None
+
+
 def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
     """Put a haze layer on ``mat``'s own BSDF (blender.model.layer): ``node`` (a node or its name),
     else the Principled, Metallic or Glossy BSDF closest to the Material Output (also inside
@@ -192,8 +202,8 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, node=None, **haze):
         return "ERROR", problem, []
     if maps_problem(mat):
         return "ERROR", maps_problem(mat), []
-    if not hasattr(mat, "node_tree") or mat.node_tree is None:
-        return "ERROR", f"“{mat.name}” has no node tree", []
+    if tree_problem(mat):
+        return "ERROR", tree_problem(mat), []
     if node is not None and not isinstance(node, (str, bpy.types.Node)):
         return "ERROR", f"node must be a node or its name, got {node!r:.40}", []
     given = dict(haze)
@@ -388,6 +398,8 @@ def import_two_lobe_mix(mat):
         return "NOOP", f"“{mat.name}” is already hazy: nothing to do", []
     if maps_problem(mat):
         return "ERROR", maps_problem(mat), []
+    if tree_problem(mat):
+        return "ERROR", tree_problem(mat), []
     found = find_two_lobe_mix(mat.node_tree)
     if found is None:
         return ("ERROR", f"“{mat.name}” has no Mix Shader of two Glossy or two Metallic BSDFs "
