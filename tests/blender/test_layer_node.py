@@ -831,8 +831,15 @@ def test_a_grouped_or_ungrouped_layer_node_still_renders_and_remove_haze_says_so
         getattr(bpy.ops.node, how)()
     assert env.layer.layer_node(mat) is None
     where = "inside the group node" if how == "group_make" else "was ungrouped: its parts (“.HG "
-    with pytest.raises(ValueError, match=re.escape(where)):
+    with pytest.raises(ValueError, match=re.escape(where)) as got:
         env.api.read_parameters(mat)
+    # every entry point gives that way out only ("Remove Haze, then Make Hazy again" would be
+    # refused; Make Hazy said the node "is gone", Add Haziness Map "Make Hazy first"; QA)
+    assert "Make Hazy again" not in str(got.value)
+    for call in (lambda: env.api.make_hazy(mat, haziness=0.5), lambda: env.api.add_haziness_map(mat)):
+        with pytest.raises(ValueError, match=re.escape(where)) as got:
+            call()
+        assert "Make Hazy" not in str(got.value) and "is gone" not in str(got.value)
     before = len(tree.nodes)
     with pytest.raises(ValueError, match="Cannot remove the haze of “Grouped”: its layer node " +
                        re.escape("“Principled BSDF” is inside" if how == "group_make" else "was ungrouped")):

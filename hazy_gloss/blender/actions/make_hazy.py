@@ -18,7 +18,8 @@ from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
-from ..model import fallback, layer, layer_group, layer_wiring, material, material_read
+from ..model import (fallback, layer, layer_group, layer_wiring, material, material_read,
+                     stamp)
 from . import messages, sync
 from ..model.material_read import baked_problem, edit_problem, maps_problem, shown
 from ..nodes import ownership
@@ -604,7 +605,9 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
         sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
     node = layer.layer_node(mat)
     if node is None:
-        return "ERROR", f"“{mat.name}” has no haze layer node: Make Hazy first", []
+        problems = (layer.layer_state(mat) or {}).get("problems")
+        return "ERROR", (stamp.layer_problem(mat, problems) if problems else
+                         f"“{mat.name}” has no haze layer node: Make Hazy first"), []
     if param not in ("haziness", "coat_haziness"):
         return "ERROR", f"param must be haziness or coat_haziness, got {param!r}", []
     sock = node.inputs.get(HAZE_SOCKETS[param][0])

@@ -192,8 +192,8 @@ def _problems(mat, raw):
         return []
     node = tagged_layer_node(mat)
     if node is None:
-        return [(layer_wiring.misplaced_layer(mat.node_tree) or "its layer node is gone (deleted)",
-                 None)]
+        where = layer_wiring.misplaced_layer(mat.node_tree)
+        return [(where, stamp.OWN_WAY_OUT) if where else ("its layer node is gone (deleted)", None)]
     other = f"“{node.node_tree.name}”" if node.node_tree is not None else "no group"
     return [(f"its layer node “{node.name}” uses {other}, not a Hazy Gloss layer group", None)]
 
@@ -540,8 +540,8 @@ def apply(mat, haze, *, core=None):
     node = layer_node(mat)
     if node is None:
         if core is None:
-            raise ValueError(f"the layer node of {mat.name!r} is gone: Remove Haze and Make Hazy "
-                             f"again")
+            raise ValueError(stamp.layer_problem(mat, (layer_state(mat) or {}).get("problems") or
+                                                 [("its layer node is gone", None)]))
         wrap(mat, core, haze, keep_body_colour=bool(haze.get("keep_body_colour")))
         return {}
     want = wanted_group(node, haze)
@@ -653,8 +653,7 @@ def read(mat):
         return legacy_layer.read(mat)
     state = layer_state(mat) or {}
     if state.get("problems"):
-        raise stamp.StampError(f"The haze layer of “{mat.name}” is damaged: "
-                               f"{state['problems'][0][0]}; Remove Haze, then Make Hazy again")
+        raise stamp.StampError(stamp.layer_problem(mat, state["problems"]))
     node = layer_node(mat)
     kind = (stamp.group(node.node_tree, K.GROUP_STAMP) or {}).get("bsdf", "PRINCIPLED")
     h = haze_of(mat)

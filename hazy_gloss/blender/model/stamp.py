@@ -427,14 +427,21 @@ def lost_layer(mat, d):
     return {"problems": [(f"the stamp is {what}, but the tree holds a haze layer", None)]}
 
 
+#: A layer problem's "keys" when its line says its own way out (a grouped or ungrouped layer
+#: node: Remove Haze would refuse it, so "Remove Haze, then Make Hazy again" is no way out).
+OWN_WAY_OUT = "its own way out"
+
+
 def layer_problem(mat, problems, fixing=()):
     """One line for the first problem not fixed by setting the haze parameters ``fixing``
     (None when every problem is), naming the material and the way out."""
     left = [(why, keys) for why, keys in problems
-            if keys is None or not set(keys) <= set(fixing)]
+            if keys is None or keys == OWN_WAY_OUT or not set(keys) <= set(fixing)]
     if not left:
         return None
     why, keys = left[0]
+    if keys == OWN_WAY_OUT:
+        return f"The haze layer of {_name(mat)}: {why}"
     more = f" (and {len(left) - 1} more)" if len(left) > 1 else ""
     way = ("apply a preset (or set it in the panel) to reset it, or Remove Haze" if keys else
            "Remove Haze (it restores what it can), then Make Hazy again")
@@ -443,5 +450,5 @@ def layer_problem(mat, problems, fixing=()):
 
 def damaged_haze(problems):
     """The haze parameters whose stored values do not read."""
-    return sorted({k for _, keys in problems if keys for k in keys})
+    return sorted({k for _, keys in problems if keys and keys != OWN_WAY_OUT for k in keys})
 
