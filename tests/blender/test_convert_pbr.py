@@ -269,3 +269,22 @@ def test_converting_again_replaces_the_baked_layer(env, tmp_path):
     res2 = env.api.convert_maps(paths, str(tmp_path / "b"), material=mat)
     assert res2.material == mat and env.layer.is_baked(mat)
     assert "beta_metal" in res2  # the material's own metallic texture still splits it
+
+
+def test_converting_into_maps_another_material_reads_is_refused(env, tmp_path):
+    """A second conversion into the folder of a first (a batch run again with other haze):
+    the first material would render the new maps while its panel shows its own haze (QA: its
+    β went from 0.435 to 0.792, the panel still said 0.2). Refused before anything is written,
+    naming the material; the same material converted again, or another folder, is fine."""
+    first = env.api.convert_maps(pbr_set(tmp_path), str(tmp_path / "out"), name="First")
+    files = sorted(os.listdir(tmp_path / "out"))
+    before = {f: (tmp_path / "out" / f).read_bytes() for f in files}
+    paths = dict(pbr_set(tmp_path, haze=False), haziness=0.9)
+    with pytest.raises(env.convert.ConversionError, match="the material “First” of this file "
+                       "reads the maps there .*: convert into another folder, or delete it first"):
+        env.api.convert_maps(paths, str(tmp_path / "out"), name="Second")
+    assert {f: (tmp_path / "out" / f).read_bytes() for f in os.listdir(tmp_path / "out")} == before
+    assert "Second" not in bpy.data.materials
+    again = env.api.convert_maps(paths, str(tmp_path / "out"), material=first.material)
+    assert again.material == first.material
+    env.api.convert_maps(paths, str(tmp_path / "other"), name="Second")

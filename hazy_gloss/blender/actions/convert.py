@@ -21,6 +21,7 @@ The operator is ``convert_ops.HAZY_GLOSS_OT_convert_maps``.
 from __future__ import annotations
 
 import os
+import re
 import stat
 import time
 
@@ -80,9 +81,41 @@ def _check_options(material, interpolation, progress, tile_texels, resample):
         raise ConversionError(f"resample must be True or False, got {_short(resample)}")
 
 
-def _check_targets(targets, input_files, txn):
-    """Before anything is written: no target is an input (same path or same file), a folder, or
-    a name too long for the file system."""
+def _materials_reading(targets, material=None):
+    """Names of the file's materials (but ``material``) whose image nodes read one of the files
+    ``targets`` (a UDIM image: any of its tiles)."""
+    want = {os.path.normcase(os.path.realpath(t)) for t in targets}
+    images = set()
+    for img in bpy.data.images:
+        path = img.filepath_raw or img.filepath
+        if img.library is not None or not path or img.source not in ("FILE", "TILED"):
+            continue
+        path = os.path.normcase(os.path.realpath(bpy.path.abspath(path)))
+        tiles = re.sub(r"<udim>", "\0", path, flags=re.IGNORECASE)  # (a UDIM image's token)
+        pattern = re.escape(tiles).replace("\0", r"\d{4}") if "\0" in tiles else None
+        if path in want or (pattern and any(re.fullmatch(pattern, t) for t in want)):
+            images.add(img.name)
+    if not images:
+        return []
+    return sorted(m.name for m in bpy.data.materials
+                  if m != material and m.node_tree is not None and any(
+                      n.bl_idname == "ShaderNodeTexImage" and n.image is not None
+                      and n.image.name in images for n in m.node_tree.nodes))
+
+
+def _check_targets(targets, input_files, txn, material=None):
+    """Before anything is written: no target is an input (same path or same file), a folder, a
+    name too long for the file system, or a map a material of this file reads (other than
+    ``material``, the one this conversion updates: the other would render the new maps while
+    its panel shows the haze it was converted with)."""
+    readers = _materials_reading(targets, material)
+    if readers:
+        shown = ", ".join(f"“{m}”" for m in readers[:3]) + (", ..." if len(readers) > 3 else "")
+        one = len(readers) == 1
+        raise ConversionError(f"{os.path.dirname(targets[0])}: the material{'' if one else 's'} "
+                              f"{shown} of this file read{'s' if one else ''} the maps there "
+                              f"(converted before), which this run would replace: convert into "
+                              f"another folder, or delete {'it' if one else 'them'} first")
     input_ids = set()
     for p in input_files:
         try:
@@ -155,7 +188,8 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
     jobs = tiles or [None]
     txn = _Transaction(out_dir, started)
     _check_targets([_final_path(out_dir, prefix, s.name, tile, ext)
-                    for tile in jobs for s in conversion.output_specs(kind, True)], input_files, txn)
+                    for tile in jobs for s in conversion.output_specs(kind, True)], input_files, txn,
+                   material)
     alpha_given = specs["roughness"].transform == "sqrt"
     run = _Run(specs, sources, shared_extent, resample, report, prog, alpha_given, tile_texels)
     try:

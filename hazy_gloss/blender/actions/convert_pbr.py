@@ -342,7 +342,8 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         paths = {k: _final_path(out_dir, prefix, _slug(k), UDIM_TOKEN if tiles else None, ext_)
                  for k in first.values()}
         _check_targets([p for per in finals.values() for p in per.values()],
-                       {os.path.realpath(p) for s in sources.values() for p in s.files()}, txn)
+                       {os.path.realpath(p) for s in sources.values() for p in s.files()}, txn,
+                       material)
         codec = _check_codec("OPEN_EXR", exr_codec)
         txn.make_folder()
         bad = {}
