@@ -411,7 +411,8 @@ class HAZY_GLOSS_OT_convert_pbr_set(_ModalConversion, bpy.types.Operator):
             def finish_batch(context, report):
                 for name, why in report.failed:
                     self.report({"WARNING"}, f"{name}: {why}")
-                self.report({"INFO"}, f"Hazy maps: {report.summary()}"
+                level = {"INFO"} if report.done else {"ERROR"}  # no set converted: it failed
+                self.report(level, f"Hazy maps: {report.summary()}"
                             + (f": {', '.join(r.material.name for _, r in report.done)}"
                                if report.done else ""))
                 return {"FINISHED"} if report.done else {"CANCELLED"}

@@ -11,7 +11,7 @@ from ... import constants as K
 from ...interchange import usd
 from ..model import fallback, material_read
 from ..actions import interchange, make_hazy
-from .context import target_material
+from .context import no_material, target_material
 from ..actions.messages import plain_message
 from .reports import report
 
@@ -178,6 +178,9 @@ class HAZY_GLOSS_OT_add_export_fallback(bpy.types.Operator):
                     and K.RECOMPOSITE_STAMP not in m]
         else:
             mats = [target_material(context, self.material)]
+            if mats[0] is None:
+                report(self, "ERROR", no_material(context, self.material))
+                return {"CANCELLED"}
         done, notes = [], []
         for mat in mats:
             try:

@@ -22,8 +22,8 @@ from ... import constants as K
 from ...core.lobes import check_kind
 from ...utils import looks, presets
 from .. import compat
-from . import interchange_ops
-from .context import PRESET_SUBDIR
+from . import interchange_ops, properties
+from .context import PRESET_SUBDIR, foreign_tree, no_material
 from ..model.groups import all_configurations, ensure_group, group_label
 
 KINDS = K.KINDS
@@ -222,6 +222,10 @@ class HAZY_GLOSS_OT_add_node(bpy.types.Operator):
             if space.tree_type != "ShaderNodeTree" or space.edit_tree is None:
                 cls.poll_message_set("Needs a shader node tree")
                 return False
+            problem = foreign_tree(context)  # a World's or a Light's tree: no BSDF goes there
+            if problem is not None:
+                cls.poll_message_set(problem)
+                return False
         return True
 
     @classmethod
@@ -238,9 +242,16 @@ class HAZY_GLOSS_OT_add_node(bpy.types.Operator):
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        if self.material and bpy.data.materials.get(self.material) is None:
+            problem = no_material(context, self.material)
+        else:
+            problem = None if self.material else foreign_tree(context)
+        if problem is not None:
+            self.report({"ERROR"}, problem)
+            return {"CANCELLED"}
         tree = _target_tree(context, self.material)
         if tree is None:
-            self.report({"ERROR"}, f"No shader tree to add to (material {self.material!r})"
+            self.report({"ERROR"}, f"“{self.material}” has no shader nodes to add to"
                         if self.material else "No shader tree to add to")
             return {"CANCELLED"}
         if not _editable(tree):
@@ -338,6 +349,8 @@ def draw_add_menu(self, context):
     space = getattr(context, "space_data", None)
     if space is not None and getattr(space, "tree_type", "ShaderNodeTree") != "ShaderNodeTree":
         return
+    if foreign_tree(context) is not None:  # the groups are BSDFs: materials only
+        return
     layout = self.layout
     layout.separator()
     layout.menu(HAZY_GLOSS_MT_add.bl_idname, icon="NODE_MATERIAL")
@@ -361,6 +374,20 @@ class HAZY_GLOSS_MT_presets(bpy.types.Menu):
         layout.separator()
         layout.label(text="Your presets")
         bpy.types.Menu.draw_preset(self, context)
+
+
+def _preset_begins(_context, _filepath):
+    properties.begin_preset()
+
+
+def _preset_ends(_context, filepath):
+    properties.end_preset(bpy.path.display_name(os.path.basename(filepath), title_case=False))
+
+
+# script.execute_preset calls these around a user preset: a haze layer takes only its haze from
+# a whole material's preset (and the reverse), saying once what it left out
+HAZY_GLOSS_MT_presets.reset_cb = staticmethod(_preset_begins)
+HAZY_GLOSS_MT_presets.post_cb = staticmethod(_preset_ends)
 
 
 class HAZY_GLOSS_MT_material(bpy.types.Menu):

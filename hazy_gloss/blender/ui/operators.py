@@ -23,11 +23,12 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ... import constants as K
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS
+from ...schema import SCHEMA_BY_NAME
 from ...utils import looks, presets
 from ..actions import edit
 from ..model import layer, material, material_read, stamp
 from . import plots, preferences, properties
-from .context import PRESET_SUBDIR, target_material
+from .context import PRESET_SUBDIR, no_material, target_material
 from ..actions.looks import create_look
 from ..actions.messages import plain_message
 from .reports import finish, report
@@ -63,8 +64,7 @@ class HAZY_GLOSS_OT_make_hazy(bpy.types.Operator):
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            report(self, "ERROR", f"No material named “{self.material}”" if self.material
-                   else "No active material")
+            report(self, "ERROR", no_material(context, self.material))
             return {"CANCELLED"}
         node = self.node or None
         active = getattr(context, "active_node", None)
@@ -84,7 +84,7 @@ class _OneMaterialOperator:
     def execute(self, context):
         mat = target_material(context, self.material)
         if mat is None:
-            report(self, "ERROR", "No material")
+            report(self, "ERROR", no_material(context, self.material))
             return {"CANCELLED"}
         return finish(self, *self.apply(mat))
 
@@ -115,7 +115,7 @@ class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
         if self.material:
             mat = bpy.data.materials.get(self.material)
             if mat is None:
-                report(self, "ERROR", f"No material named “{self.material}”")
+                report(self, "ERROR", no_material(context, self.material))
                 return {"CANCELLED"}
             return finish(self, *upgrade_layers([mat]))
         return finish(self, *upgrade_layers(list(bpy.data.materials), every=True))
@@ -153,6 +153,7 @@ class HAZY_GLOSS_OT_import_two_lobe_mix(_OneMaterialOperator, bpy.types.Operator
 
 _KIND_ITEMS = [("DEFAULT", "Default", "The kind set in the add-on preferences")] + [
     (k, n, d) for k, n, d, _ in properties.KIND_ITEMS]
+_KIND_LABELS = {k: n for k, n, _d, _i in properties.KIND_ITEMS}
 _PRESET_ITEMS = [("NONE", "None", "Default parameters")] + looks.enum_items() + presets.enum_items()
 
 
@@ -192,7 +193,11 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
             if self.assign and obj is not None and obj.library is None:
                 assign_to_object(obj, mat)
             report(self, "INFO", f"New “{mat.name}”: a Principled BSDF with a haze layer")
+            if self.kind != "DEFAULT":  # a look's BSDF is metal or not by its Metallic
+                report(self, "WARNING", f"Kind does not apply to the look “{mat.name}”: set "
+                       f"Metallic on its Principled BSDF instead")
             return {"FINISHED"}
+        note = ""
         if self.preset != "NONE":
             p = presets.parameters(self.preset)
         else:
@@ -200,6 +205,8 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
             if p["kind"] == "DIELECTRIC":
                 p.update(core_reflectivity=0.04, haziness=0.1, base_color=(0.05, 0.05, 0.05))
         if self.kind != "DEFAULT":
+            if self.preset != "NONE" and p["kind"] != self.kind:
+                note = self._other_kind(p, self.kind)
             p["kind"] = self.kind
             if p.get("distribution", "GGX") not in K.NODE_DISTRIBUTIONS[self.kind]:
                 p["distribution"] = "GGX"
@@ -217,7 +224,26 @@ class HAZY_GLOSS_OT_new_material(bpy.types.Operator):
             if assign_to_object(obj, mat):
                 where = f" on “{obj.name}”"
         report(self, "INFO", f"New hazy {p['kind'].lower()} “{mat.name}”{where}")
+        if note:
+            report(self, "WARNING", note)
         return {"FINISHED"}
+
+    def _other_kind(self, p, kind):
+        """Drop the preset's values that ``kind`` has no control for (the API refuses them);
+        the note names those that were not the default, as the panel labels them."""
+        dropped = []
+        for key in list(p):
+            spec = SCHEMA_BY_NAME.get(key)
+            if spec is not None and kind not in spec.kinds:
+                value = p.pop(key)
+                if value != spec.default:
+                    dropped.append(spec.label)
+        if not dropped:
+            return ""
+        name = presets.PRESETS[self.preset].name
+        return (f"“{name}” is a {_KIND_LABELS[p['kind']]} preset: its "
+                f"{' and '.join(dropped)} {'is' if len(dropped) == 1 else 'are'} left out (a "
+                f"{_KIND_LABELS[kind]} has none)")
 
 
 class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
@@ -240,7 +266,10 @@ class HAZY_GLOSS_OT_apply_preset(bpy.types.Operator):
 
     def execute(self, context):
         mat = target_material(context, self.material)
-        if mat is None or not material_read.is_hazy(mat):
+        if mat is None:
+            report(self, "ERROR", no_material(context, self.material))
+            return {"CANCELLED"}
+        if not material_read.is_hazy(mat):
             report(self, "ERROR", "The material is not hazy: use Make Hazy or New Hazy "
                    "Material first")
             return {"CANCELLED"}
@@ -313,7 +342,10 @@ class HAZY_GLOSS_OT_plot_to_image(bpy.types.Operator):
 
     def execute(self, context):
         mat = target_material(context, self.material)
-        if mat is None or not material_read.is_hazy(mat):
+        if mat is None:
+            report(self, "ERROR", no_material(context, self.material))
+            return {"CANCELLED"}
+        if not material_read.is_hazy(mat):
             report(self, "ERROR", "The material is not hazy")
             return {"CANCELLED"}
         if layer.is_layered(mat):

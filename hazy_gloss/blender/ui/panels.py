@@ -329,10 +329,28 @@ _SHOWN = (("beta dielectric", "Dielectric: β"), ("IOR dielectric", "Dielectric:
           ("coat roughness wide", "Coat: wide roughness"))
 
 
+_DIELECTRIC_KEYS = ("beta dielectric", "IOR dielectric", "reflectivity dielectric")
+_METAL_KEYS = ("beta metal", "reflectivity metal")
+
+
+def _parts(node):
+    """(dielectric, metal): which parts of a Principled BSDF render, by the layer node's
+    Metallic (linked or between 0 and 1: both; a BSDF without Metallic: both keys absent)."""
+    sock = node.inputs.get("Metallic") if node is not None else None
+    if sock is None or sock.is_linked:
+        return True, True
+    metallic = float(sock.default_value)
+    return metallic < 1.0, metallic > 0.0
+
+
 def layer_rows(info):
-    """[(label, value text)] of what the layer's group computes for the layer node's values."""
+    """[(label, value text)] of what the layer's group computes for the layer node's values
+    (a part the BSDF's Metallic leaves out is not shown)."""
     vals = info["values"]
-    return [(label, _fmt(vals[key], 4)) for key, label in _SHOWN if key in vals]
+    dielectric, metal = _parts(info.get("node"))
+    hidden = (() if dielectric else _DIELECTRIC_KEYS) + (() if metal else _METAL_KEYS)
+    return [(label, _fmt(vals[key], 4)) for key, label in _SHOWN
+            if key in vals and key not in hidden]
 
 
 def layer_warnings(info, context=None, prefs=None):
@@ -340,7 +358,7 @@ def layer_warnings(info, context=None, prefs=None):
     prefs = prefs or preferences.get(context)
     out = list(info["notes"])
     vals = info["values"]
-    r = vals.get("reflectivity dielectric")
+    r = vals.get("reflectivity dielectric") if _parts(info.get("node"))[0] else None
     if r is not None and max(np.atleast_1d(r)) > prefs.dielectric_warning and \
             vals.get("beta dielectric", 0.0) > 0.0:
         out.append(f"The dielectric reflects r = {max(np.atleast_1d(r)):.3f}: it will look like "
@@ -383,7 +401,9 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         box = col.box()
         box.alert = True
         box.label(text=plain_message(exc), icon="ERROR")
-        col.operator("hazy_gloss.remove_haze", icon="X")
+        problems = (layer.layer_state(mat) or {}).get("problems") or []
+        if not any(keys == stamp.OWN_WAY_OUT for _, keys in problems):  # (else it refuses)
+            col.operator("hazy_gloss.remove_haze", icon="X")
         return
     node = info["node"]
     if problem is not None:

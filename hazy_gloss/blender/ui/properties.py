@@ -33,7 +33,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
 from ... import constants as K
-from ...core.parameters import HAZE_DEFAULTS, normalise
+from ...core.parameters import HAZE_DEFAULTS, HAZE_PARAMETERS, PARAMETERS, normalise
 from ... import schema
 from ...schema import LAYER, MATERIAL, SCHEMA, SCHEMA_BY_NAME, preset_properties, property_specs
 from ..actions import edit, eevee_output, messages
@@ -97,11 +97,54 @@ def stamp_problem(mat):
 _strict = []
 
 
+#: While a user preset runs (begin_preset .. end_preset): material session_uid -> (material,
+#: the parameters it set that the material does not have).
+_preset_run = None
+
+
+def begin_preset():
+    """A user preset starts: until :func:`end_preset` each material takes only what it has (a
+    haze layer its haze, a whole hazy material no layer's own values) and the rest is noted, not
+    refused once per value."""
+    global _preset_run
+    _preset_run = {}
+
+
+def end_preset(name):
+    """A user preset ended: each material that did not take all of it says so in one line (the
+    panel's message, api.last_error, the console)."""
+    global _preset_run
+    run, _preset_run = _preset_run or {}, None
+    for mat, left_out in run.values():
+        if not left_out:
+            continue
+        labels = [SCHEMA_BY_NAME[k].label for k in left_out]
+        listed = ", ".join(labels[:-1]) + " and " + labels[-1] if len(labels) > 1 else labels[0]
+        why = ("a haze layer takes a preset's haze only; the rest is its BSDF node's"
+               if parameters(mat).get("layered") else "they are a haze layer's own")
+        msg = f"Preset “{name}”: {listed} {'were' if len(labels) > 1 else 'was'} not applied ({why})"
+        messages.set_error(mat, msg)
+        print(f"Hazy Gloss: {mat.name}: {msg}")
+
+
+def _preset_filter(mat, changes):
+    """The changes a running user preset may make to ``mat`` (the others are noted)."""
+    if _preset_run is None:
+        return changes
+    _, left_out = _preset_run.setdefault(mat.session_uid, (mat, []))
+    has = HAZE_PARAMETERS if parameters(mat).get("layered") else PARAMETERS
+    left_out.extend(k for k in changes if k not in has and k not in left_out)
+    return {k: v for k, v in changes.items() if k in has}
+
+
 def _set(pg, **changes):
     """A setter: Blender prints and swallows exceptions raised in a property setter, so a
     refused change is recorded (``messages.last_error``, api.last_error) and collected by an open
     :func:`strict_settings` block, which raises when it closes."""
     mat = pg.id_data
+    changes = _preset_filter(mat, changes)
+    if not changes:
+        return
     _, msg = edit.edit_material(mat, **changes)
     if msg:
         print(f"Hazy Gloss: {mat.name}: {msg}")
@@ -365,6 +408,11 @@ def _annotations():
         description="An EEVEE-only output with each layer's two lobes folded into one that keeps "
                     "its peak: noise-free EEVEE previews of a coated layer; Cycles renders the "
                     "full layer either way")
+    cap = SCHEMA_BY_NAME["reflectivity_cap"]  # a layer socket, not drawn here: for presets
+    out[cap.name] = FloatProperty(
+        name=cap.label, min=cap.limits[0], max=cap.limits[1], subtype="FACTOR",
+        description=cap.sockets[0][1], get=_get_float(cap.name), set=_set_float(cap.name),
+        options=_NO_ANIM)
     out["edge_tint_memory"] = FloatVectorProperty(size=3, default=(0.0, 0.0, 0.0),
                                                   options={"HIDDEN"})
     for name, ctor, kw in specs:
@@ -383,7 +431,7 @@ HazyGlossMaterialSettings = type("HazyGlossMaterialSettings", (bpy.types.Propert
 #: Names of the parameter properties, in the order a preset sets them.
 PRESET_PROPERTIES = preset_properties(MATERIAL)
 #: The properties a preset sets on a haze layer (Make Hazy): the core is the user's node.
-LAYER_PRESET_PROPERTIES = preset_properties(LAYER)
+LAYER_PRESET_PROPERTIES = preset_properties(LAYER) + ("reflectivity_cap",)
 
 classes = (HazyGlossMaterialSettings,)
 
