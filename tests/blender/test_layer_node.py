@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import scenes
+import test_ui
 from measurements import record
 from test_layer import car_paint, metallic_map, principled, rel_diff, render
 
@@ -840,6 +841,10 @@ def test_a_grouped_or_ungrouped_layer_node_still_renders_and_remove_haze_says_so
         with pytest.raises(ValueError, match=re.escape(where)) as got:
             call()
         assert "Make Hazy" not in str(got.value) and "is gone" not in str(got.value)
+    panels = importlib.import_module(f"{env.hg.__name__}.blender.ui.panels")
+    log = test_ui.draw_panel(panels.HAZY_GLOSS_PT_material, test_ui.fake_context(mat))
+    assert any(where in text for text in test_ui.labels(log))
+    assert "hazy_gloss.remove_haze" not in test_ui.ops_drawn(log)  # (it would refuse)
     before = len(tree.nodes)
     with pytest.raises(ValueError, match="Cannot remove the haze of “Grouped”: its layer node " +
                        re.escape("“Principled BSDF” is inside" if how == "group_make" else "was ungrouped")):
