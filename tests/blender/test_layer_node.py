@@ -947,6 +947,29 @@ def test_a_material_not_using_its_nodes_is_refused_in_one_line(env):
     assert not off.use_nodes and not env.api.is_hazy(off)
 
 
+def test_the_layer_goes_on_the_bsdf_cycles_renders(env):
+    """A material with an output for EEVEE and one for Cycles (Blender renders, per engine, the
+    output of its target over All): Make Hazy hazes the BSDF Cycles renders (finals) and says
+    EEVEE renders another; it hazed the active output's BSDF, which Cycles did not render, and
+    said nothing (QA)."""
+    mat, eevee_bsdf = principled("Two outputs")
+    tree = mat.node_tree
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    out.target = "EEVEE"
+    final = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    final.name = "Final BSDF"
+    cycles_out = tree.nodes.new("ShaderNodeOutputMaterial")
+    cycles_out.target = "CYCLES"
+    tree.links.new(final.outputs[0], cycles_out.inputs["Surface"])
+    out.is_active_output = True
+    notes = env.api.make_hazy(mat, haziness=0.6)
+    node = env.layer.layer_node(mat)
+    assert node.name == "Final BSDF" and cycles_out.inputs["Surface"].links[0].from_node == node
+    said = "EEVEE renders the Material Output “Material Output”, which does not reach the layer node"
+    assert any(said in n for n in notes)
+    assert any(said in n for n in env.api.read_parameters(mat)["notes"])
+
+
 def test_messages_name_keywords_as_typed(env):
     mat = car_paint()
     env.api.make_hazy(mat, haziness=0.3)

@@ -66,31 +66,31 @@ def _rgb(v):
 
 
 def surface_bsdfs(tree):
-    """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the active output's
-    Surface, directly or through Mix / Add Shader nodes, reroutes and the shader inputs of node
-    groups, closest to the output first; and the node groups met on the way that hold such a
-    BSDF (their insides are not searched: other materials may share them)."""
-    out = ownership.output_node(tree, create=False)
-    if out is None:
-        return [], []
-    queue = [_source(out.inputs["Surface"])]
+    """(BSDFs, groups): the Principled / Metallic / Glossy BSDFs feeding the Surface of the
+    output Cycles renders (finals), then of the one EEVEE renders, directly or through Mix / Add
+    Shader nodes, reroutes and the shader inputs of node groups, closest to the output first;
+    and the node groups met on the way that hold such a BSDF (their insides are not searched:
+    other materials may share them)."""
+    outs = [ownership.engine_output(tree, e) for e in ("CYCLES", "EEVEE")]
     seen, found, groups = set(), [], []
-    while queue:
-        sock = queue.pop(0)
-        if sock is None or sock.node.name in seen:
-            continue
-        node = sock.node
-        seen.add(node.name)
-        if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
-            found.append(node)
-        elif node.bl_idname == "ShaderNodeGroup":
-            if _holds_bsdf(node.node_tree, set()):
-                groups.append(node)
-            # (a group that mixes shaders it is given: the BSDFs feeding it are the material's)
-            queue.extend(_source(s) for s in node.inputs if s.type == "SHADER")
-        elif node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
-            queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
-                         node.bl_idname == "NodeReroute")
+    for out in dict.fromkeys(o for o in outs if o is not None):
+        queue = [_source(out.inputs["Surface"])]
+        while queue:
+            sock = queue.pop(0)
+            if sock is None or sock.node.name in seen:
+                continue
+            node = sock.node
+            seen.add(node.name)
+            if node.bl_idname in CORE_NODES and not node.mute and not material.is_ours(node):
+                found.append(node)
+            elif node.bl_idname == "ShaderNodeGroup":
+                if _holds_bsdf(node.node_tree, set()):
+                    groups.append(node)
+                # (a group that mixes the shaders it is given: those are the material's)
+                queue.extend(_source(s) for s in node.inputs if s.type == "SHADER")
+            elif node.bl_idname in _SHADER_PASS or node.bl_idname == "NodeReroute":
+                queue.extend(_source(s) for s in node.inputs if s.type == "SHADER" or
+                             node.bl_idname == "NodeReroute")
     return found, groups
 
 

@@ -79,10 +79,19 @@ def _grouped_layer(tree, path, seen):
 def wiring_problems(mat, node, original):
     """[one line] on why the layer node ``node`` does not render as the panel shows it."""
     tree = mat.node_tree
-    out = ownership.output_node(tree, create=False)
+    out = ownership.engine_output(tree, "CYCLES")
     if out is None:
         return ["the material has no Material Output"]
     reached = upstream(out.inputs["Surface"])
+    eevee = ownership.engine_output(tree, "EEVEE")
+    if eevee is not None and eevee != out:  # (its own output for EEVEE: each engine's counts)
+        seen_by_eevee = upstream(eevee.inputs["Surface"])
+        for engine, o, sees, other in (("Cycles", out, reached, seen_by_eevee),
+                                       ("EEVEE", eevee, seen_by_eevee, reached)):
+            if node.name not in sees and node.name in other:
+                return [f"{engine} renders the Material Output “{o.name}”, which does not reach "
+                        f"the layer node “{node.name}”: no haze in {engine}"]
+        reached = reached | seen_by_eevee
     copies = [n for n in copies_of(tree, node) if n.name in reached]
     found = []
     if copies:
@@ -131,7 +140,7 @@ def closure_count(tree, fold=True):
     its Mix Shaders (layer_values.cycles_closures).  The artist's own Mix Shaders are counted
     with both branches: an upper bound where their factor folds to 0 or 1.  ``fold`` False:
     every copy of the layer counted (a quicker upper bound)."""
-    out = ownership.output_node(tree, create=False)
+    out = ownership.engine_output(tree, "CYCLES")
     if out is None:
         return 0
     total, queue = 0, [(tree, s, ()) for s in (out.inputs.get("Surface"), out.inputs.get("Volume"))

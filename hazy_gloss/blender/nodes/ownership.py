@@ -46,6 +46,20 @@ def remove_roles(tree, prefix):
     return bool(found)
 
 
+def engine_output(tree, engine):
+    """The Material Output ``engine`` ("CYCLES" or "EEVEE") renders, as Blender picks it
+    (ntreeShaderOutputNode): one of that target over one of All, the active one among equals;
+    None when there is none."""
+    best = None
+    for n in tree.nodes:
+        if n.bl_idname != "ShaderNodeOutputMaterial" or n.target not in ("ALL", engine):
+            continue
+        if best is None or (n.target == engine and best.target == "ALL") or (
+                n.target == best.target and n.is_active_output and not best.is_active_output):
+            best = n
+    return best
+
+
 def output_node(tree, create=True):
     outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
     for n in outs:
