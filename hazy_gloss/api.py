@@ -162,9 +162,11 @@ def sync_haze(mat):
     haze layer's export fallback up to date with its node, upgrade a haze layer saved by an
     earlier Hazy Gloss (a handler does this for materials in use; call it for a material no
     object uses).  A haze layer itself needs nothing: its node computes from its inputs.
-    Returns whether anything changed."""
+    Returns whether anything changed; raises ValueError (one line) on linked data."""
     from .blender.actions import sync as _sync
     _material_read.check_material(mat, "sync_haze")
+    if mat.library is not None or getattr(mat, "override_library", None) is not None:
+        raise ValueError(_material_read.edit_problem(mat))  # (read-only here, as everywhere)
     return _sync.sync(mat, force=True)
 
 

@@ -167,11 +167,11 @@ def test_cycles_peak_of_the_folded_lobe(env, name):
     env.E.add_eevee_output(mat, mode="always")
     peak = dict(light=(0.0, 0.0), view=(0.0, 0.0))
     layered = render(mat, **peak)
-    # let Cycles render the EEVEE output: the user's output for EEVEE only, ours for all
+    # let Cycles render the EEVEE output's BSDF: the layer node's EEVEE socket on the user's
+    # output (swapping the outputs' targets would make the EEVEE output give way to the user's)
     user = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
                 and n.target == "ALL")
-    user.target = "EEVEE"
-    env.E.eevee_nodes(mat.node_tree)["layer eevee output"].target = "ALL"
+    mat.node_tree.links.new(env.layer.layer_node(mat).outputs["EEVEE"], user.inputs["Surface"])
     folded = render(mat, **peak)
     err = float(np.abs(folded - layered).max() / np.abs(layered).max())
     record("eevee_layer", {f"{name}: Cycles peak, folded / layered - 1": err})
@@ -274,6 +274,30 @@ def test_the_output_follows_the_layer_and_the_panel(env, hg):
         env.api.add_eevee_output(plain)
     with pytest.raises(TypeError, match="look it up"):
         env.api.add_eevee_output(plain.name)
+
+
+def test_the_output_follows_the_artists_switch_of_outputs(env):
+    """The artist makes another Material Output of theirs active: both engines render it (the
+    EEVEE output gives way; it kept EEVEE on the layer while Cycles showed the new output,
+    QA), and comes back when they switch back."""
+    mat = car_paint()
+    env.api.make_hazy(mat, haziness=0.5, coat_haziness=0.6)
+    assert env.api.add_eevee_output(mat)["added"]
+    tree = mat.node_tree
+    mine = env.ownership.engine_output(tree, "CYCLES")
+    green = tree.nodes.new("ShaderNodeEmission")
+    other = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(green.outputs[0], other.inputs["Surface"])
+    other.is_active_output = True
+    assert env.api.sync_haze(mat)
+    assert not env.E.has_eevee_output(mat) and env.E.requested_mode(mat) == "auto"
+    assert env.ownership.engine_output(tree, "EEVEE") == other
+    assert env.ownership.engine_output(tree, "CYCLES") == other
+    mine.is_active_output = True
+    assert env.api.sync_haze(mat)
+    assert env.E.has_eevee_output(mat)
+    assert env.ownership.engine_output(tree, "EEVEE").inputs["Surface"].links[0].from_socket == \
+        env.layer.layer_node(mat).outputs["EEVEE"]
 
 
 def test_with_an_export_fallback(env, hg):

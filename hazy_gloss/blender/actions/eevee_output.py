@@ -73,7 +73,7 @@ def requested_mode(mat):
     return mode if mode in MODES else None  # a damaged request is no request
 
 
-def _set_request(mat, mode):
+def _set_request(mat, mode, follows=""):
     d = mat.get(K.STAMP)
     if not hasattr(d, "get"):
         return
@@ -81,8 +81,19 @@ def _set_request(mat, mode):
     if mode is None:
         d.pop(STAMP_KEY, None)
     else:
-        d[STAMP_KEY] = {"mode": mode}
+        d[STAMP_KEY] = {"mode": mode, "follows": follows}
     mat[K.STAMP] = d
+
+
+def follows_the_user(mat):
+    """Whether the EEVEE output was built from the output the artist has now (the active one
+    of theirs for all engines): after they switch to another, it is rebuilt from that one
+    (sync.sync), else EEVEE would keep rendering the layer through it."""
+    d = mat.get(K.STAMP)
+    e = d.get(STAMP_KEY) if hasattr(d, "get") else None
+    was = e.get("follows", "") if hasattr(e, "get") else ""
+    user_out, _ = _eevee_output_of_user(mat.node_tree)
+    return was == (user_out.name if user_out is not None else "")
 
 
 def remove_eevee_output(mat):
@@ -179,12 +190,12 @@ def build_eevee_output(mat, *, mode="auto"):
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     node = _layer_node(mat)
     remove_nodes(mat)
-    _set_request(mat, mode)
+    tree = mat.node_tree
+    user_out, problem = _eevee_output_of_user(tree)
+    _set_request(mat, mode, user_out.name if user_out is not None else "")
     needed, why = needs_eevee_output(mat)
     if mode == "auto" and not needed:
         return dict(added=False, reason=why, nodes=0)
-    tree = mat.node_tree
-    user_out, problem = _eevee_output_of_user(tree)
     final = node.outputs["BSDF"]
     if problem is None:
         path, problem = _path(user_out, final)

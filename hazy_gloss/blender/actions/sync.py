@@ -35,7 +35,10 @@ def sync(mat, *, force=False):
     to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
     if mat is None or mat.library is not None:
         return False
-    if _todays_layer(mat):  # its group computes everything: only a fallback to follow
+    if _todays_layer(mat):  # its group computes everything: an EEVEE output, a fallback
+        if eevee_output.requested_mode(mat) is not None and not eevee_output.follows_the_user(mat):
+            refresh_derived(mat)  # (the artist switched outputs: EEVEE renders their new one)
+            return True
         return _follow_fallback(mat, force)
     if not layer.is_layered(mat):
         if not material_read.is_hazy(mat):
