@@ -395,7 +395,7 @@ def test_add_node_rejects_bad_requests(clean_file, hg, tmp_path):
     mat = _new_material(hg, "Target")
     with pytest.raises(RuntimeError, match="offer"):  # dielectric lobes have no Beckmann
         bpy.ops.hazy_gloss.add_node(kind="DIELECTRIC", distribution="BECKMANN", material=mat.name)
-    with pytest.raises(RuntimeError, match="No shader tree"):
+    with pytest.raises(RuntimeError, match="No material named “no such material”"):
         bpy.ops.hazy_gloss.add_node(material="no such material")
     assert _group_nodes(mat) == []
     # A material linked from a library is read-only.
