@@ -135,11 +135,11 @@ def _slot_closures(node):
 
 def closure_count(tree, fold=True):
     """How many closures Cycles counts for the material ``tree`` (its limit MAX_CLOSURES): the
-    closure nodes the active output's Surface and Volume reach through un-muted shader links,
-    inside groups too (each group node is its own copy); a layer node's copies as Cycles folds
-    its Mix Shaders (layer_values.cycles_closures).  The artist's own Mix Shaders are counted
-    with both branches: an upper bound where their factor folds to 0 or 1.  ``fold`` False:
-    every copy of the layer counted (a quicker upper bound)."""
+    closure nodes the Surface and Volume of the output Cycles renders reach through un-muted
+    shader links, inside groups too (each group node is its own copy); a layer node's copies as
+    Cycles folds its Mix Shaders (layer_values.cycles_closures).  The artist's own Mix Shaders
+    are counted with both branches: an upper bound where their factor folds to 0 or 1.
+    ``fold`` False: every copy of the layer counted (a quicker upper bound)."""
     out = ownership.engine_output(tree, "CYCLES")
     if out is None:
         return 0
