@@ -620,6 +620,15 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
             not (math.isfinite(size) and size == int(size) and 16 <= size <= 16384):
         return "ERROR", f"size must be a whole number of pixels, 16 to 16384, got {size!r}", []
     size = int(size)
+    tree = mat.node_tree
+    kept = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage" and n.image is not None
+                 and n.image.get(K.PAINTED_MAP) == param and not n.outputs["Color"].is_linked), None)
+    if kept is not None:  # (the map painted before a Remove Haze: this layer takes it back)
+        tree.links.new(kept.outputs["Color"], sock)
+        tree.nodes.active = kept
+        return ("FINISHED", f"Linked the map “{kept.image.name}” painted before to {sock.name} of "
+                f"“{node.name}” (Texture Paint: it is the active paint slot)",
+                _map_notes(mat, node, sock))
     value = float(sock.default_value)
     img = bpy.data.images.new(f"{mat.name} {sock.name}", size, size, alpha=False,
                               float_buffer=True, is_data=True)
@@ -628,22 +637,28 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     img.pixels.foreach_set(px)
     img.pack()  # (a generated image is packed only once it has pixels: as OpenEXR)
     img[K.PAINTED_MAP] = param  # (packed again on save once painted: sync.repack_painted_maps)
-    tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
-    tex.image = tex_image = img
+    tex.image = img
     tex.label = f"{sock.name} Map"
     tex.location = (node.location.x - 320.0, node.location.y - 120.0)
     tex.parent = node.parent
     tree.links.new(tex.outputs["Color"], sock)
     tree.nodes.active = tex
+    return ("FINISHED", f"Linked a paintable {size}x{size} map “{img.name}” to {sock.name} "
+            f"of “{node.name}” (Texture Paint: it is the active paint slot)",
+            _map_notes(mat, node, sock, filled=value))
+
+
+def _map_notes(mat, node, sock, filled=None):
+    """What to know about a map just linked into ``sock`` (``filled``: the value a new map
+    holds): keys it overrides, no UV map to paint with."""
     notes = []
     if sock.name in layer.animated_inputs(node):  # (linked, the input no longer reads them)
-        notes.append(f"{sock.name} was animated: the map (filled with this frame's value, "
-                     f"{value:.4g}) decides it now, and its keys or driver do nothing while "
-                     f"the map is linked")
+        held = f" (filled with this frame's value, {filled:.4g})" if filled is not None else ""
+        notes.append(f"{sock.name} was animated: the map{held} decides it now, and its keys or "
+                     f"driver do nothing while the map is linked")
     objs = [o for o in bpy.data.objects if o.type == "MESH" and
             any(s.material == mat for s in o.material_slots)]
     if objs and not any(o.data.uv_layers for o in objs):
         notes.append("the objects using it have no UV map: add one to paint the map")
-    return ("FINISHED", f"Linked a paintable {size}x{size} map “{tex_image.name}” to {sock.name} "
-            f"of “{node.name}” (Texture Paint: it is the active paint slot)", notes)
+    return notes
