@@ -242,6 +242,8 @@ class ValueWriter:
     def select(self, cat, v1, v2, a, b, base):
         """ifgreater / ifgreatereq / ifequal(value1, value2): a when true, else b."""
         t = a.type if a.type != "float" else b.type
+        if a.is_const and b.is_const and np.array_equal(a.array(), b.array()):
+            return self.convert(a, t)  # (either way the same: no node)
         if v1.is_const and v2.is_const:
             x, y = float(v1.const), float(v2.const)
             ok = {"ifgreater": x > y, "ifgreatereq": x >= y, "ifequal": x == y}[cat]
@@ -254,6 +256,9 @@ class ValueWriter:
     def mix(self, t, a, b, base="mix"):
         """(1-t) a + t b."""
         typ = a.type if a.type != "float" else b.type
+        if a.is_const and b.is_const and np.array_equal(self.convert(a, typ).array(),
+                                                        self.convert(b, typ).array()):
+            return self.convert(a, typ)  # (a select between one value: a film of 0 either way)
         if t.is_const and t.type == "float":
             tv = float(t.const)
             if tv == 0.0:

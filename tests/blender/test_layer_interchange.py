@@ -721,6 +721,8 @@ def test_usd_holds_the_same_network(env, tmp_path):
     path, done, skipped = env.api.export_usd(mats, str(tmp_path / "layers.usda"))
     assert not skipped and len(done) == len(mats)
     rep = env.api.export_materialx(mats, str(tmp_path / "layers.mtlx"))
+    # no film, no note on one (a select between a film of 0 and 0 was written as a node, QA)
+    assert not any("thin film" in n for _, _, ns in rep.materials for n in ns)
     doc = _load(rep.path)
     stage = Usd.Stage.Open(path)
     for mat, (name, prim_path, _) in zip(mats, done):
