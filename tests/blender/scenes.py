@@ -549,6 +549,40 @@ def render_exr(path=None, *, codec="ZIP"):
     return arr
 
 
+def render_aovs(read_exr, tree, sockets):
+    """Cycles' values of ``sockets`` ({name: socket of ``tree``}) per pixel, written by Value
+    AOV outputs added to ``tree``: {name: (H, W) float64}, row 0 the bottom.  A colour socket
+    reads as Blender's Color -> Float conversion (its luminance), as it does into a float
+    input.  ``read_exr`` as for :func:`render_passes`."""
+    vl = bpy.context.view_layer
+    for name, sock in sockets.items():
+        if name not in vl.aovs:
+            aov = vl.aovs.add()
+            aov.name, aov.type = name, "VALUE"
+        out = tree.nodes.new("ShaderNodeOutputAOV")
+        out.aov_name = name
+        tree.links.new(sock, out.inputs["Value"])
+    scene = bpy.context.scene
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    fd, path = tempfile.mkstemp(suffix=".exr", prefix="hg_aov_")
+    os.close(fd)
+    old = scene.render.filepath
+    scene.render.filepath = path
+    try:
+        render_still()
+        ch = read_exr(path)
+    finally:
+        scene.render.filepath = old
+        if os.path.exists(path):
+            os.remove(path)
+    return {n: np.asarray(next(v for k, v in ch.items() if k.split(".")[-2] == n), np.float64)
+            for n in sockets}
+
+
 #: Render passes by the names :func:`render_passes` takes -> (view-layer property, EXR pass
 #: names: 5.x writes "Glossy Direct", 4.5 "GlossDir").
 PASSES = {

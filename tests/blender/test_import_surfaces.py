@@ -337,30 +337,6 @@ def test_damaged_texture_files_get_a_placeholder_and_a_note(api, tmp_path):
             assert Path(bpy.path.abspath(img.filepath)) == tmp_path / file
 
 
-def _aov_render(hg, tree, sockets, resolution):
-    """Cycles' values of ``sockets`` ({name: socket}) per pixel, as Value AOVs: a colour socket
-    reads as Blender's Color -> Float conversion (the luminance), as it does into Metallic."""
-    vl = bpy.context.view_layer
-    for name, sock in sockets.items():
-        if name not in vl.aovs:
-            a = vl.aovs.add()
-            a.name, a.type = name, "VALUE"
-        out = tree.nodes.new("ShaderNodeOutputAOV")
-        out.aov_name = name
-        tree.links.new(sock, out.inputs["Value"])
-    sc = bpy.context.scene
-    st = sc.render.image_settings
-    if hasattr(st, "media_type"):
-        st.media_type = "MULTI_LAYER_IMAGE"
-    st.file_format, st.color_depth = "OPEN_EXR_MULTILAYER", "32"
-    sc.render.filepath = os.path.join(bpy.app.tempdir or "/tmp", f"hg_aov_{os.getpid()}.exr")
-    bpy.ops.render.render(write_still=True)
-    ch = importlib.import_module(hg.__name__ + ".exr").read_exr(sc.render.filepath)
-    os.remove(sc.render.filepath)
-    return {n: np.asarray(next(v for k, v in ch.items() if k.split(".")[-2] == n), np.float64)
-            for n in sockets}
-
-
 def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
     """A metallic map (a colour EXR, Non-Color) and a colour texture into Roughness (sRGB PNG)
     of a hazy Principled: the export converts each colour to a float by a dotproduct with the
@@ -395,7 +371,8 @@ def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
     res = 16  # the camera sees uv 0.375-0.625: texels 12-19, 2 x 2 pixels each
     scenes.setup_render("CYCLES", samples=1, resolution=(res, res), bounces=0)
     scenes.flat_plane_scene(mat)
-    want = _aov_render(hg, tree, {k: t.outputs["Color"] for k, t in texs.items()}, (res, res))
+    read_exr = importlib.import_module(hg.__name__ + ".exr").read_exr
+    want = scenes.render_aovs(read_exr, tree, {k: t.outputs["Color"] for k, t in texs.items()})
 
     bpy.ops.wm.read_homefile(use_empty=True)
     out = api.import_materialx(str(tmp_path / "mapped.mtlx"))
@@ -420,7 +397,7 @@ def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
         rgb = im.material.node_tree.nodes.new("ShaderNodeRGB")
         rgb.outputs[0].default_value = tuple(float(i == j) for j in range(3)) + (1.0,)
         probes[f"w{i}"] = rgb.outputs[0]
-    got = _aov_render(hg, im.material.node_tree, probes, (res, res))
+    got = scenes.render_aovs(read_exr, im.material.node_tree, probes)
     for key in files:
         assert np.max(np.abs(got[key] - want[key])) <= 1e-6, (key, got[key], want[key])
     weights = np.array([got[f"w{i}"][0, 0] for i in range(3)])

@@ -477,35 +477,6 @@ def test_images_keep_their_files_and_colour_spaces(env, tmp_path):
         assert n.getInput("geometry_normal").getConnectedNode().getCategory() == "normalmap"
 
 
-def _aov(tree, name, socket):
-    vl = bpy.context.view_layer
-    if name not in vl.aovs:
-        a = vl.aovs.add()
-        a.name, a.type = name, "VALUE"
-    node = tree.nodes.new("ShaderNodeOutputAOV")
-    node.aov_name = name
-    tree.links.new(socket, node.inputs["Value"])
-
-
-def _render_aovs(env, names, res):
-    sc = bpy.context.scene
-    st = sc.render.image_settings
-    if hasattr(st, "media_type"):
-        st.media_type = "MULTI_LAYER_IMAGE"
-    st.file_format = "OPEN_EXR_MULTILAYER"
-    st.color_depth = "32"
-    path = os.path.join(bpy.app.tempdir or "/tmp", f"hg_aov_{os.getpid()}.exr")
-    sc.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    ch = env.exr.read_exr(path)
-    os.remove(path)
-    out = {}
-    for n in names:
-        key = next(k for k in ch if k.split(".")[-2] == n)
-        out[n] = np.asarray(ch[key], np.float64).reshape(-1)
-    return out
-
-
 @pytest.mark.parametrize("distribution", ["GGX", "MULTI_GGX"])
 def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
     """Textured roughness: the layer computes the wide roughness, the raised IOR and β per
@@ -535,13 +506,11 @@ def test_live_node_math_is_cycles_math_per_pixel(env, tmp_path, distribution):
     node.node_tree = ng
     for k in ("wide", "ior", "beta"):
         probes[k] = node.outputs[f"probe {k}"]
-    for k, s in probes.items():
-        _aov(tree, k, s)
     scenes.setup_render("CYCLES", samples=1, resolution=(16, 16), bounces=0)
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     scenes.flat_plane_scene(mat)
-    got = _render_aovs(env, list(probes), (16, 16))
+    got = {k: v.reshape(-1) for k, v in scenes.render_aovs(env.exr.read_exr, tree, probes).items()}
     doc = _load(rep.path)
     ng = doc.getNodeGraphs()[0]
     img_node = next(n for n in ng.getNodes() if n.getCategory() == "image")
@@ -632,13 +601,12 @@ def test_lookup_tables_are_written_beside_the_document(env, tmp_path, distributi
         ng.interface.new_socket(name=f"probe {k}", in_out="OUTPUT", socket_type="NodeSocketFloat")
         ng.links.new(sep.outputs[lane], gout.inputs[f"probe {k}"])
     node.node_tree = ng
-    for k in "rgb":
-        _aov(tree, f"tint {k}", node.outputs[f"probe {k}"])
     scenes.setup_render("CYCLES", samples=1, resolution=(4, 4), bounces=0)
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     scenes.flat_plane_scene(mat)
-    got = _render_aovs(env, [f"tint {k}" for k in "rgb"], (4, 4))
+    got = scenes.render_aovs(env.exr.read_exr, tree,
+                             {f"tint {k}": node.outputs[f"probe {k}"] for k in "rgb"})
     want = np.array([np.median(got[f"tint {k}"]) for k in "rgb"])
     assert np.ptp(want) > 0.05, want  # (the film's colour, not the grey constant)
     doc = _load(rep.path)
