@@ -588,12 +588,20 @@ def to_xml_string(doc):
 
 
 def write_xml(doc, path):
-    """Write ``doc`` to ``path`` atomically (temp file + rename)."""
+    """Write ``doc`` to ``path`` through a temporary beside it, renamed into place and removed
+    whatever stops the write (an error, Ctrl+C): ``path`` is the old file or the new one,
+    never a part.  An OSError names ``path``, not the temporary."""
     text = to_xml_string(doc)
     tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if os.path.lexists(tmp):
+            os.remove(tmp)
     return path
 
 

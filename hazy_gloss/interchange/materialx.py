@@ -55,7 +55,7 @@ from ..core.parameters import PARAMETERS, normalise
 from . import engines, layered
 from .builder import Builder
 from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, Document, Input, Node,
-                       NodeGraph, format_value, to_xml_string, valid_name)
+                       NodeGraph, format_value, valid_name, write_xml)
 # the reading side (re-exported: materialx.read is the reader's entry point)
 from .materialx_import import LOBES as _LOBES, ImportedMaterial, _f, _t, lobes_of, read, recognise
 
@@ -596,21 +596,6 @@ def file_identity(path):
     return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
-def _write_text(text, path):
-    """``text`` into ``path`` through a temporary beside it that is removed whatever stops the
-    write (an error, Ctrl+C): ``path`` is the old file or the new one, never a part."""
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except OSError as exc:  # (named by the user's path, not the temporary's)
-        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if os.path.lexists(tmp):
-            os.remove(tmp)
-
-
 def write(sources, path, flavour="eq1", *, validate_with_package=True, **options):
     """Write ``sources`` to one MaterialX document at ``path``; returns an ExportReport.
     ValueError (one line) when ``path`` must not be written (:func:`output_problem`)."""
@@ -620,7 +605,7 @@ def write(sources, path, flavour="eq1", *, validate_with_package=True, **options
         raise ValueError(problem)
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     doc, done = build_document(sources, flavour, directory=os.path.dirname(path), **options)
-    _write_text(to_xml_string(doc), path)
+    write_xml(doc, path)
     rep = ExportReport(path, flavour, done)
     if validate_with_package:
         rep.validated, rep.validation = validate(path)
