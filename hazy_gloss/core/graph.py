@@ -430,12 +430,12 @@ def _ramp_lookup(table, f):
 _RAMP_CACHE = {}
 
 
-def _table_rgb(data, u, v):
+def _table_rgb(data, u, v, wrap=False):
     """_table_lookup of a grey (H, W) table in every lane, or of each channel of an (H, W, 3)
     one: (..., 3)."""
     if data.ndim == 2:
-        return np.repeat(_table_lookup(data, u, v)[..., None], 3, axis=-1)
-    return np.stack([_table_lookup(data[..., c], u, v) for c in range(3)], axis=-1)
+        return np.repeat(_table_lookup(data, u, v, wrap)[..., None], 3, axis=-1)
+    return np.stack([_table_lookup(data[..., c], u, v, wrap) for c in range(3)], axis=-1)
 
 
 def _environment_rgb(data, d):
@@ -450,10 +450,7 @@ def _environment_rgb(data, d):
     u = np.where(zero, _F32(0), (np.arctan2(y, x).astype(_F32) - _F32(math.pi)) / _F32(-2.0 * math.pi))
     v = np.where(zero, _F32(0), (np.arccos(np.clip(zn, -1, 1)).astype(_F32) - _F32(math.pi))
                  / _F32(-math.pi))
-    u, v = np.asarray(u, _F32), np.asarray(v, _F32)
-    chans = [data] if data.ndim == 2 else [data[..., c] for c in range(3)]
-    out = [_table_lookup(c, u, v, wrap=True) for c in chans]
-    return np.repeat(out[0][..., None], 3, axis=-1) if data.ndim == 2 else np.stack(out, axis=-1)
+    return _table_rgb(data, np.asarray(u, _F32), np.asarray(v, _F32), wrap=True)
 
 
 def _table_lookup(data, u, v, wrap=False):
