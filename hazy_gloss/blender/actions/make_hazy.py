@@ -18,8 +18,7 @@ from ...core import inverse_haze_mapping
 from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import normalise, normalise_haze
 from ...schema import HAZE_SOCKETS
-from ..model import (fallback, layer, layer_group, layer_wiring, material, material_read,
-                     stamp)
+from ..model import fallback, layer, layer_group, material, material_read, stamp
 from . import messages, sync
 from ..model.material_read import baked_problem, edit_problem, maps_problem, shown
 from ..nodes import ownership
@@ -293,10 +292,9 @@ def remove_haze(mat):
         return "ERROR", problem, []
     state = layer.layer_state(mat) or {}
     kept, lnode = layer.original_node(mat), layer.layer_node(mat)
-    if not state.get("legacy") and lnode is None and layer.tagged_layer_node(mat) is None:
-        where = layer_wiring.misplaced_layer(mat.node_tree)
-        if where is not None:  # (it still renders: removing the record would hide it)
-            return "ERROR", f"Cannot remove the haze of “{mat.name}”: {where}", []
+    where = stamp.own_way_out(state.get("problems", []))  # (a grouped or ungrouped layer node)
+    if where is not None:  # (it still renders: removing the record would hide it)
+        return "ERROR", f"Cannot remove the haze of “{mat.name}”: {where}", []
     if not state.get("legacy") and kept is not None and lnode is not None and (
             not kept.mute or kept.outputs[0].is_linked):
         # (Remove Haze gives that node the layer node's values and links: the artist's edits)

@@ -432,6 +432,11 @@ def lost_layer(mat, d):
 OWN_WAY_OUT = "its own way out"
 
 
+def own_way_out(problems):
+    """The line of a layer problem that says its own way out (OWN_WAY_OUT), or None."""
+    return next((why for why, keys in problems if keys == OWN_WAY_OUT), None)
+
+
 def layer_problem(mat, problems, fixing=()):
     """One line for the first problem not fixed by setting the haze parameters ``fixing``
     (None when every problem is), naming the material and the way out."""

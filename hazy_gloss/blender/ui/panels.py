@@ -401,9 +401,8 @@ def draw_layer(layout, context, mat, idname, hg, problem):
         box = col.box()
         box.alert = True
         box.label(text=plain_message(exc), icon="ERROR")
-        problems = (layer.layer_state(mat) or {}).get("problems") or []
-        if not any(keys == stamp.OWN_WAY_OUT for _, keys in problems):  # (else it refuses)
-            col.operator("hazy_gloss.remove_haze", icon="X")
+        if stamp.own_way_out((layer.layer_state(mat) or {}).get("problems") or []) is None:
+            col.operator("hazy_gloss.remove_haze", icon="X")  # (else it refuses)
         return
     node = info["node"]
     if problem is not None:
