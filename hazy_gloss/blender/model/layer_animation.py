@@ -54,32 +54,29 @@ def own_animation(tree, node_names):
     return [c.name for c in copies.values()]
 
 
+def _by_position(tree, node):
+    """(curve, input position, rest of the path) of the keyframes and drivers of ``tree`` on
+    ``node``'s inputs keyed by position (``nodes["<node>"].inputs[<i>]...``)."""
+    for fc in _fcurves(tree):
+        m = _INPUT_PATH.match(fc.data_path)
+        if m is not None and m.group(1).replace('\\"', '"') == node.name:
+            yield fc, int(m.group(2)), m.group(3)
+
+
 def move_animation(tree, src, dst):
     """Keyframes and drivers on ``src``'s inputs drive ``dst``'s inputs of the same name."""
     index = {s.name: i for i, s in enumerate(dst.inputs)}
-    for fc in _fcurves(tree):
-        m = _INPUT_PATH.match(fc.data_path)
-        if m is None or m.group(1).replace('\\"', '"') != src.name:
-            continue
-        i = int(m.group(2))
-        if i >= len(src.inputs) or src.inputs[i].name not in index:
-            continue
-        fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + m.group(3)
+    for fc, i, rest in list(_by_position(tree, src)):
+        if i < len(src.inputs) and src.inputs[i].name in index:
+            fc.data_path = dst.inputs[index[src.inputs[i].name]].path_from_id() + rest
 
 
 def input_curves(tree, node):
     """[(curve, input name, rest of the path)] of the keyframes and drivers on ``node``'s inputs,
     taken before its sockets change (another group): Blender moves such paths itself when
     ``node_tree`` is set, by socket identifier, which differ in meaning between groups."""
-    out = []
-    for fc in _fcurves(tree):
-        m = _INPUT_PATH.match(fc.data_path)
-        if m is None or m.group(1).replace('\\"', '"') != node.name:
-            continue
-        i = int(m.group(2))
-        if i < len(node.inputs):
-            out.append((fc, node.inputs[i].name, m.group(3)))
-    return out
+    return [(fc, node.inputs[i].name, rest) for fc, i, rest in _by_position(tree, node)
+            if i < len(node.inputs)]
 
 
 def follow_names(node, curves):
@@ -102,10 +99,8 @@ def unshift_inputs(tree, node, orig, offset, total, frame):
     could not be told apart (left where it is)."""
     head = f'nodes["{bpy.utils.escape_identifier(node.name)}"].inputs'
     found = {}
-    for fc in _fcurves(tree):
-        m = _INPUT_PATH.match(fc.data_path)
-        if m is not None and m.group(1).replace('\\"', '"') == node.name:
-            found.setdefault(int(m.group(2)), []).append((fc, m.group(3)))
+    for fc, i, rest in _by_position(tree, node):
+        found.setdefault(i, []).append((fc, rest))
     unsure = []
     for i, curves in sorted(found.items()):
         if not orig + offset <= i < total + offset:
