@@ -67,10 +67,15 @@ def remove_nodes(mat):
 def requested_mode(mat):
     """The mode :func:`add_eevee_output` was last asked for on ``mat`` (kept in the material's
     stamp), or None."""
+    mode = _request(mat).get("mode")
+    return mode if mode in MODES else None  # a damaged request is no request
+
+
+def _request(mat):
+    """The request kept in the material's stamp ({"mode", "follows"}), {} when none reads."""
     d = mat.get(K.STAMP)
     e = d.get(STAMP_KEY) if hasattr(d, "get") else None
-    mode = e.get("mode") if hasattr(e, "get") else None
-    return mode if mode in MODES else None  # a damaged request is no request
+    return e if hasattr(e, "get") else {}
 
 
 def _set_request(mat, mode, follows=""):
@@ -89,9 +94,7 @@ def follows_the_user(mat):
     """Whether the EEVEE output was built from the output the artist has now (the active one
     of theirs for all engines): after they switch to another, it is rebuilt from that one
     (sync.sync), else EEVEE would keep rendering the layer through it."""
-    d = mat.get(K.STAMP)
-    e = d.get(STAMP_KEY) if hasattr(d, "get") else None
-    was = e.get("follows", "") if hasattr(e, "get") else ""
+    was = _request(mat).get("follows", "")
     user_out, _ = _eevee_output_of_user(mat.node_tree)
     return was == (user_out.name if user_out is not None else "")
 
