@@ -469,9 +469,14 @@ def _open_blend(prog, path):
     try:
         cli.open_blend(path)
     except RuntimeError as exc:  # (not a .blend, truncated, from a newer Blender: Blender's words)
-        why = str(exc).replace("Error: ", "").strip().splitlines()
-        return _fail(prog, f"Blender cannot open {path!r}: {why[0] if why else 'unreadable'}")
+        return _fail(prog, f"Blender cannot open {path!r}: {_blender_words(exc, 'unreadable')}")
     return None
+
+
+def _blender_words(exc, default):
+    """The first line of a bpy operator's RuntimeError, without its "Error: "."""
+    why = str(exc).replace("Error: ", "").strip().splitlines()
+    return why[0] if why else default
 
 
 def _save_blend(prog, path, keep):
@@ -481,8 +486,7 @@ def _save_blend(prog, path, keep):
     try:
         cli.save_blend(path, keep=keep)
     except RuntimeError as exc:
-        why = str(exc).replace("Error: ", "").strip().splitlines()
-        return _fail(prog, f"--blend: cannot save {path!r}: {why[0] if why else 'failed'}")
+        return _fail(prog, f"--blend: cannot save {path!r}: {_blender_words(exc, 'failed')}")
     return None
 
 
