@@ -310,9 +310,11 @@ class MultiscatterPeak:
     energy_reference: np.ndarray  #: S_0, the haze-free material's factor (F(0) = r_c)
     peak_ratio: np.ndarray  #: p_ms = p S_w / S_n per channel
     peak_complement: np.ndarray  #: 1 - p_ms per channel (< 0 possible for Glossy lobes)
-    halo_max: np.ndarray  #: k̂_max: the largest halo weight β r̂ that keeps the peak (β_h = 1)
     steps: int  #: Newton steps of the slowest texel (all solves)
     residual: float  #: max over texels and channels of |hazy peak / haze-free peak - 1| (model)
+    #: Glossy lobes: k̂_max, the largest halo weight β r̂ that keeps the peak (β_h = 1); None
+    #: for lobes with a Fresnel (they keep the mapping's β)
+    halo_max: np.ndarray = None
 
 
 class _Texels:
@@ -407,34 +409,6 @@ def _root(f, lo, hi, x0, rows, scale, max_iter=80):
     return x, it
 
 
-def _first_descent_root(g, k_hi, rows, scale, max_iter=60):
-    """The smallest k in [0, k_hi] with g(k) = 0 for a convex g with g(0) >= 0, or k_hi where g
-    stays >= 0 on [0, k_hi] (linear g: one Newton step).  Newton from k = 0 does not pass the
-    first root of a convex function (but for the difference quotient, which the next steps
-    correct); it stops at |g| <= 8 ε ``scale`` or a relative step of 1e-15.
-    Returns (k, iterations)."""
-    k = np.zeros_like(k_hi)
-    todo = np.arange(len(k))
-    it = 0
-    for it in range(1, max_iter + 1):
-        ka, hi = k[todo], k_hi[todo]
-        gk = g(ka, rows[todo])
-        h = np.maximum(1e-6 * hi, 1e-300)
-        slope = (g(ka + h, rows[todo]) - gk) / h
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # no descent left while g > 0: the minimum is above 0, no root up to k_hi
-            nk = np.where(slope < 0, ka - gk / slope, np.where(gk > 0, np.inf, ka))
-        nk = np.clip(nk, 0.0, hi)
-        k[todo] = nk
-        done = ((np.abs(gk) <= 8 * _EPS * scale[todo]) | (nk >= hi)
-                | (np.abs(nk - ka) <= 1e-15 * np.abs(nk)))
-        k[todo] = np.where(np.abs(gk) <= 8 * _EPS * scale[todo], ka, nk)
-        todo = todo[~done]
-        if not len(todo):
-            break
-    return k, it
-
-
 def peak_factor(lobe, alpha, alpha_wide, reflectivity, beta, *, edge_tint=0.0, tint=1.0,
                 halo=True, version=None):
     """The normal-incidence peak of Eq. 1 under Multiscatter GGX, per channel, in units of the
@@ -480,19 +454,18 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
                   Coat IOR (1+√r̂)/(1-√r̂), exact dielectric Fresnel, F_ss = fresnel_dielectric_Fss
                   (Cycles draws the coat with Multiscatter GGX's factor whatever the node's
                   distribution); r_c must be grey (F0 of the Coat IOR), r is grey
-    Returns a HazeMapping whose β, r (and η, κ, dielectric IOR, Glossy weights, r̂, k̂_h) give
-    every channel, at normal incidence, the peak of the haze-free material (the same lobe type,
-    one lobe, F(0) = r_c):
+    Returns a HazeMapping whose r (and η, κ, dielectric IOR, Glossy weights, r̂, k̂_h = β r̂)
+    give every channel, at normal incidence, the peak of the haze-free material (the same lobe
+    type, one lobe, F(0) = r_c), at the mapping's own β (Eq. 4, with the single-scatter p):
 
         r [(1-β) S_n + β p S_w] = r_c S_0                                              (*)
 
-    β_h keeps the paper's meaning (Eq. 7): the halo weight k̂_h = β r̂ of the max channel is
-    β_h times the largest weight (*) allows with β <= 1 and r̂ <= 1 (for the Bézier, times the
-    Bézier's single-scatter fraction of that bound); with S = 1 this is the paper's mapping
-    exactly.  docs/mapping.md ("Multiscatter GGX") derives it.  ``peak_ratio`` and
-    ``peak_complement`` hold the max channel's p_ms = p S_w/S_n and 1 - p_ms, ``multiscatter``
-    the factors per channel (:class:`MultiscatterPeak`).  Computed in float64 by safeguarded
-    Newton on monotone 1-D equations, vectorised over texels; fields keep the mapping's dtype."""
+    β_h keeps exactly the paper's meaning: only the Fresnel's F(0) moves to hold the peak.
+    With S = 1 this is the paper's mapping.  docs/mapping.md ("Multiscatter GGX") derives it.
+    ``peak_ratio`` and ``peak_complement`` hold the max channel's p_ms = p S_w/S_n and 1 - p_ms,
+    ``multiscatter`` the factors per channel (:class:`MultiscatterPeak`).  Computed in float64
+    by safeguarded Newton on monotone 1-D equations, vectorised over texels; fields keep the
+    mapping's dtype."""
     lobe = _check_lobe(lobe)
     ver = cycles_version(version)
     if lobe == "COAT":
@@ -520,26 +493,22 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
             q = np.where(ok, (wx - ax) / wx + px * (wy - ay) / wy, q)
     rc, g = flat(mapping.core_reflectivity, True), flat(mapping.edge_tint, True)
     tint_f = np.clip(flat(1.0 if tint is None else tint, True), 0.0, 1.0)
-    bh = flat(mapping.haziness)
-    # the Bézier's share of the largest halo (Eq. 15 over Eq. 7 at β_h = 1; 1 for Eq. 7)
-    shape_f = np.ones(n)
-    if mapping.smoothness is not None:
-        w = flat(mapping.smoothness)
-        w = np.where(np.isnan(w) | (w <= 0), np.finfo(dtype).tiny, w)
-        rc_max, one = rc.max(axis=-1), np.ones(n)
-        k_w, _, _, _ = _haze_terms(rc_max, p, q, one, w)
-        k_7, _, _, _ = _haze_terms(rc_max, p, q, one, None)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            shape_f = np.where(k_7 > 0, np.clip(k_w / k_7, 0.0, 1.0), 1.0)
     r0, b0 = flat(mapping.reflectivity, True), flat(mapping.beta)
+    if lobe == "LEGACY":
+        bh = flat(mapping.haziness) * _bezier_share(mapping, flat, rc, p, q, dtype)
+        beta, k_max = np.empty(n), np.empty(n)
 
     out = {k: np.empty((n, 3)) for k in ("r", "omr", "s_n", "s_w", "s_0")}
-    out.update({k: np.empty(n) for k in ("beta", "k", "k_max")})
     steps, residual, over = 0, 0.0, 0
     for lo in range(0, n, _CHUNK):
         sl = slice(lo, min(n, lo + _CHUNK))
-        res = _solve(lobe, ver, roughness_index(ax[sl], ay[sl]), roughness_index(wx[sl], wy[sl]),
-                     p[sl], rc[sl], g[sl], tint_f[sl], bh[sl] * shape_f[sl], r0[sl], b0[sl])
+        x_n, x_w = roughness_index(ax[sl], ay[sl]), roughness_index(wx[sl], wy[sl])
+        if lobe == "LEGACY":
+            res = _solve_glossy(lobe, ver, x_n, x_w, p[sl], rc[sl], g[sl], tint_f[sl], bh[sl],
+                                r0[sl], b0[sl])
+            beta[sl], k_max[sl] = res["beta"], res["k_max"]
+        else:
+            res = _solve(lobe, ver, x_n, x_w, p[sl], rc[sl], g[sl], tint_f[sl], r0[sl], b0[sl])
         for k in out:
             out[k][sl] = res[k]
         steps = max(steps, res["steps"])
@@ -552,7 +521,8 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
     m = np.argmax(rc, axis=-1)[:, None]
     r_max, omr_max = r.max(axis=-1), omr.min(axis=-1)
     eta_d = dielectric_ior(np.minimum(r_max, 1.0 - eps), omr_max)
-    beta = out["beta"]
+    if lobe != "LEGACY":
+        beta = b0
     s_n, s_w = out["s_n"], out["s_w"]
     p_ms = p[:, None] * s_w / s_n
     q_ms = q[:, None] + p[:, None] * ((s_n - 1.0) - (s_w - 1.0)) / s_n
@@ -567,23 +537,95 @@ def correct_mapping(mapping: HazeMapping, lobe, *, tint=None, version=None) -> H
     info = MultiscatterPeak(
         lobe=lobe, version=ver, energy_narrow=back(s_n, True), energy_wide=back(s_w, True),
         energy_reference=back(out["s_0"], True), peak_ratio=back(p_ms, True),
-        peak_complement=back(q_ms, True), halo_max=back(out["k_max"]), steps=steps,
-        residual=residual)
-    one_minus_beta = 1.0 - beta
+        peak_complement=back(q_ms, True), steps=steps, residual=residual,
+        halo_max=back(k_max) if lobe == "LEGACY" else None)
     return replace(
         mapping, beta=back(beta), reflectivity=back(r, True), ior=back(eta, True),
         extinction=back(kappa, True),
         peak_ratio=back(np.take_along_axis(p_ms, m, -1)[:, 0]),
         peak_complement=back(np.clip(np.take_along_axis(q_ms, m, -1)[:, 0], 0.0, 1.0)),
-        halo_intensity=back(out["k"]), reflectivity_max=back(r_max),
-        weight_narrow=back(one_minus_beta[:, None] * r, True),
+        halo_intensity=back(beta * r_max), reflectivity_max=back(r_max),
+        weight_narrow=back((1.0 - beta)[:, None] * r, True),
         weight_wide=back(beta[:, None] * r, True), dielectric_ior=back(eta_d), clamped=clamped,
         multiscatter=info)
 
 
-def _solve(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
-    """(*) for one chunk of texels (1-D arrays, colours (n, 3)); ``bh`` is β_h times the
-    Bézier share.  The peak-keeping family: for each β every channel's r follows from (*).
+def _bezier_share(mapping, flat, rc, p, q, dtype):
+    """The Bézier's share of the largest halo (Eq. 15 over Eq. 7 at β_h = 1; 1 for Eq. 7)."""
+    n = len(p)
+    if mapping.smoothness is None:
+        return np.ones(n)
+    w = flat(mapping.smoothness)
+    w = np.where(np.isnan(w) | (w <= 0), np.finfo(dtype).tiny, w)
+    rc_max, one = rc.max(axis=-1), np.ones(n)
+    k_w, _, _, _ = _haze_terms(rc_max, p, q, one, w)
+    k_7, _, _, _ = _haze_terms(rc_max, p, q, one, None)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(k_7 > 0, np.clip(k_w / k_7, 0.0, 1.0), 1.0)
+
+
+def _solve(lobe, version, x_n, x_w, p, rc, g, tint, r0, beta):
+    """(*) for one chunk of texels (1-D arrays, colours (n, 3)) at the mapping's own β: the
+    max channel m (of r_c) first (the dielectric's IOR and the coat's follow from r̂), then
+    every channel.  (*) is increasing in r: each channel has one root in [0, 1], or none when
+    even r = 1 falls short (counted)."""
+    narrow, wide = _Lobe(x_n, version), _Lobe(x_w, version)
+    white = np.all(tint == 1.0, axis=-1, keepdims=True)
+    t = _Texels(lobe, _exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
+                mw=wide.missing, ew=wide.eavg, p=p[:, None], rc=rc, g=g, tint=tint, white=white)
+    n = len(p)
+    rows = np.arange(n)
+    m = np.argmax(rc, axis=-1)
+    tm = t.take(rows, m)  # the max channel (colour axis of length 1)
+    rc_m = np.take_along_axis(rc, m[:, None], -1)
+    zero = np.zeros((n, 1))
+    # the haze-free material: one lobe, F(0) = r_c, β = 0
+    f0, _ = t.fss(rc, 1.0 - rc, rc_m, 1.0 - rc_m, zero)
+    s_0 = 1.0 + _excess(t.mn, t.en, f0)
+    target = rc * s_0
+    t_m = np.take_along_axis(target, m[:, None], -1)[:, 0]
+
+    # the max channel, in x = 1 - r̂ (the peak falls as x grows)
+    def f_hat(x, sel):
+        sub = tm.take(sel)
+        r = 1.0 - x[:, None]
+        return t_m[sel] - sub.peak(r, x[:, None], r, x[:, None], beta[sel, None])[:, 0]
+
+    short_m = f_hat(np.zeros(n), rows) > 0  # even r̂ = 1 falls short
+    x0 = np.clip(1.0 - r0.max(axis=-1), 0.0, 1.0)
+    omr_hat, steps = _root(f_hat, np.zeros(n), np.ones(n), x0, rows, t_m)
+    omr_hat = np.where(short_m, 0.0, omr_hat)
+    r_hat = 1.0 - omr_hat
+
+    # every channel at that β and r̂ (the max channel gives r̂ again)
+    def f_ch(x, sel):
+        sub = t.take(sel)
+        return target[sel] - sub.peak(1.0 - x, x, r_hat[sel, None], omr_hat[sel, None], beta[sel, None])
+
+    short = f_ch(np.zeros((n, 3)), rows) > 0
+    omr, it = _root(f_ch, np.zeros((n, 3)), np.ones((n, 3)), np.clip(1.0 - r0, 0.0, 1.0), rows, target)
+    steps = max(steps, it)
+    omr = np.where(short, 0.0, omr)
+    np.put_along_axis(omr, m[:, None], omr_hat[:, None], -1)
+    if lobe == "COAT":  # one Coat IOR: every channel is the max channel (equal up to rounding)
+        omr = np.repeat(omr_hat[:, None], 3, -1)
+    r = 1.0 - omr
+
+    b = beta[:, None]
+    fn, fw = t.fss(r, omr, r_hat[:, None], omr_hat[:, None], b)
+    s_n = 1.0 + _excess(t.mn, t.en, fn)
+    s_w = 1.0 + _excess(t.mw, t.ew, fw)
+    hazy = r * ((1.0 - b) * s_n + b * t.p * s_w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.where((target > 0) & ~short, hazy / target - 1.0, 0.0)
+    return dict(r=r, omr=omr, s_n=s_n, s_w=s_w, s_0=s_0, steps=steps,
+                over=int(np.count_nonzero(short.any(axis=-1) | short_m)),
+                residual=float(np.abs(err).max(initial=0.0)))
+
+
+def _solve_glossy(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
+    """Glossy lobes: (*) for one chunk of texels (1-D arrays, colours (n, 3)); ``bh`` is β_h
+    times the Bézier share.  The peak-keeping family: for each β every channel's r follows from (*).
     β_max = min(1, first β at which a channel needs r = 1); k_max = β_max r̂_m(β_max) is the
     largest halo weight of the max channel m (of r_c); k̂ = bh k_max; r̂_m from (*) with
     β = k̂ / r̂_m; then each channel's r from (*) with that β."""
@@ -674,3 +716,31 @@ def _solve(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
     return dict(r=r, omr=omr, beta=beta, k=k, k_max=k_max, s_n=s_n, s_w=s_w, s_0=s_0,
                 steps=steps, over=int(np.count_nonzero(short.any(axis=-1))),
                 residual=float(np.abs(err).max(initial=0.0)))
+
+
+def _first_descent_root(g, k_hi, rows, scale, max_iter=60):
+    """The smallest k in [0, k_hi] with g(k) = 0 for a convex g with g(0) >= 0, or k_hi where g
+    stays >= 0 on [0, k_hi] (linear g: one Newton step).  Newton from k = 0 does not pass the
+    first root of a convex function (but for the difference quotient, which the next steps
+    correct); it stops at |g| <= 8 ε ``scale`` or a relative step of 1e-15.
+    Returns (k, iterations)."""
+    k = np.zeros_like(k_hi)
+    todo = np.arange(len(k))
+    it = 0
+    for it in range(1, max_iter + 1):
+        ka, hi = k[todo], k_hi[todo]
+        gk = g(ka, rows[todo])
+        h = np.maximum(1e-6 * hi, 1e-300)
+        slope = (g(ka + h, rows[todo]) - gk) / h
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # no descent left while g > 0: the minimum is above 0, no root up to k_hi
+            nk = np.where(slope < 0, ka - gk / slope, np.where(gk > 0, np.inf, ka))
+        nk = np.clip(nk, 0.0, hi)
+        k[todo] = nk
+        done = ((np.abs(gk) <= 8 * _EPS * scale[todo]) | (nk >= hi)
+                | (np.abs(nk - ka) <= 1e-15 * np.abs(nk)))
+        k[todo] = np.where(np.abs(gk) <= 8 * _EPS * scale[todo], ka, nk)
+        todo = todo[~done]
+        if not len(todo):
+            break
+    return k, it

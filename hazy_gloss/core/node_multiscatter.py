@@ -12,10 +12,10 @@ the single-scatter mapping, so textured materials keep the peak under Cycles' en
   Principled dielectric exactly (affine in r, or through Kulla-Conty's fit of η(r̂), which is
   2√r̂ / (5.08638 - 3.08496 √r̂)); the physical conductor's through two exact evaluations
   (F_c at 1/7 of Gulbrandsen's η, κ) and the chord between them;
-- (*) r [(1-β) S_n + β p S_w] = r_c S_0 solved by unrolled safeguarded Newton steps in the
-  order of correct_mapping: β_max (closed form for Fresnel lobes, Newton from β = 0 for
-  Glossy), k̂_max = β_max r̂_m(β_max), k̂ = β_h k̂_max, r̂_m with β = k̂/r̂_m (the max channel),
-  then every channel at that β.
+- (*) r [(1-β) S_n + β p S_w] = r_c S_0 solved for r at the mapping's own β by unrolled
+  Newton steps from the single-scatter r (core.multiscatter.correct_mapping): the max channel
+  first where its F_ss sets the IOR (dielectric, coat), then every channel.  Glossy lobes
+  (their colours carry β) keep the β_max family of core.multiscatter._solve_glossy.
 
 Each Newton step for r at fixed β is written as u' = y (1 + u δ) / (1 + y δ) with y = T/D(u),
 δ = D'(u)/D(u) (Newton on u - T/D(u)): non-negative and <= 1 by construction.
@@ -34,12 +34,15 @@ __all__ = ("LOBES", "ITERATIONS", "table_stops", "correct", "dielectric_s")
 #: Lobe types (core.multiscatter.LOBES).
 LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
 
-#: Unrolled Newton steps: "k" for r̂_m(β_max) (k̂_max), "m" the max channel r̂_m, "c" every
-#: channel at the final β (the physical conductor: "c0" on the chord model, then "c" with its
-#: exact F_ss at each iterate), "b" Glossy lobes' β_max.  Measured bounds: docs/mapping.md §11.
+#: Unrolled Newton steps on (*) at the mapping's β, per lobe type: "m" the max channel's r̂
+#: with its own F_ss (the coat, the dielectric), "c" every channel (the conductor on the chord
+#: of its F_ss), "x" the conductor's steps with its exact F_ss.  The error each count leaves
+#: is measured in docs/performance.md ("error against cost").
+STEPS = {"COAT": {"m": 2}, "F82_TINT": {"c": 2}, "DIELECTRIC": {"m": 2, "c": 2},
+         "CONDUCTOR": {"c": 1, "x": 1}}
+#: Glossy lobes (their β_max family, core.multiscatter._solve_glossy): "k" for r̂_m(β_max)
+#: (k̂_max), "m" the max channel r̂_m, "c" every channel, "b" β_max.
 ITERATIONS = {"k": 2, "m": 1, "c": 2, "b": 4}
-#: Per lobe type: the coat has no per-channel solve, its max channel is the peak.
-DEFAULTS = {"COAT": {"m": 2}, "CONDUCTOR": {"c0": 1, "c": 2}}
 
 _F = 6.0 / 7.0  # F82: cos θ = 1/7
 _F5 = _F ** 5
@@ -62,9 +65,35 @@ class _Table:
     S(F) = 1 + M, M = F m E_avg / (1 - F (1 - E_avg)) (microfacet_ggx_preserve_energy)."""
 
     def __init__(self, g, x, stops, name):
+        self.g = g
         e, a, _ = g.separate(g.ramp(x, stops, label=f"E(1,x), E_avg(x) {name}"))
         self.ma = g.mul(g.div(g.sub(1.0, e), e), a, label=f"m E_avg {name}")
         self.am1 = g.sub(a, 1.0)
+
+
+class _Lanes:
+    """Both lobes' tables in the lanes of one vector (narrow, wide, 0), for a scalar unknown:
+    A = E_avg (1-E)/E and B = E_avg - 1, so that each lobe's S(F) = 1 + F A / (1 + F B)
+    comes from one Vector Math pass."""
+
+    def __init__(self, tn, tw):
+        g = tn.g
+        self.g = g
+        self.a = g.combine(tn.ma, tw.ma, 0.0, label="E_avg (1-E)/E: narrow, wide")
+        self.b = g.combine(tn.am1, tw.am1, 0.0, label="E_avg - 1: narrow, wide")
+
+    def step(self, u, model, target, weights, c0):
+        """One Newton step on u - T/D(u) with D = c0 + w · M(F(u)), M = S - 1 per lane
+        (weights w = (1-β, β p, 0), c0 = 1-β + β p):
+        u' = T (D + u D') / (D² + T D'), D' = F'(u) (w · A/(1 + F B)²)."""
+        g = self.g
+        f, df = model(u)
+        den = g.vmath("MULTIPLY_ADD", self.b, f, 1.0)  # 1 + F B >= E_avg > 0
+        excess = g.vmath("DIVIDE", g.vmath("SCALE", self.a, f), den)
+        slope = g.vmath("DIVIDE", self.a, g.vmath("MULTIPLY", den, den))
+        d = g.add(g.dot(weights, excess), c0)
+        dp = g.mul(g.dot(weights, slope), df)
+        return g.minimum(g.div(g.mul(target, g.madd(u, dp, d)), g.madd(d, d, g.mul(target, dp))), 1.0)
 
 
 class _Ops:
@@ -100,21 +129,6 @@ def _fixed_beta_step(o, u, beta, T, model, tn, tw, p):
     delta = o("DIVIDE", dp, d)
     un = o("DIVIDE", o("MULTIPLY", y, o("MULTIPLY_ADD", u, delta, 1.0)), o("MULTIPLY_ADD", y, delta, 1.0))
     return o("MINIMUM", un, 1.0)
-
-
-def _max_channel_step(g, u, k, t_m, model, tn, tw, p):
-    """One Newton step on G(u) = u - k - (T_m - k p S_w)/S_n (the max channel with β = k/u):
-    G' = 1 + F' (k p S_w' + z S_n')/S_n, z = (T_m - k p S_w)/S_n; u kept in [k, 1]."""
-    o = _Ops(g, False)
-    f, _, df, _ = model(u)
-    mn, dsn = _excess(o, tn, f)
-    mw, dsw = _excess(o, tw, f)
-    kp = g.mul(k, p)
-    sn = g.add(mn, 1.0)
-    z = g.div(g.sub(t_m, g.madd(mw, kp, kp)), sn)
-    gp = g.madd(g.madd(z, dsn, g.mul(dsw, kp)), g.div(df, sn), 1.0)
-    un = g.sub(u, g.div(g.sub(g.sub(u, z), k), gp))
-    return g.minimum(g.maximum(un, k), 1.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -191,135 +205,113 @@ def _affine(g, a, b):
 
 def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None, version=None,
             iterations=None, affine=None):
-    """Corrected (β, r, ...) for the single-scatter node mapping ``ss`` (node_math's outputs:
-    reflectivity_max, core_max, chroma, peak_complement); ``rc`` the clamped r_c, ``p`` the
-    peak ratio, ``x_n``, ``x_w`` the lobes' roughness indices (α_x α_y)^¼, ``haziness`` β_h
-    (or the Bézier's share β_h t/k̂_7).  ``affine`` (DIELECTRIC only): (on, a, b), where ``on``
-    (1 / 0 per point) says the lobes raise F0 through the Specular Tint, whose F_ss is then
-    a + b r per channel (the IOR's s fixed).  Returns beta, reflectivity, reflectivity_max,
-    halo_intensity, halo_max (k̂_max) and, for Glossy lobes, colour_narrow, colour_wide.
-    peak_ratio / peak_complement stay the single-scatter p, 1 - p of the node math."""
+    """(β, r, ...) keeping the peak of the single-scatter node mapping ``ss`` (node_math's
+    outputs: beta, reflectivity, reflectivity_max, core_max, chroma, peak_complement) under
+    Cycles' energy factor; ``rc`` the clamped r_c, ``p`` the peak ratio, ``x_n``, ``x_w`` the
+    lobes' roughness indices (α_x α_y)^¼, ``haziness`` β_h (or the Bézier's share β_h t/k̂_7,
+    Glossy lobes only).  Lobes with a Fresnel keep the mapping's β (core.multiscatter.
+    correct_mapping): r alone solves (*) by STEPS Newton steps from the single-scatter r.
+    ``affine`` (DIELECTRIC only): (on, a, b), where ``on`` (1 / 0 per point) says the lobes
+    raise F0 through the Specular Tint, whose F_ss is then a + b r per channel (the IOR's s
+    fixed).  ``iterations`` overrides STEPS.  Returns beta, reflectivity, reflectivity_max,
+    halo_intensity and, for Glossy lobes, halo_max, colour_narrow, colour_wide."""
     lobe = str(lobe).upper()
     if lobe not in LOBES:
         raise ValueError(f"multiscatter lobe must be one of {', '.join(LOBES)}; got {lobe!r}")
-    it = {**ITERATIONS, **DEFAULTS.get(lobe, {}), **(iterations or {})}
     stops = table_stops(version)
     tn, tw = _Table(g, x_n, stops, "narrow"), _Table(g, x_w, stops, "wide")
-    s = _Ops(g, False)
-    if lobe == "COAT":  # grey: one channel (r_c = r̂_c), scalar nodes
-        v, rc = s, ss["core_max"]
-        lane_m = lambda x: x  # noqa: E731
-    else:
-        v = _Ops(g, True)
-        # the max channel m (the first of equal maxima, as argmax): e = its indicator, from
-        # floor(chroma) (chroma = r_c / r̂_c is exactly 1 there); all 0 where r_c = 0
-        e0, e1, e2 = g.separate(g.vmath("FLOOR", ss["chroma"]))
-        e = g.combine(e0, g.mul(e1, g.sub(1.0, e0)), g.mul(e2, g.sub(1.0, g.maximum(e0, e1))),
-                      label="max channel")
-        lane_m = lambda x: g.dot(x, e)  # noqa: E731
+    s, v = _Ops(g, False), _Ops(g, True)
     if lobe == "LEGACY":
-        return _legacy(g, ss, rc, p, tn, tw, haziness, lane_m, it)
+        it = {**ITERATIONS, **(iterations or {})}
+        e = _max_lane(g, ss["chroma"])
+        return _legacy(g, ss, rc, p, tn, tw, haziness, lambda x: g.dot(x, e), it)
+    steps = {**STEPS[lobe], **(iterations or {})}
+    beta = ss["beta"]
 
-    # -- F_ss of the node as a function of r: per channel (vec_model), max channel (max_model)
-    if lobe == "F82_TINT":  # F_ss = a + b F0, F0 = Base Color (fresnel_f82_Fss, fresnel_f82_B)
+    def solve(o, u, target, model, n):
+        for _ in range(n):
+            u = _fixed_beta_step(o, u, beta, target, model, tn, tw, p)
+        return u
+
+    def solve_max(u, target, model):
+        """The max channel (a scalar): both lobes in the lanes of one vector."""
+        lanes = _Lanes(tn, tw)
+        omb = g.sub(1.0, beta)
+        bp = g.mul(beta, p)
+        weights, c0 = g.combine(omb, bp, 0.0), g.add(omb, bp)
+        for _ in range(steps["m"]):
+            u = lanes.step(u, model, target, weights, c0)
+        return u
+
+    if lobe == "COAT":  # grey: one scalar, the exact F_ss of the Coat IOR raised to r̂
+        rc_m = ss["core_max"]
+        mn0, _ = _excess(s, tn, _fit(g, rc_m)[0])
+        u = solve_max(ss["reflectivity_max"], g.madd(rc_m, mn0, rc_m), lambda u: _fit(g, u))
+        return dict(beta=beta, reflectivity=g.combine(u, u, u), reflectivity_max=u,
+                    halo_intensity=g.mul(beta, u))
+    if lobe == "F82_TINT":  # F_ss = a + b F0 per channel (fresnel_f82_Fss, fresnel_f82_B)
         om = g.vmath("SUBTRACT", 1.0, g.vclamp01(1.0 if tint is None else tint))
-        a = g.vmath("MULTIPLY_ADD", om, -_K82 * _F5, 1.0 / 21.0)
-        b = g.vmath("MULTIPLY_ADD", om, -_K82 * (1.0 - _F5), 20.0 / 21.0)
-        vec_model = _affine(g, a, b)
-        f0, f1 = vec_model(rc)[0], g.vmath("ADD", a, b)
-        a_m, b_m = lane_m(a), lane_m(b)
-        max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
-    elif lobe == "CONDUCTOR":
-        # exact F_ss at r_c; the max channel's solves use the chord to F_ss(1) = 1 (h = (F-r)/(1-r)
-        # frozen at r_c), every channel's Newton steps the exact F_ss at the iterate (below)
+        model = _affine(g, g.vmath("MULTIPLY_ADD", om, -_K82 * _F5, 1.0 / 21.0),
+                        g.vmath("MULTIPLY_ADD", om, -_K82 * (1.0 - _F5), 20.0 / 21.0))
+        f0 = model(rc)[0]
+    elif lobe == "CONDUCTOR":  # the chord from F_ss(r_c) to F_ss(1) = 1, then the exact F_ss
         exact = _exact_conductor(version)
-        f0, f1 = _conductor_fss(g, rc, edge_tint, exact), 1.0
+        f0 = _conductor_fss(g, rc, edge_tint, exact)
         h = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc),
                     g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), TINY))
-        a_m = lane_m(h)
-        b_m = g.sub(1.0, a_m)
-        max_model = lambda u: (g.madd(u, b_m, a_m),) * 2 + (b_m,) * 2  # noqa: E731
-    elif lobe == "DIELECTRIC":  # F = r + s (1 - r), s from r̂ (Specular Tint r / r̂)
+        model = _affine(g, h, g.vmath("SUBTRACT", 1.0, h))
+    else:  # DIELECTRIC: F = r + s (1 - r), s from r̂ (the Specular Tint r / r̂)
         f0 = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, rc), dielectric_s(g, ss["core_max"]), rc)
-        f1 = 1.0
-        max_model = lambda u: (lambda f, df: (f, f, df, df))(*_dielectric_max(g, u))  # noqa: E731
-        if affine is not None:  # where the tint raises F0: F_ss = a + b r
-            keep, a_t, b_t = affine
-            f0 = g.select(keep, g.vmath("MULTIPLY_ADD", rc, b_t, a_t), f0)
-            f1 = g.select(keep, g.vmath("ADD", a_t, b_t), (1.0, 1.0, 1.0))
-            a_tm, b_tm, raise_ior = lane_m(a_t), lane_m(b_t), max_model
-
-            def max_model(u):
-                f, _, df, _ = raise_ior(u)
-                f = g.select(keep, g.madd(u, b_tm, a_tm), f)
-                df = g.select(keep, b_tm, df)
-                return f, f, df, df
-    else:  # COAT: F_ss = fresnel_dielectric_Fss(η(r̂))
-        f0, f1 = _fit(g, rc)[0], 2.0 / (_FIT_A - _FIT_B)
-        max_model = lambda u: (lambda f, df: (f, f, df, df))(*_fit(g, u))  # noqa: E731
-
-    # -- the haze-free peak and the largest halo ----------------------------------------------
     mn0, _ = _excess(v, tn, f0)
-    T = v("MULTIPLY_ADD", rc, mn0, rc)  # T = r_c S_0: (*)'s right side, per channel
-    t_m = lane_m(T)
-    o1 = v if getattr(f1, "vector", False) else s
-    mn1, _ = _excess(o1, tn, f1)
-    mw1, _ = _excess(o1, tw, f1)
-    # β at which each channel needs r = 1: (S_n(1) - T)/(S_n(1) - p S_w(1)), the divisor as
-    # (1-p) + (M_n - p M_w) (no cancellation as p -> 1)
-    den = o1("MAXIMUM", o1("ADD", o1("MULTIPLY_ADD", mw1, g.mul(p, -1.0), mn1), ss["peak_complement"]),
-             _DIV_MIN)
-    beta_e = v("DIVIDE", v("SUBTRACT", o1("ADD", mn1, 1.0), T), den)
-    if v.vec:
-        b0, b1, b2 = g.separate(beta_e)
-        beta_e = g.minimum(g.minimum(b0, b1), b2)
-    beta_max = g.minimum(beta_e, 1.0, label="β_max")
-    # r̂_m(β_max): Newton at fixed β from T_m / D(F(r̂_c)) (>= the root: F grows with r)
-    mw0, _ = _excess(v, tw, f0)
-    omb, bp = g.sub(1.0, beta_max), g.mul(beta_max, p)
-    d0 = g.add(g.madd(lane_m(mn0), omb, omb), g.madd(lane_m(mw0), bp, bp))
-    u = g.minimum(g.div(t_m, d0), 1.0)
-    for _ in range(it["k"]):
-        u = _fixed_beta_step(s, u, beta_max, t_m, max_model, tn, tw, p)
-    k_max = g.mul(beta_max, u, label="k̂_max")
-    k = g.mul(haziness, k_max, label="k̂_h")
+    target = v("MULTIPLY_ADD", rc, mn0, rc)  # T = r_c S_0, per channel
+    if lobe == "DIELECTRIC":
+        # the max channel first, with its own F_ss (max(fit(η(r̂)), r̂); where the tint raises
+        # F0, a + b r̂); then every channel at that r̂'s s, from r̂'s chroma
+        rc_m = ss["core_max"]
+        mn0m, _ = _excess(s, tn, g.maximum(_fit(g, rc_m)[0], rc_m))
+        t_m = g.madd(rc_m, mn0m, rc_m)
+        max_model = _dielectric_max
+        if affine is not None:
+            keep, a_t, b_t = affine
+            a_m, b_m = g.channel_max(a_t), g.channel_max(b_t)  # (the max channel's weights)
+            f0 = g.select(keep, g.vmath("MULTIPLY_ADD", rc, b_t, a_t), f0)
+            mn0, _ = _excess(v, tn, f0)
+            target = v("MULTIPLY_ADD", rc, mn0, rc)
+            t_m = g.select(keep, g.dot(target, _max_lane(g, ss["chroma"])), t_m)
 
-    # -- the max channel: r̂ with β = k̂ / r̂, from r̂_c + β_h (r̂(β_max) - r̂_c) (Eq. 5's form) -
-    u = g.minimum(g.maximum(g.madd(haziness, g.sub(u, ss["core_max"]), ss["core_max"]), k), 1.0)
-    for _ in range(it["m"]):
-        u = _max_channel_step(g, u, k, t_m, max_model, tn, tw, p)
-    beta = g.div(k, u, label="β = k̂_h / r̂")
-    out = dict(beta=beta, reflectivity_max=u, halo_intensity=k, halo_max=k_max)
-    if lobe == "COAT":  # one Coat IOR: every channel is r̂
-        out["reflectivity"] = g.combine(u, u, u)
-        return out
-
-    # -- every channel at that β, from the max channel's r̂ scaled by the targets -------------
-    r = g.vmath("MINIMUM", g.vmath("SCALE", T, g.div(u, t_m)), 1.0)
-    if lobe == "CONDUCTOR":  # exact F_ss at each iterate, F' by the secant through the last two
+            def max_model(g, u, raise_ior=_dielectric_max):
+                f, df = raise_ior(g, u)
+                return g.select(keep, g.madd(u, b_m, a_m), f), g.select(keep, b_m, df)
+        u = solve_max(ss["reflectivity_max"], t_m, lambda u: max_model(g, u))
+        sd = dielectric_s(g, u)
+        one = (1.0, 1.0, 1.0)
+        if affine is None:
+            model = _affine(g, sd, g.sub(1.0, sd))
+        else:
+            model = _affine(g, g.select(keep, a_t, g.vmath("SCALE", one, sd)),
+                            g.select(keep, b_t, g.vmath("SCALE", one, g.sub(1.0, sd))))
+        r = solve(v, g.vmath("MINIMUM", g.vmath("SCALE", ss["chroma"], u), 1.0), target, model,
+                  steps["c"])
+        return dict(beta=beta, reflectivity=r, reflectivity_max=u, halo_intensity=g.mul(beta, u))
+    r = solve(v, ss["reflectivity"], target, model, steps["c"])
+    if lobe == "CONDUCTOR":  # the exact F_ss at each iterate, F' by the secant
         r_prev, f_prev = rc, f0
-        for _ in range(it.get("c0", 0)):  # steps on the chord model (per channel h frozen at r_c)
-            hv = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc), g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), TINY))
-            r = _fixed_beta_step(v, r, beta, T, _affine(g, hv, g.vmath("SUBTRACT", 1.0, hv)), tn, tw, p)
-        for _ in range(it["c"]):
+        for _ in range(steps["x"]):
             f = _conductor_fss(g, r, edge_tint, exact)
             df = g.vmath("MAXIMUM", g.vmath("DIVIDE", g.vmath("SUBTRACT", f, f_prev),
                                             g.vmath("SUBTRACT", r, r_prev)), 0.0)
             r_prev, f_prev = r, f
-            r = _fixed_beta_step(v, r, beta, T, lambda x, f=f, df=df: (f, f, df, df), tn, tw, p)
-    else:
-        if lobe == "DIELECTRIC":  # s fixed by r̂: F affine in r
-            sd = dielectric_s(g, u)
-            if affine is None:
-                vec_model = _affine(g, sd, g.sub(1.0, sd))
-            else:
-                one = (1.0, 1.0, 1.0)
-                vec_model = _affine(g, g.select(keep, a_t, g.vmath("SCALE", one, sd)),
-                                    g.select(keep, b_t, g.vmath("SCALE", one, g.sub(1.0, sd))))
-        for _ in range(it["c"]):
-            r = _fixed_beta_step(v, r, beta, T, vec_model, tn, tw, p)
-    out["reflectivity"] = r
-    return out
+            r = _fixed_beta_step(v, r, beta, target, lambda x, f=f, df=df: (f, f, df, df), tn, tw, p)
+    r_max = g.channel_max(r)
+    return dict(beta=beta, reflectivity=r, reflectivity_max=r_max, halo_intensity=g.mul(beta, r_max))
+
+
+def _max_lane(g, chroma):
+    """The indicator of the max channel (the first of equal maxima, as argmax): floor(chroma)
+    is 1 exactly there (chroma = r_c / r̂_c); all 0 where r_c = 0."""
+    e0, e1, e2 = g.separate(g.vmath("FLOOR", chroma))
+    return g.combine(e0, g.mul(e1, g.sub(1.0, e0)), g.mul(e2, g.sub(1.0, g.maximum(e0, e1))),
+                     label="max channel")
 
 
 def dielectric_s(g, r_hat):

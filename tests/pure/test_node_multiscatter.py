@@ -6,7 +6,8 @@ Ramp as Blender bakes it for Cycles) on stiff grids, and judged by core.multisca
 - the normal-incidence peak of what the sockets receive (η, κ / IOR and tint / Base Color /
   colours / Coat IOR, and β), with F_ss by each node's rule and S from Cycles' own table lookup,
   against the haze-free material's (core.multiscatter.peak_factor of r_c): the drift;
-- β, r and k̂_max against core.multiscatter.correct_mapping (the float64 solve);
+- β against core.multiscatter.correct_mapping (the mapping's own β for lobes with a Fresnel;
+  Glossy lobes: their β_max family), r and k̂_max (Glossy) against the float64 solve;
 - haziness 0 gives the core, garbage texels give finite values, node counts.
 tests/blender/test_multiscatter_shader.py renders the same graphs in Cycles 4.5, 5.2 and 5.3.
 """
@@ -209,7 +210,7 @@ CONFIGS = [(lobe, aniso, smooth) for lobe in nm.LOBES for aniso, smooth in
 @pytest.mark.parametrize("version", ["4.5", "5.2", "5.3"])
 def test_graph_keeps_the_peak(lobe, aniso, smooth, version):
     """The drift of the socket-level peak, haziness 0 -> β_h <= 0.9, over the stiff grid:
-    <= 3e-4 everywhere (measured <= 1.5e-4: the ramp's corner cutting at R ~ 0.9 dominates)."""
+    within PEAK_TOL, the error budget of an approximation under Multiscatter GGX."""
     x = _grid(lobe, aniso, smooth, seed=zlib.crc32(f"{lobe}{aniso}{smooth}".encode()))
     g, out = _graph(lobe, aniso, smooth, version)
     got = evaluate(out, x)
@@ -226,22 +227,22 @@ def test_graph_keeps_the_peak(lobe, aniso, smooth, version):
     rel = np.where(keep, hazy / np.where(ref > 0, ref, 1.0) - 1.0, 0.0)
     worst = float(np.abs(rel).max())
     WORST[f"peak {lobe} aniso={aniso} smooth={smooth} {version}"] = worst
-    assert worst <= 3e-4, (worst, {k: v[np.unravel_index(np.argmax(np.abs(rel)), rel.shape)[0]]
+    assert worst <= PEAK_TOL, (worst, {k: v[np.unravel_index(np.argmax(np.abs(rel)), rel.shape)[0]]
                                    for k, v in x.items()})
     # β, r and k̂_max against the float64 solve (the meaning of β_h): see BETA_TOL
     _compare_with_solve(lobe, got, m, c, x, aniso)
 
 
-#: |β - β(correct_mapping)| allowed on the grid (docs/mapping.md §11): unrolled steps and the
-#: max channel's F_ss model (conductor: the chord to F(1) = 1) define β slightly differently.
-#: Glossy lobes: the β_max Newton stalls below the float64 root where g(β) has a near-double
-#: root (rough lobes, or halos close to the core): checked on 99.5 % of the texels, and
-#: k̂_max never above the float64 one (less halo, the peak kept).
-BETA_TOL = {"CONDUCTOR": 1e-2, "F82_TINT": 2e-3, "DIELECTRIC": 1e-3, "LEGACY": 2e-3, "COAT": 1e-3}
-#: k̂_max above the float64 bound at most by (absolute; measured 2.6e-3 for dark conductors,
-#: r_c ~ 0.04, where the max channel's chord model is coarsest, 1.2e-3 F82-tint): β_h k̂_max
-#: stays within the bound up to β_h ~ 0.99 (beyond, r is clipped at 1: test_max_haziness)
-K_OVER = {"CONDUCTOR": 3e-3, "F82_TINT": 1.5e-3}
+#: The peak an approximation may move under Multiscatter GGX (relative): the product's error
+#: budget there (the exact mapping keeps it to float rounding; the Color Ramps' corner cutting
+#: alone is ~1.3e-4 at R ~ 0.9).
+PEAK_TOL = 1e-3
+#: |β - β(correct_mapping)| allowed on the grid.  Lobes with a Fresnel keep the mapping's β:
+#: float32 rounding of the same formula.  Glossy lobes: the β_max Newton stalls below the
+#: float64 root where g(β) has a near-double root (rough lobes, or halos close to the core):
+#: checked on 99.5 % of the texels, and k̂_max never above the float64 one (less halo, the peak
+#: kept).
+BETA_TOL = {"CONDUCTOR": 2e-6, "F82_TINT": 2e-6, "DIELECTRIC": 2e-6, "LEGACY": 2e-3, "COAT": 2e-6}
 
 
 def _compare_with_solve(lobe, got, m, c, x, aniso):
@@ -258,10 +259,11 @@ def _compare_with_solve(lobe, got, m, c, x, aniso):
         WORST[key + " p99.5"] = float(np.percentile(db, 99.5))
         db = np.sort(db)[: int(len(db) * 0.995)]
     assert db.max(initial=0.0) <= BETA_TOL[lobe], (lobe, float(db.max()))
-    k = np.asarray(got["halo_max"], np.float64)
-    over = np.max((k - c.multiscatter.halo_max)[keep], initial=-1.0)
-    WORST[f"k̂_max over {lobe}"] = max(WORST.get(f"k̂_max over {lobe}", -1.0), float(over))
-    assert over <= K_OVER.get(lobe, 2e-4), (lobe, over)
+    if lobe == "LEGACY":  # never more halo than the float64 bound (2e-4: float32 steps)
+        k = np.asarray(got["halo_max"], np.float64)
+        over = np.max((k - c.multiscatter.halo_max)[keep], initial=-1.0)
+        WORST["k̂_max over LEGACY"] = max(WORST.get("k̂_max over LEGACY", -1.0), float(over))
+        assert over <= 2e-4, over
     assert np.all((np.asarray(got["beta"]) >= 0) & (np.asarray(got["beta"]) <= 1 + 1e-6))
     assert np.all((np.asarray(got["reflectivity"]) >= 0) & (np.asarray(got["reflectivity"]) <= 1))
 
@@ -339,7 +341,7 @@ def test_output_is_finite_on_garbage_texels():
 
 #: Nodes of the isotropic Eq. 7 graph (single-scatter mapping included: 61 for the conductor;
 #: each per-lane √ of Gulbrandsen's mapping is 7 graph nodes, Graph.vsqrt, faster than 1 Power).
-NODE_COUNTS = {"CONDUCTOR": 451, "F82_TINT": 229, "DIELECTRIC": 271, "LEGACY": 329, "COAT": 209}
+NODE_COUNTS = {"CONDUCTOR": 263, "F82_TINT": 125, "DIELECTRIC": 208, "LEGACY": 351, "COAT": 134}
 
 
 def test_node_counts():
