@@ -111,6 +111,13 @@ class Graph:
         self._memo = {}
         self.inputs = {}
         self.tables = {}  # name -> (H + 2, W + 2) float32, edge-padded (the images TABLE reads)
+        self.sections = None  # [(title, first expression index)] when a caller names its parts
+
+    def section(self, title):
+        """Expressions made from here on belong to the part ``title`` (where sections are kept:
+        a layer group draws each in a frame of its own)."""
+        if self.sections is not None and title:
+            self.sections.append((title, len(self.nodes)))
 
     # -- leaves --------------------------------------------------------------------------------
     def input(self, name, *, vector=False):

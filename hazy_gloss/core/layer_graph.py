@@ -67,6 +67,14 @@ def haze_name(param):
     return "haze:" + param
 
 
+#: The parts a layer's group can hold, per BSDF: what a material uses.  A part left out is
+#: computed nowhere; a point that needs it after all (a value changed where the add-on did
+#: not see it) renders its lobe plain there, without haze (the panel says so).
+PARTS = {"PRINCIPLED": ("dielectric", "metal", "coat", "film", "transmission", "thin_wall",
+                        "aniso"),
+         "METALLIC": ("aniso",), "GLOSSY": ("aniso",)}
+
+
 @dataclass(frozen=True)
 class Config:
     """What a layer group is built for (one group per configuration, shared by materials).
@@ -77,7 +85,7 @@ class Config:
     running one); ``baked``: the haze mapping's per-point values (BAKED) are inputs, read from
     maps texture conversion wrote (Principled only); ``body``: Keep Body Colour (the
     dielectric part's Base Color compensated for the raised specular's layering,
-    core.node_body_colour; Principled only)."""
+    core.node_body_colour; Principled only); ``parts``: the PARTS it holds (None: all)."""
 
     bsdf: str
     distribution: str = "GGX"
@@ -86,6 +94,20 @@ class Config:
     version: tuple = None
     baked: bool = False
     body: bool = False
+    parts: frozenset = None
+
+    def __post_init__(self):
+        known = PARTS.get(self.bsdf, ())
+        parts = frozenset(known if self.parts is None else self.parts)
+        if parts - set(known):
+            raise ValueError(f"a {self.bsdf} layer has no part {sorted(parts - set(known))}; "
+                             f"its parts: {', '.join(known)}")
+        if self.bsdf == "PRINCIPLED" and not parts & {"dielectric", "metal"}:
+            raise ValueError("a Principled layer holds its dielectric part, its metal part or both")
+        object.__setattr__(self, "parts", parts)
+
+    def has(self, part):
+        return part in self.parts
 
     @property
     def thin_wall(self):
@@ -95,7 +117,8 @@ class Config:
 
     def key(self):
         return (self.bsdf, self.distribution, self.fresnel, self.smooth,
-                tuple(self.version) if self.version else None, self.baked, self.body)
+                tuple(self.version) if self.version else None, self.baked, self.body,
+                tuple(sorted(self.parts)))
 
 
 @dataclass
@@ -208,13 +231,13 @@ class _Inputs:
 
 def _section(g, title):
     """Expressions made from here on belong to the frame ``title`` (the group's layout)."""
-    g.sections.append((title, len(g.nodes)))
+    g.section(title)
 
 
 def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, tint=None,
-          affine=None):
-    """node_math.mapping of one part with the layer's inputs (always the anisotropic form:
-    anisotropy and the two extents may be animated or textured)."""
+          affine=None, title=None):
+    """node_math.mapping of one part with the layer's inputs (the anisotropic form where the
+    group holds its "aniso" part)."""
     src = dict(core_reflectivity=rc, edge_tint=edge, roughness=rough, anisotropy=aniso,
                rotation=rot, haziness=haziness, haze_extent_x=x.haze("haze_extent_x"),
                haze_extent_y=x.haze("haze_extent_y"),
@@ -223,9 +246,9 @@ def _part(g, x, cfg, *, kind, rc, edge, rough, aniso, rot, haziness, lobe=None, 
     ms = None
     if dist == "MULTI_GGX":
         ms = lobe or node_math.MULTISCATTER_LOBE[kind]
-    return node_math.mapping(g, src, kind=kind, anisotropic=True, smooth=cfg.smooth,
+    return node_math.mapping(g, src, kind=kind, anisotropic=cfg.has("aniso"), smooth=cfg.smooth,
                              distribution=dist, multiscatter=ms, tint=tint, version=cfg.version,
-                             affine=affine if ms else None)
+                             affine=affine if ms else None, title=title)
 
 
 def _cap(g, x, rc):
@@ -238,6 +261,20 @@ def _cap(g, x, rc):
 def _on(g, haziness):
     """1 where haze is on (β_h > 0), else 0: what the selects of the user's own values read."""
     return g.math("GREATER_THAN", haziness, 0.0, label="haze on")
+
+
+def _off_where(g, value, cutoff):
+    """1 where ``value`` <= ``cutoff`` (a feature the group holds no part for is off there)."""
+    return g.sub(1.0, g.math("GREATER_THAN", value, cutoff))
+
+
+def _isotropic_gate(g, x, cfg, aniso):
+    """Without the "aniso" part: 1 where the core and the halo are isotropic (Anisotropic
+    <= 0 renders isotropic; both extents equal), else 0 (plain).  With it: 1."""
+    if cfg.has("aniso"):
+        return g.value(1.0)
+    same = g.math("COMPARE", x.haze("haze_extent_x"), x.haze("haze_extent_y"), 0.0)
+    return g.mul(_off_where(g, aniso, 0.0), same, label="isotropic (else plain)")
 
 
 def _gain(g, m):
@@ -266,69 +303,153 @@ def baked_name(key):
 
 def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
     """The haze mapping of a Principled core, per point: the values the slots need (BAKED's
-    keys), the split, and what the panel shows."""
+    keys), the split, and what the panel shows.  Only the parts the group holds are computed;
+    the others keep the user's values (no haze there)."""
     bh = x.haze("haziness")
     rough, aniso, rot = x("Roughness"), x("Anisotropic"), x("Anisotropic Rotation")
+    has_d, has_m = cfg.has("dielectric"), cfg.has("metal")
 
     # -- the coat's haze (its own mapping on the Coat IOR's F0; always energy-preserving GGX) --
-    _section(g, "Coat: its own haze mapping (β, Coat IOR raised, wide coat roughness)")
-    cw = x("Coat Weight")
-    ch = x.haze("coat_haziness")
-    coat_on = g.mul(_on(g, ch), g.math("GREATER_THAN", cw, _WEIGHT_CUTOFF), label="coat haze on")
-    f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
-    coat_src = dict(core_reflectivity=f0c, edge_tint=0.0, roughness=x("Coat Roughness"),
-                    anisotropy=0.0, rotation=0.0, haziness=ch,
-                    haze_extent_x=x.haze("coat_haze_extent"),
-                    haze_extent_y=x.haze("coat_haze_extent"), smoothness=None)
-    mc = node_math.mapping(g, coat_src, kind="DIELECTRIC", anisotropic=False, smooth=False,
-                           distribution="MULTI_GGX", multiscatter="COAT", version=cfg.version)
-    v = {"beta_c": g.mul(mc["beta"], coat_on, label="β coat")}
-    v["coat_ior"] = g.select(coat_on, _ior_from_f0(g, g.mul(f0c, _gain(g, mc))), x("Coat IOR"),
-                             label="Coat IOR (raised)")
-    v["coat_roughness_wide"] = g.select(coat_on, mc["roughness_wide"], x("Coat Roughness"),
-                                        label="coat R_w")
+    v = {"beta_c": g.value(0.0), "coat_ior": x("Coat IOR"), "coat_roughness_wide": x("Coat Roughness")}
+    coat_on = g.value(0.0)
+    if cfg.has("coat"):
+        _section(g, "Coat: its haze on F0 of the Coat IOR")
+        cw = x("Coat Weight")
+        ch = x.haze("coat_haziness")
+        coat_on = g.mul(_on(g, ch), g.math("GREATER_THAN", cw, _WEIGHT_CUTOFF), label="coat haze on")
+        f0c = _f0(g, g.maximum(x("Coat IOR"), 1.0))
+        coat_src = dict(core_reflectivity=f0c, edge_tint=0.0, roughness=x("Coat Roughness"),
+                        anisotropy=0.0, rotation=0.0, haziness=ch,
+                        haze_extent_x=x.haze("coat_haze_extent"),
+                        haze_extent_y=x.haze("coat_haze_extent"), smoothness=None)
+        mc = node_math.mapping(g, coat_src, kind="DIELECTRIC", anisotropic=False, smooth=False,
+                               distribution="MULTI_GGX", multiscatter="COAT", version=cfg.version,
+                               title="Coat")
+        _section(g, "Coat: Eq. 5, the Coat IOR raised to r")
+        v["beta_c"] = g.mul(mc["beta"], coat_on, label="β coat")
+        v["coat_ior"] = g.select(coat_on, _ior_from_f0(g, g.mul(f0c, _gain(g, mc))), x("Coat IOR"),
+                                 label="Coat IOR (raised)")
+        v["coat_roughness_wide"] = g.select(coat_on, mc["roughness_wide"], x("Coat Roughness"),
+                                            label="coat R_w")
 
     # -- a fractional m splits into its two parts only where there is haze: without it the
     #    user's BSDF renders as it is (bit for bit, not as the mix of its parts)
     split = g.mul(g.sub(b_metal, a_metal), g.maximum(_on(g, bh), coat_on),
                   label="split (0 < m < 1, haze on)")
-    # -- the base's haziness: raised where the split puts its halo under the narrow coat only --
-    share = g.sub(1.0, g.mul(v["beta_c"], split))
-    bh_eff = g.select(split, g.clamp(g.div(bh, g.maximum(share, _DIV_MIN)), 0.0, K.MAX_HAZINESS),
-                      bh, label="β_h of the base")
-    on = _on(g, bh_eff)
+    bh_eff = bh
+    if has_d and has_m and cfg.has("coat"):
+        # the base's haziness: raised where the split puts its halo under the narrow coat only
+        share = g.sub(1.0, g.mul(v["beta_c"], split))
+        bh_eff = g.select(split, g.clamp(g.div(bh, g.maximum(share, _DIV_MIN)), 0.0, K.MAX_HAZINESS),
+                          bh, label="β_h of the base")
+    # -- where a point needs a part the group does not hold, its lobe renders plain ------------
+    iso = _isotropic_gate(g, x, cfg, aniso)
+    gate_d, gate_m = iso, iso
+    if not has_m:  # a dielectric group: only m = 0 is hazed
+        gate_d = g.mul(gate_d, _off_where(g, m, 0.0))
+    if not has_d:  # a metal group: only m = 1 is hazed
+        gate_m = g.mul(gate_m, g.math("GREATER_THAN", m, K.ONE_MINUS_ULP32))
+    if not cfg.has("film"):
+        gate_d = g.mul(gate_d, _off_where(g, x("Thin Film Thickness"), _FILM_CUTOFF))
+    if not cfg.has("transmission"):
+        gate_d = g.mul(gate_d, _off_where(g, x("Transmission Weight"), _WEIGHT_CUTOFF))
+    elif cfg.thin_wall and not cfg.has("thin_wall"):
+        thin = g.mul(g.math("GREATER_THAN", x("Transmission Weight"), _WEIGHT_CUTOFF),
+                     g.math("GREATER_THAN", x("Thin Wall"), 0.5))
+        gate_d = g.mul(gate_d, g.sub(1.0, thin))
+    bh_d, bh_m = g.mul(bh_eff, gate_d, label="β_h dielectric"), g.mul(bh_eff, gate_m, label="β_h metal")
+    on_d, on_m = _on(g, bh_d), _on(g, bh_m)
 
-    # -- dielectric part: F0 = F0(IOR) 2 Level Specular Tint, raised through the IOR; where light
-    #    passes through (Transmission Weight > 0) or a thin film interferes, the IOR stays (it
-    #    sets the refraction and the film) and the Specular Tint, which scales F0 alone
-    #    (svm/closure.h), raises it (mapping.md §13)
-    _section(g, "Dielectric part: haze mapping (β, IOR or Specular Tint raised so that F(0) = r)")
     ior = x("IOR")
     tint = x("Specular Tint", True)
+    base = x("Base Color", True)
+    one = (1.0, 1.0, 1.0)
+    v.update(ior_d=ior, ior_baked=ior, beta_d=g.value(0.0), mix_d=g.value(0.0), tint_n=tint,
+             tint_w=tint, mirror=g.value(0.0), mirror_colour=g.value(one), base_m=base,
+             beta_m=g.value(0.0))
+    shown = {"reflectivity dielectric": g.value(0.0), "haze room dielectric": g.value(0.0),
+             "transmissive": g.value(0.0), "tint narrow": tint, "mix dielectric": g.value(0.0)}
+    md = mm = None
+    if has_d:
+        md, tinted = _dielectric_part(g, x, cfg, v, bh_d, on_d, ior, tint, rough, aniso, rot)
+        shown = {"reflectivity dielectric": md["reflectivity"],
+                 "haze room dielectric": md["halo_intensity"], "transmissive": v["transmissive"],
+                 "tint narrow": v["tint_n"], "mix dielectric": v["mix_d"]}
+    if has_m:
+        # -- metal part: F82-tint with F0 = Base Color, raised per channel (Eq. 5) -----------
+        _section(g, "Metal part: F0 = Base Color")
+        mm = _part(g, x, cfg, kind="DIELECTRIC", rc=_cap(g, x, base), edge=0.0, rough=rough,
+                   aniso=aniso, rot=rot, haziness=bh_m, lobe="F82_TINT",
+                   tint=x("Specular Tint", True), title="Metal part")
+        _section(g, "Metal part: Eq. 5, Base Color raised to r")
+        v["base_m"] = g.select(on_m, mm["reflectivity"], base, label="Base Color (raised)")
+        v["beta_m"] = g.mul(mm["beta"], on_m, label="β metal")
+    # α_w depends on α_n and λ_h only: the same for both parts
+    wide = md or mm
+    v.update(roughness_wide=wide["roughness_wide"])
+    if cfg.has("aniso"):
+        v.update(anisotropy_wide=wide["anisotropy_wide"], rotation_wide=wide["rotation_wide"])
+    if cfg.body and has_d:  # (where the tint raises F0, the body is not compensated: mapping.md §13)
+        _section(g, "Keep Body Colour: the base as it was")
+        kw = dict(tint=x("Specular Tint", True), level=x("Specular IOR Level"),
+                  multiscatter=cfg.distribution == "MULTI_GGX", version=cfg.version)
+        c = node_body_colour.compensation(
+            g, mu=node_body_colour.mu_from_facing(g), beta=v["beta_d"], ior=ior,
+            ior_hazy=v["ior_d"], rough_n=_roughness_index(g, rough, aniso),
+            rough_w=_roughness_index(g, v["roughness_wide"], v.get("anisotropy_wide", aniso)), **kw)
+        v["base_d"] = g.select(g.sub(on_d, tinted), g.vmath("MINIMUM", g.vmath("MULTIPLY", base, c), 1.0),
+                               base, label="Base Color (body kept)")
+    return v, split, shown
+
+
+def _dielectric_part(g, x, cfg, v, bh, on, ior, tint, rough, aniso, rot):
+    """The dielectric part (β, the raised F(0)): F0 = F0(IOR) 2 Level Specular Tint, raised
+    through the IOR; where light passes through (Transmission Weight > 0) or a thin film
+    interferes, the IOR stays (it sets the refraction and the film) and the Specular Tint,
+    which scales F0 alone (svm/closure.h), raises it (mapping.md §13).  Writes its values into
+    ``v``; returns (its mapping, 1 where the tint raises F0)."""
+    _section(g, "Dielectric part: F0 of IOR, Level, Tint")
     f0_user = _f0(g, ior)
-    tr = g.math("GREATER_THAN", x("Transmission Weight"), _WEIGHT_CUTOFF, label="transmissive")
-    film = g.math("GREATER_THAN", x("Thin Film Thickness"), _FILM_CUTOFF, label="thin film")
+    has_tr, has_film = cfg.has("transmission"), cfg.has("film")
+    tr = g.math("GREATER_THAN", x("Transmission Weight"), _WEIGHT_CUTOFF, label="transmissive") \
+        if has_tr else g.value(0.0)
+    film = g.math("GREATER_THAN", x("Thin Film Thickness"), _FILM_CUTOFF, label="thin film") \
+        if has_film else g.value(0.0)
     keep = g.maximum(tr, film, label="IOR kept")
     # the transmission lobe's F0 has no Specular IOR Level (generalized_schlick_setup): the
     # peak of a partly transmissive point is F0 tint ((1 - w) 2 Level + w), linear in the tint
     level = g.mul(g.maximum(x("Specular IOR Level"), 0.0), 2.0)
-    level = g.select(tr, g.mix(g.clamp(x("Transmission Weight"), 0.0, 1.0), level, 1.0), level)
+    if has_tr:
+        level = g.select(tr, g.mix(g.clamp(x("Transmission Weight"), 0.0, 1.0), level, 1.0), level)
     rc_d = g.vmath("SCALE", tint, g.mul(f0_user, level))
-    # a film: F(0) is the film's F scaled per channel by F (1 + s (τ F0/F0_real - 1)),
-    # s = saturate((1 - F)/(1 - F0_real)) (generalized_schlick_fresnel); the closure's η: the
-    # transmission lobe's IOR, or the specular's with Specular IOR Level applied
-    eta_s, f0_s, _ = node_body_colour.kernel_specular(g, ior, g.mul(level, 0.5))
-    f_film = node_thin_film.dielectric_film(g, x("Thin Film Thickness"), x("Thin Film IOR"),
-                                            eta_s, version=cfg.version)
-    scale = g.vmath("SCALE", g.vmath("MINIMUM", g.vmath("SCALE", tint, f0_s), 1.0),
-                    g.div(1.0, g.maximum(f0_s, _DIV_MIN)))
-    s_film = g.vclamp01(g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, f_film),
-                                g.div(1.0, g.maximum(g.sub(1.0, f0_s), _DIV_MIN))))
-    f_base = g.select(film, f_film, g.vmath("SCALE", (1.0, 1.0, 1.0), f0_s),
-                      label="F (before the tint)")
-    s_tint = g.select(film, s_film, (1.0, 1.0, 1.0), label="s (the tint's share)")
-    rc_d = g.select(film, g.vmath("MULTIPLY", f_film, g.vmath("MULTIPLY_ADD", s_film, g.vmath(
-        "SUBTRACT", scale, 1.0), 1.0)), rc_d)
+    f_base, s_tint = g.value((1.0, 1.0, 1.0)), g.value((1.0, 1.0, 1.0))
+    a_t = b_t = None
+    if has_tr or has_film:
+        # a film: F(0) is the film's F scaled per channel by F (1 + s (τ F0/F0_real - 1)),
+        # s = saturate((1 - F)/(1 - F0_real)) (generalized_schlick_fresnel); the closure's η:
+        # the transmission lobe's IOR, or the specular's with Specular IOR Level applied
+        _section(g, "Dielectric part: film or glass F(0), via the Tint")
+        eta_s, f0_s, _ = node_body_colour.kernel_specular(g, ior, g.mul(level, 0.5))
+        f_base = g.vmath("SCALE", (1.0, 1.0, 1.0), f0_s)
+        if has_film:
+            f_film = node_thin_film.dielectric_film(g, x("Thin Film Thickness"), x("Thin Film IOR"),
+                                                    eta_s, version=cfg.version)
+            scale = g.vmath("SCALE", g.vmath("MINIMUM", g.vmath("SCALE", tint, f0_s), 1.0),
+                            g.div(1.0, g.maximum(f0_s, _DIV_MIN)))
+            s_film = g.vclamp01(g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, f_film),
+                                        g.div(1.0, g.maximum(g.sub(1.0, f0_s), _DIV_MIN))))
+            f_base = g.select(film, f_film, f_base, label="F (before the tint)")
+            s_tint = g.select(film, s_film, (1.0, 1.0, 1.0), label="s (the tint's share)")
+            rc_d = g.select(film, g.vmath("MULTIPLY", f_film, g.vmath("MULTIPLY_ADD", s_film, g.vmath(
+                "SUBTRACT", scale, 1.0), 1.0)), rc_d)
+        # Multiscatter GGX: a tinted lobe's F_ss = f0' + s_η (1 - f0'), f0' = F0 τ' and τ'
+        # affine in the peak r (tint_for): a + b r per channel (microfacet_ggx_preserve_energy)
+        s_eta = node_multiscatter.dielectric_s(g, f0_s)
+        inv_s = g.vmath("DIVIDE", 1.0, g.vmath("MAXIMUM", s_tint, _DIV_MIN))
+        a_t = g.vmath("MULTIPLY_ADD", g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, inv_s),
+                                              g.mul(f0_s, g.sub(1.0, s_eta))), 1.0, s_eta)
+        b_t = g.vmath("SCALE", g.vmath("DIVIDE", inv_s, g.vmath("MAXIMUM", f_base, _DIV_MIN)),
+                      g.mul(f0_s, g.sub(1.0, s_eta)))
 
     def tint_for(target):
         """The Specular Tint giving the peak ``target`` (per channel): 1 + (target/F - 1)/s."""
@@ -336,7 +457,7 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
         return g.vmath("ADD", g.vmath("DIVIDE", g.vmath("SUBTRACT", q, 1.0),
                                       g.vmath("MAXIMUM", s_tint, _DIV_MIN)), 1.0)
     thin = None
-    if cfg.thin_wall:
+    if cfg.thin_wall and has_tr and cfg.has("thin_wall"):
         # a thin wall's reflection lobe is always energy-compensated with F_ss = Specular Tint
         # (bsdf_thin_glass_reflection_setup): its peak is R'(F0 tint) S(tint)
         thin = g.mul(tr, g.math("GREATER_THAN", x("Thin Wall"), 0.5), label="thin wall")
@@ -344,88 +465,64 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
         rc_d = g.select(thin, g.vmath("MULTIPLY", _thin_reflectance(g, rc_d, x("Base Color", True)),
                                       node_body_colour.peak_energy(g, tint, x_n, cfg.version)), rc_d)
     rc_d = _cap(g, x, rc_d)
-    # Multiscatter GGX: a tinted lobe's F_ss = f0' + s_η (1 - f0'), f0' = F0 τ' and τ' affine in
-    # the peak r (tint_for): a + b r per channel (microfacet_ggx_preserve_energy)
-    s_eta = node_multiscatter.dielectric_s(g, f0_s)
-    inv_s = g.vmath("DIVIDE", 1.0, g.vmath("MAXIMUM", s_tint, _DIV_MIN))
-    a_t = g.vmath("MULTIPLY_ADD", g.vmath("SCALE", g.vmath("SUBTRACT", 1.0, inv_s),
-                                          g.mul(f0_s, g.sub(1.0, s_eta))), 1.0, s_eta)
-    b_t = g.vmath("SCALE", g.vmath("DIVIDE", inv_s, g.vmath("MAXIMUM", f_base, _DIV_MIN)),
-                  g.mul(f0_s, g.sub(1.0, s_eta)))
     md = _part(g, x, cfg, kind="DIELECTRIC", rc=rc_d, edge=0.0, rough=rough, aniso=aniso, rot=rot,
-               haziness=bh_eff, affine=(keep, a_t, b_t))
+               haziness=bh, affine=(keep, a_t, b_t) if a_t is not None else None,
+               title="Dielectric part")
+    _section(g, "Dielectric part: Eq. 5, IOR raised to r")
     gain = _gain(g, md)
     raised_ior = _ior_from_f0(g, g.mul(f0_user, gain))
     v["ior_d"] = g.select(g.mul(on, g.sub(1.0, keep)), raised_ior, ior, label="IOR (raised)")
     # converted maps hold the raised IOR everywhere (they have no tint map: mapping.md §13)
     v["ior_baked"] = g.select(on, raised_ior, ior)
     v["beta_d"] = g.mul(md["beta"], on, label="β dielectric")
-    # transmissive: the halo is a mirror lobe of weight f = β r̂ and colour r / r̂ that transmits
-    # nothing, so the narrow lobe keeps the refraction and (1 - f) of it; its F0 is raised by
-    # t = (1 - f p S_w / (r̂_c S_n)) / (1 - f), which keeps the peak (S: Multiscatter GGX's
-    # energy factors at the peak, 1 for GGX) and makes R + T the original's
-    f_t = g.mul(v["beta_d"], md["reflectivity_max"], label="f = β r̂ (mirror)")
-    v["mix_d"] = g.select(tr, f_t, v["beta_d"], label="mix of the dielectric lobes")
-    halo = g.mul(f_t, md["peak_ratio"])
-    v["mirror_colour"] = g.vmath("SCALE", rc_d, g.div(1.0, g.maximum(md["core_max"], _DIV_MIN)),
-                                 label="r / r̂")
-    if cfg.distribution == "MULTI_GGX":  # the mirror's factor per channel: F82, F_ss = c + (1-c)/21
-        x_w = _roughness_index(g, md["roughness_wide"], md["anisotropy_wide"])
-        e_n, _ = node_body_colour.peak_albedos(g, _roughness_index(g, rough, aniso), x_w, ior,
-                                               cfg.version)
-        fss = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, v["mirror_colour"]), 1.0 / 21.0,
-                      v["mirror_colour"])
-        halo = g.vmath("SCALE", node_body_colour.peak_energy(g, fss, x_w, cfg.version), halo,
-                       label="f p S_w")
-        s_n = g.div(1.0, e_n)
-    else:
-        s_n = 1.0
-    if thin is not None:  # the thin wall's S is in r̂_c already
-        s_n = g.select(thin, 1.0, s_n)
-    # t per channel, (1 - f p S_w / (r̂_c S_n)) / (1 - f) >= 0
-    share = g.vmath("SCALE", halo, g.div(1.0, g.maximum(g.mul(md["core_max"], s_n), _DIV_MIN)))
-    t_n = g.vmath("SCALE", g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, share), 0.0),
-                  g.div(1.0, g.maximum(g.sub(1.0, f_t), _DIV_MIN)), label="t (narrow F0 gain)")
-    narrow = tint_for(g.vmath("MULTIPLY", rc_d, t_n))
-    if thin is not None:
-        base_c = x("Base Color", True)
-        target = g.vmath("MULTIPLY", rc_d, t_n)  # R'(s F0) S(s) = target: S from the last root
-        s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
-            g, tint, x_n, cfg.version)), f0_user, base_c)
-        for _ in range(_THIN_FIXED_POINT):
-            s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
-                g, s0, x_n, cfg.version)), f0_user, base_c)
-        narrow = g.select(thin, s0, narrow)
-    raised = tint_for(g.vmath("SCALE", rc_d, gain))
+    v["mix_d"] = v["beta_d"]
+    v["transmissive"] = tr
     tinted = g.mul(on, keep, label="F0 raised by the tint")
-    v["tint_n"] = g.select(tinted, g.select(tr, narrow, raised), tint, label="Specular Tint (narrow)")
+    if not (has_tr or has_film):
+        return md, tinted
+    # transmissive: the halo is a mirror lobe of weight f = β r̂ and colour r / r̂ that
+    # transmits nothing, so the narrow lobe keeps the refraction and (1 - f) of it; its F0 is
+    # raised by t = (1 - f p S_w / (r̂_c S_n)) / (1 - f), which keeps the peak (S: Multiscatter
+    # GGX's energy factors at the peak, 1 for GGX) and makes R + T the original's
+    narrow = raised = tint_for(g.vmath("SCALE", rc_d, gain))
+    if has_tr:
+        _section(g, "Glass: the halo as a mirror, narrow F(0) up")
+        f_t = g.mul(v["beta_d"], md["reflectivity_max"], label="f = β r̂ (mirror)")
+        v["mix_d"] = g.select(tr, f_t, v["beta_d"], label="mix of the dielectric lobes")
+        halo = g.mul(f_t, md["peak_ratio"])
+        v["mirror_colour"] = g.vmath("SCALE", rc_d, g.div(1.0, g.maximum(md["core_max"], _DIV_MIN)),
+                                     label="r / r̂")
+        if cfg.distribution == "MULTI_GGX":  # the mirror's factor per channel: F_ss = c + (1-c)/21
+            x_w = _roughness_index(g, md["roughness_wide"], md.get("anisotropy_wide", aniso))
+            e_n, _ = node_body_colour.peak_albedos(g, _roughness_index(g, rough, aniso), x_w, ior,
+                                                   cfg.version)
+            fss = g.vmath("MULTIPLY_ADD", g.vmath("SUBTRACT", 1.0, v["mirror_colour"]), 1.0 / 21.0,
+                          v["mirror_colour"])
+            halo = g.vmath("SCALE", node_body_colour.peak_energy(g, fss, x_w, cfg.version), halo,
+                           label="f p S_w")
+            s_n = g.div(1.0, e_n)
+        else:
+            s_n = 1.0
+        if thin is not None:  # the thin wall's S is in r̂_c already
+            s_n = g.select(thin, 1.0, s_n)
+        # t per channel, (1 - f p S_w / (r̂_c S_n)) / (1 - f) >= 0
+        share = g.vmath("SCALE", halo, g.div(1.0, g.maximum(g.mul(md["core_max"], s_n), _DIV_MIN)))
+        t_n = g.vmath("SCALE", g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, share), 0.0),
+                      g.div(1.0, g.maximum(g.sub(1.0, f_t), _DIV_MIN)), label="t (narrow F0 gain)")
+        narrow = g.select(tr, tint_for(g.vmath("MULTIPLY", rc_d, t_n)), raised)
+        if thin is not None:
+            base_c = x("Base Color", True)
+            target = g.vmath("MULTIPLY", rc_d, t_n)  # R'(s F0) S(s) = target: S from the last root
+            s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
+                g, tint, x_n, cfg.version)), f0_user, base_c)
+            for _ in range(_THIN_FIXED_POINT):
+                s0 = _thin_tint(g, g.vmath("DIVIDE", target, node_body_colour.peak_energy(
+                    g, s0, x_n, cfg.version)), f0_user, base_c)
+            narrow = g.select(thin, s0, narrow)
+        v["mirror"] = g.mul(on, tr, label="wide lobe is the mirror")
+    v["tint_n"] = g.select(tinted, narrow, tint, label="Specular Tint (narrow)")
     v["tint_w"] = g.select(tinted, raised, tint, label="Specular Tint (wide)")
-    v["mirror"] = g.mul(on, tr, label="wide lobe is the mirror")
-
-    # -- metal part: F82-tint with F0 = Base Color, raised per channel (Eq. 5) ---------------
-    _section(g, "Metal part: haze mapping (β, Base Color raised to r)")
-    base = x("Base Color", True)
-    mm = _part(g, x, cfg, kind="DIELECTRIC", rc=_cap(g, x, base), edge=0.0, rough=rough,
-               aniso=aniso, rot=rot, haziness=bh_eff, lobe="F82_TINT", tint=x("Specular Tint", True))
-    v["base_m"] = g.select(on, mm["reflectivity"], base, label="Base Color (raised)")
-    v["beta_m"] = g.mul(mm["beta"], on, label="β metal")
-    # α_w depends on α_n and λ_h only: the same for both parts
-    v.update(roughness_wide=md["roughness_wide"], anisotropy_wide=md["anisotropy_wide"],
-             rotation_wide=md["rotation_wide"])
-    if cfg.body:  # (where the tint raises F0, the body is not compensated: mapping.md §13)
-        _section(g, "Keep Body Colour: the base under the raised specular as it was")
-        kw = dict(tint=x("Specular Tint", True), level=x("Specular IOR Level"),
-                  multiscatter=cfg.distribution == "MULTI_GGX", version=cfg.version)
-        c = node_body_colour.compensation(
-            g, mu=node_body_colour.mu_from_facing(g), beta=v["beta_d"], ior=ior,
-            ior_hazy=v["ior_d"], rough_n=_roughness_index(g, rough, aniso),
-            rough_w=_roughness_index(g, v["roughness_wide"], v["anisotropy_wide"]), **kw)
-        v["base_d"] = g.select(g.sub(on, tinted), g.vmath("MINIMUM", g.vmath("MULTIPLY", base, c), 1.0),
-                               base, label="Base Color (body kept)")
-    shown = {"reflectivity dielectric": md["reflectivity"],
-             "haze room dielectric": md.get("halo_max", md["halo_intensity"]),
-             "transmissive": tr, "tint narrow": v["tint_n"], "mix dielectric": v["mix_d"]}
-    return v, split, shown
+    return md, tinted
 
 
 def _thin_reflectance(g, front, base):
@@ -470,7 +567,7 @@ def _roughness_index(g, roughness, anisotropy):
 def _principled_baked(g, x, m, a_metal, b_metal):
     """The same values read from the Converted Maps (texture conversion evaluated the live
     mapping per texel): haze is on where a map holds a β above 0."""
-    _section(g, "Converted maps: the haze mapping baked per texel")
+    _section(g, "Converted maps: the mapping baked per texel")
     v = {k: g.input(baked_name(k), vector=vec) for k, (_, vec) in BAKED.items()}
     on = g.math("GREATER_THAN", g.maximum(g.maximum(v["beta_d"], v["beta_m"]), v["beta_c"]), 0.0)
     split = g.mul(g.sub(b_metal, a_metal), on, label="split (0 < m < 1, haze on)")
@@ -483,8 +580,11 @@ def _principled(g, x, cfg):
     _section(g, "Metallic: which parts this point has")
     metallic = x("Metallic")
     m = g.clamp(metallic, 0.0, 1.0, label="m")
-    a_metal = g.math("GREATER_THAN", m, K.ONE_MINUS_ULP32, label="A is metal (m = 1)")
-    b_metal = g.math("GREATER_THAN", m, 0.0, label="B is metal (m > 0)")
+    if cfg.has("dielectric") and cfg.has("metal"):
+        a_metal = g.math("GREATER_THAN", m, K.ONE_MINUS_ULP32, label="A is metal (m = 1)")
+        b_metal = g.math("GREATER_THAN", m, 0.0, label="B is metal (m > 0)")
+    else:  # one part: A and B are it (the other's points render plain: _principled_mapping)
+        a_metal = b_metal = g.value(1.0 if cfg.has("metal") else 0.0)
     if cfg.baked:
         v, split, shown = _principled_baked(g, x, m, a_metal, b_metal)
     else:
@@ -499,8 +599,10 @@ def _principled(g, x, cfg):
              "Base Color": g.select(part_metal, v["base_m"], v.get("base_d", base)),
              "Specular Tint": g.select(part_metal, tint, v["tint_w" if lobe_wide else "tint_n"])}
         if lobe_wide:
-            w.update({"Roughness": v["roughness_wide"], "Anisotropic": v["anisotropy_wide"],
-                      "Anisotropic Rotation": v["rotation_wide"]})
+            w["Roughness"] = v["roughness_wide"]
+            if "anisotropy_wide" in v:
+                w.update({"Anisotropic": v["anisotropy_wide"],
+                          "Anisotropic Rotation": v["rotation_wide"]})
             # a transmissive dielectric's halo: a mirror (Metallic 1, F0 = r / r̂, white F82,
             # no film)
             mirror = g.select(part_metal, 0.0, v["mirror"])
@@ -515,24 +617,29 @@ def _principled(g, x, cfg):
             w["Coat Roughness"] = g.select(coat, v["coat_roughness_wide"], x("Coat Roughness"))
         return Slot(role, w)
 
-    _section(g, "What each BSDF gets")
+    _section(g, "What each BSDF gets (Eq. 1)")
+    both, coat = cfg.has("dielectric") and cfg.has("metal"), cfg.has("coat")
     s1 = slot("A narrow", a_metal, False, "narrow")
     s2 = slot("A wide", a_metal, True, "narrow")
-    b_coat = g.sub(1.0, split)  # no split: B is A under the wide coat
-    s3 = slot("B narrow", b_metal, False, b_coat)
-    s4 = slot("B wide", b_metal, True, b_coat)
-    s5 = Slot("user under the wide coat", {"Coat IOR": v["coat_ior"],
-                                           "Coat Roughness": v["coat_roughness_wide"]})
     beta_a = g.select(a_metal, v["beta_m"], v["mix_d"], label="β_A")
-    beta_b = g.select(b_metal, v["beta_m"], v["mix_d"], label="β_B")
-    f_ab = g.select(split, m, v["beta_c"], label="f_AB (m, or β coat)")
-    f5 = g.mul(split, v["beta_c"], label="f_5 (β coat of a split)")
-    cycles = Mix("Mix coat of a split", f5,
-                 Mix("Mix parts or coat", f_ab, Mix("Mix A", beta_a, s1, s2),
-                     Mix("Mix B", beta_b, s3, s4)), s5)
+    mix_a = Mix("Mix A", beta_a, s1, s2)
+    if not (both or coat):  # one part, no coat haze: its two lobes
+        cycles = mix_a
+    else:
+        b_coat = g.sub(1.0, split) if coat else g.value(0.0)  # no split: B is A under the wide coat
+        s3 = slot("B narrow", b_metal, False, b_coat)
+        s4 = slot("B wide", b_metal, True, b_coat)
+        beta_b = g.select(b_metal, v["beta_m"], v["mix_d"], label="β_B")
+        f_ab = g.select(split, m, v["beta_c"], label="f_AB (m, or β coat)")
+        cycles = Mix("Mix parts or coat", f_ab, mix_a, Mix("Mix B", beta_b, s3, s4))
+        if both and coat:
+            s5 = Slot("user under the wide coat", {"Coat IOR": v["coat_ior"],
+                                                   "Coat Roughness": v["coat_roughness_wide"]})
+            f5 = g.mul(split, v["beta_c"], label="f_5 (β coat of a split)")
+            cycles = Mix("Mix coat of a split", f5, cycles, s5)
 
     # -- EEVEE: one BSDF, each layer's lobes folded (1/α_f² = (1-β)/α_n² + β/α_w²) ------------
-    _section(g, "EEVEE: each layer's lobes folded into one (same peak)")
+    _section(g, "EEVEE: each layer's lobes folded into one")
     rough = g.clamp(x("Roughness"), K.min_roughness("GGX"), 1.0)
     coat_rough = g.clamp(x("Coat Roughness"), K.min_roughness("GGX"), 1.0)
     r_fd = node_math.folded_roughness(g, v["beta_d"], rough, v["roughness_wide"])
@@ -547,8 +654,9 @@ def _principled(g, x, cfg):
                   "reflectivity metal": v["base_m"], "roughness wide": v["roughness_wide"],
                   "coat IOR": v["coat_ior"], "coat roughness wide": v["coat_roughness_wide"],
                   "split": split})
-    baked = {k: v.get(k + "_baked", v[k]) for k in BAKED}
+    baked = {k: v.get(k + "_baked", v.get(k, g.value(0.0))) for k in BAKED}
     return cycles, eevee, shown, baked
+
 
 
 # --------------------------------------------------------------------------------------------
@@ -557,14 +665,14 @@ def _principled(g, x, cfg):
 
 
 def _metallic(g, x, cfg):
-    _section(g, "Haze mapping (β, the Fresnel raised so that F(0) = r)")
-    bh = x.haze("haziness")
-    on = _on(g, bh)
+    _section(g, "The core: r_c from the node's Fresnel")
     rough, aniso, rot = x("Roughness"), x("Anisotropy"), x("Rotation")
+    bh = g.mul(x.haze("haziness"), _isotropic_gate(g, x, cfg, aniso), label="β_h")
+    on = _on(g, bh)
     if cfg.fresnel == "PHYSICAL_CONDUCTOR":
         rc, edge = node_fresnel.gulbrandsen_inverse(g, x("IOR", True), x("Extinction", True))
         m = _part(g, x, cfg, kind="CONDUCTOR", rc=_cap(g, x, rc), edge=edge, rough=rough,
-                  aniso=aniso, rot=rot, haziness=bh)
+                  aniso=aniso, rot=rot, haziness=bh, title="Haze")
         own = {"IOR": g.select(on, m["ior"], x("IOR", True), label="IOR (η, raised)"),
                "Extinction": g.select(on, m["extinction"], x("Extinction", True),
                                       label="Extinction (κ, raised)")}
@@ -572,13 +680,15 @@ def _metallic(g, x, cfg):
     else:
         base = x("Base Color", True)
         m = _part(g, x, cfg, kind="DIELECTRIC", rc=_cap(g, x, base), edge=0.0, rough=rough,
-                  aniso=aniso, rot=rot, haziness=bh, lobe="F82_TINT", tint=x("Edge Tint", True))
+                  aniso=aniso, rot=rot, haziness=bh, lobe="F82_TINT", tint=x("Edge Tint", True),
+                  title="Haze")
         own = {"Base Color": g.select(on, m["reflectivity"], base, label="Base Color (raised)")}
         shown = {}
     _section(g, "What each BSDF gets")
     beta = g.mul(m["beta"], on, label="β")
-    wide = dict(own, Roughness=m["roughness_wide"], Anisotropy=m["anisotropy_wide"],
-                Rotation=m["rotation_wide"])
+    wide = dict(own, Roughness=m["roughness_wide"])
+    if cfg.has("aniso"):
+        wide.update(Anisotropy=m["anisotropy_wide"], Rotation=m["rotation_wide"])
     cycles = Mix("Mix lobes", beta, Slot("narrow", dict(own)), Slot("wide", wide))
     eevee = Slot("EEVEE folded", dict(own, Roughness=node_math.folded_roughness(
         g, beta, m["roughness"], m["roughness_wide"])))
@@ -588,18 +698,20 @@ def _metallic(g, x, cfg):
 
 
 def _glossy(g, x, cfg):
-    _section(g, "Haze mapping (β in the lobes' colours)")
-    bh = x.haze("haziness")
-    on = _on(g, bh)
+    _section(g, "The core: r_c, the node's colour")
     aniso, rot = node_math.glossy_to_metallic(g, x("Anisotropy"), x("Rotation"))
+    bh = g.mul(x.haze("haziness"), _isotropic_gate(g, x, cfg, g.math("ABSOLUTE", x("Anisotropy"))),
+               label="β_h")
+    on = _on(g, bh)
     colour = x("Color", True)
     m = _part(g, x, cfg, kind="LEGACY", rc=_cap(g, x, colour), edge=0.0, rough=x("Roughness"),
-              aniso=aniso, rot=rot, haziness=bh)
+              aniso=aniso, rot=rot, haziness=bh, title="Haze")
     _section(g, "What each BSDF gets")
     narrow = g.select(on, m["colour_narrow"], colour, label="Color k_n")
     wide = {"Color": g.select(on, m["colour_wide"], (0.0, 0.0, 0.0), label="Color k_w"),
-            "Roughness": m["roughness_wide"], "Anisotropy": m["anisotropy_wide"],
-            "Rotation": m["rotation_wide"]}
+            "Roughness": m["roughness_wide"]}
+    if cfg.has("aniso"):
+        wide.update(Anisotropy=m["anisotropy_wide"], Rotation=m["rotation_wide"])
     # no Fresnel: the lobes' colours carry β (Add Shader, as Eq. 1's legacy form)
     cycles = Mix("Add lobes", None, Slot("narrow", {"Color": narrow}), Slot("wide", wide), add=True)
     beta = g.mul(m["beta"], on, label="β")
@@ -621,6 +733,8 @@ def build(config):
         raise ValueError("converted maps and Keep Body Colour are for a Principled core only")
     if config.baked and config.body:
         raise ValueError("Keep Body Colour is not available with converted maps")
+    if config.baked and config.parts != frozenset(PARTS["PRINCIPLED"]):
+        raise ValueError("a converted layer's group holds every part")
     g = Graph()
     g.sections = []
     cycles, eevee, shown, *baked = _BUILDERS[config.bsdf](g, _Inputs(g), config)

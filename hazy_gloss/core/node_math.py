@@ -33,7 +33,7 @@ MULTISCATTER_LOBE = {"CONDUCTOR": "CONDUCTOR", "DIELECTRIC": "DIELECTRIC", "LEGA
 
 
 def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatter=None,
-            tint=None, version=None, iterations=None, affine=None):
+            tint=None, version=None, iterations=None, affine=None, title=None):
     """The physical parameters of Eq. 1 from perceptual inputs ``src`` (name -> Expr or number;
     see INPUTS).
 
@@ -43,12 +43,19 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
     grey r_c = F0 of the Coat IOR): β and r keep the peak under Cycles' Multiscatter GGX energy
     factor (core.node_multiscatter; ``version`` picks the Cycles reproduced, None = the running
     Blender; ``iterations`` overrides its Newton step counts; ``affine``: node_multiscatter's,
-    for a dielectric whose F0 the Specular Tint raises).  Independent of
+    for a dielectric whose F0 the Specular Tint raises).  ``title``: the part's name, for the
+    graph's sections (Graph.section: a layer group's frames).  Independent of
     ``distribution``, whose p is GGX's for MULTI_GGX: the coat is always energy preserving.  Returns a dict of Exprs: roughness, roughness_wide, [anisotropy_wide,
     rotation_wide], alpha_wide, beta, peak_ratio, peak_complement, halo_intensity,
     reflectivity_max (r̂), reflectivity, [anisotropy_narrow (legacy: Glossy convention)], and per kind ior + extinction (conductor), ior + specular_tint
     (dielectric) or colour_narrow + colour_wide (legacy)."""
     out = {}
+
+    def section(what):
+        if title:
+            g.section(f"{title}: {what}")
+
+    section("Eq. 8 halo roughness, Table 2 peak ratio")
     # -- the valid domain (textures can hold anything) -----------------------------------------
     rough = g.clamp(src["roughness"], K.min_roughness(distribution), 1.0, label="R")
     bh = g.clamp(src["haziness"], 0.0, K.MAX_HAZINESS, label="β_h")
@@ -103,6 +110,8 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
     out["peak_complement"] = q
 
     # -- haze intensity, β and 1 - r̂ on r̂_c (Eq. 7 or the Bézier) -----------------------------
+    section("Eqs. 12-15 haze, Eqs. 4-5 β and r" if smooth else
+            "Eq. 7 haze intensity, Eqs. 4-5 β and r")
     rc_max = g.channel_max(rc)
     kh, beta, omr_hat, r_hat = haze_terms(g, rc_max, p, q, bh,
                                           src.get("smoothness") if smooth else None)
@@ -116,6 +125,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
     out["reflectivity"] = r
     out["chroma"] = chroma
     if multiscatter:  # Multiscatter GGX: β, r from (*) (docs/mapping.md §11), 1 - r by subtraction
+        section("Multiscatter GGX, r keeps the peak")
         lobe = MULTISCATTER_LOBE[kind] if multiscatter is True else str(multiscatter).upper()
         if smooth:  # β_h keeps its meaning: the Bézier's share k̂_h / k̂_7 of Eq. 7's bound
             k7 = g.minimum(g.div(rc_max, g.maximum(p, _DIV_MIN)), g.div(g.sub(1.0, rc_max), g.maximum(q, _DIV_MIN)))
@@ -136,6 +146,7 @@ def mapping(g, src, *, kind, anisotropic, smooth, distribution="GGX", multiscatt
         r = g.vmath("MINIMUM", r, K.ONE_MINUS_ULP32)
         chroma = g.vmath("DIVIDE", ms["reflectivity"], r_hat)
 
+    section("the Fresnel of r, the wide lobe")
     if kind == "CONDUCTOR":
         out["ior"], out["extinction"] = gulbrandsen(g, r, omr_v, src["edge_tint"])
     elif kind == "DIELECTRIC":
