@@ -11,7 +11,9 @@ node on the first edit of its core after the file was opened.  Scripts
 that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
 When the file's node groups change in number (an append), the copies of the layer's groups and
 tables an append of hazy materials brought give way to the file's (group_copies.merge_copies);
-before a save, painted haziness maps are packed again (``save_pre``); after a load, the layer
+a layer node whose inputs now reach another part of the haze mapping moves to the group that
+holds it (``follow_parts``, on every update and before a save); before a save, painted
+haziness maps are packed again (``save_pre``); after a load, the layer
 nodes' curves Blender 5.2's versioning moved are put back (``repair_thin_wall_shift``).
 """
 import bpy
@@ -36,6 +38,9 @@ def sync(mat, *, force=False):
     if mat is None or mat.library is not None:
         return False
     if _todays_layer(mat):  # its group computes everything: an EEVEE output, a fallback
+        if follow_parts(mat):
+            refresh_derived(mat)
+            return True
         if eevee_output.requested_mode(mat) is not None and not eevee_output.follows_the_user(mat):
             refresh_derived(mat)  # (the artist switched outputs: EEVEE renders their new one)
             return True
@@ -70,6 +75,23 @@ def sync(mat, *, force=False):
         return False
     _fingerprints.pop(key, None)
     refresh_derived(mat)
+    return True
+
+
+def follow_parts(mat):
+    """The layer node moves to the group of the parts its inputs reach now (layer_parts): an
+    input linked, keyed, driven or set where the group has no part for it brings the part in,
+    and the part goes when nothing needs it.  Only between this add-on's groups of today: an
+    outdated group (another Blender's, an earlier add-on's) holds every part, and moves on
+    the next haze edit or Upgrade Haze Layers.  Returns whether it moved."""
+    node = layer.layer_node(mat)
+    if node is None or node.node_tree is None or node.node_tree.library is not None:
+        return False
+    want = layer.wanted_group(node)
+    if want is None or layer_group.fits(node.node_tree, *want) or \
+            not layer_group.fits(node.node_tree, *want[:5], parts=layer_group.parts_of(node.node_tree)):
+        return False
+    layer.swap_group(node, layer_group.ensure_group(*want))
     return True
 
 
@@ -226,7 +248,27 @@ def repack_painted_maps(_dummy=None):
                 print(f"Hazy Gloss: could not pack the painted map “{img.name}”: {exc}")
 
 
+@persistent
+def parts_before_save(_dummy=None):
+    """Every layer's group holds the parts its inputs reach (a key added since the last update
+    counts): the saved file renders every frame of its animation without the add-on."""
+    global _busy
+    _busy = True
+    try:
+        for mat in bpy.data.materials:
+            if mat.library is None and K.STAMP in mat and _todays_layer(mat):
+                try:
+                    if follow_parts(mat):
+                        refresh_derived(mat)
+                except Exception as exc:  # noqa: BLE001 (a save must never fail on it)
+                    messages.last_error[mat.session_uid] = plain_message(exc)
+    finally:
+        _busy = False
+
+
 def register():
+    if parts_before_save not in bpy.app.handlers.save_pre:
+        bpy.app.handlers.save_pre.append(parts_before_save)
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
     if on_load not in bpy.app.handlers.load_post:
@@ -238,7 +280,8 @@ def register():
 def unregister():
     for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
                          (bpy.app.handlers.load_post, on_load),
-                         (bpy.app.handlers.save_pre, repack_painted_maps)):
+                         (bpy.app.handlers.save_pre, repack_painted_maps),
+                         (bpy.app.handlers.save_pre, parts_before_save)):
         while fn in handlers:
             handlers.remove(fn)
     _fingerprints.clear()

@@ -33,7 +33,7 @@ from ...core import gulbrandsen_inverse
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
-from . import (layer_animation, layer_group, layer_notes, layer_values, layer_wiring,
+from . import (layer_animation, layer_group, layer_notes, layer_parts, layer_values, layer_wiring,
                legacy_layer, stamp)
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
@@ -242,7 +242,8 @@ def wrap(mat, core, haze, *, smooth=None, keep_body_colour=False, baked=False):
     settings = layer_group.settings_of(core)
     use_smooth = haze.get("smoothness") is not None if smooth is None else smooth
     ng = layer_group.ensure_group(kind, settings, use_smooth, baked,
-                                  bool(keep_body_colour) and kind == "PRINCIPLED" and not baked)
+                                  bool(keep_body_colour) and kind == "PRINCIPLED" and not baked,
+                                  None if baked else layer_parts.needed(kind, core, haze))
     restore = {"name": core.name, "label": core.label, "location": list(core.location),
                "width": float(core.width), "hide": bool(core.hide), "mute": bool(core.mute),
                "parent": core.parent.name if core.parent is not None else "",
@@ -554,7 +555,8 @@ def apply(mat, haze, *, core=None):
 def wanted_group(node, haze=None):
     """The configuration (ensure_group's arguments) of the group this Blender and add-on build
     for the layer node: its group's, with the haze curve (smooth or Eq. 7) and Keep Body Colour
-    of ``haze`` when given.  None when the node has no layer group."""
+    of ``haze`` when given, and the parts its inputs reach now (layer_parts).  None when the
+    node has no layer group."""
     cfg = layer_values.group_config(node)
     if cfg.get("kind") != "layer":
         return None
@@ -563,7 +565,8 @@ def wanted_group(node, haze=None):
     if haze is not None and not baked:
         smooth = haze.get("smoothness") is not None
         body = bool(haze.get("keep_body_colour", body)) and kind == "PRINCIPLED"
-    return kind, dict(cfg.get("settings", {})), smooth, baked, body
+    parts = layer_group.all_parts(kind) if baked else layer_parts.needed(kind, node, haze)
+    return kind, dict(cfg.get("settings", {})), smooth, baked, body, parts
 
 
 def outdated_group(mat):
@@ -742,6 +745,12 @@ def notes(mat, quick=True):
     if edited:
         out.append(f"its layer group was edited by hand ({', '.join(f'“{n}”' for n in edited)}): "
                    f"what renders is not what the panel and these notes show")
+    missing = layer_parts.missing(node)
+    if missing:
+        out.append(f"its layer group has no {' or '.join(missing)} part, which its inputs now "
+                   f"need (they were changed where Hazy Gloss did not run): those points render "
+                   f"without haze until it moves the layer to its group (any edit here, or "
+                   f"Upgrade Haze Layers)")
     made = outdated_group(mat)
     if made:
         out.append(f"its layer group was made by {made}: Upgrade Haze Layers (or any haze "

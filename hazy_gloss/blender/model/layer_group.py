@@ -1,13 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The haze layer's node group: one per configuration (BSDF type, distribution, subsurface
-method or Fresnel type, haze curve, Blender version), shared by every material that has it.
+method or Fresnel type, haze curve, the parts the material uses, Blender version), shared by
+every material that has it.
 
 Its interface is the wrapped BSDF's own inputs — names, types, limits, defaults and panels as
 Blender declares them (core.tables.bsdf_interfaces, read through Make Group) — and a Haze panel
-(schema.HAZE_SOCKETS).  Its inside is core.layer_graph emitted as built-in nodes: the haze
-mapping in frames, then the BSDF slots (copies of the wrapped node type whose inputs are the
-group's own, except those the mapping computes) and their Mix Shaders.  Two outputs: "BSDF"
-(the layer) and "EEVEE" (each layer's lobes folded into one, for the EEVEE-only output).
+(schema.HAZE_SOCKETS): the same for every configuration of a BSDF, so a layer node moves
+between them keeping its values, links and animation.  Its inside is core.layer_graph emitted
+as built-in nodes, each part of the mapping in a labelled frame (node_layout), then the BSDF
+slots (copies of the wrapped node type whose inputs are the group's own, except those the
+mapping computes) and their Mix Shaders.  Two outputs: "BSDF" (the layer) and "EEVEE" (each
+layer's lobes folded into one, for the EEVEE-only output).
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ import sys
 import bpy
 
 from ... import constants as K
+from ... import node_layout
 from ...core import (body_colour, graph, layer_graph, multiscatter, node_body_colour, node_fresnel,
                      node_math, node_multiscatter, node_thin_film, thin_film)
 from ...core.multiscatter import cycles_version
@@ -31,8 +35,9 @@ from ..nodes.builder import TreeBuilder, socket_value
 from ..nodes.emit import emit
 from .groups import rebuild_interface
 
-#: Bumped when what a group holds changes: older groups are rebuilt in place on first use.
-GROUP_VERSION = 3  # 2: films and glass keep the IOR (the tint raises F0); 3: Environment tables
+#: Bumped when what a layer group holds changes: older groups are rebuilt in place on first
+#: use (4: one flat group of the parts a material uses, each in a frame).
+LAYER_GROUP_VERSION = 4
 
 BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
               "GLOSSY": "ShaderNodeBsdfGlossy"}
@@ -70,28 +75,50 @@ def kind_of(node):
     return None
 
 
-def config_for(kind, settings, *, smooth=False, baked=False, body=False):
-    """The layer_graph.Config of a BSDF kind and its node settings."""
+def all_parts(kind):
+    """Every part a group of ``kind`` can hold (core.layer_graph.PARTS), sorted."""
+    return tuple(sorted(layer_graph.PARTS[kind]))
+
+
+def _parts(kind, parts, baked):
+    """The parts of a configuration as stamped (sorted names; a converted group holds all)."""
+    if baked or parts is None:
+        return all_parts(kind)
+    return tuple(sorted(parts))
+
+
+def config_for(kind, settings, *, smooth=False, baked=False, body=False, parts=None):
+    """The layer_graph.Config of a BSDF kind, its node settings and the parts it holds."""
     return layer_graph.Config(kind, settings.get("distribution", "GGX"),
                               fresnel=settings.get("fresnel_type", ""), smooth=bool(smooth),
-                              version=cycles_version(None), baked=bool(baked), body=bool(body))
+                              version=cycles_version(None), baked=bool(baked), body=bool(body),
+                              parts=frozenset(_parts(kind, parts, baked)))
 
 
-def group_name(kind, settings, smooth=False, baked=False, body=False):
-    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth, 5.3)" (< 64 bytes; the
-    version inside the brackets: Blender reads a trailing ".3" as a copy's number)."""
-    parts = [K.label(K.DISTRIBUTION_TERMS, settings.get("distribution", ""))]
+#: A part's letter in a group's name (docs/node-groups.md lists them).
+PART_LETTERS = {"dielectric": "D", "metal": "M", "coat": "C", "film": "F", "transmission": "T",
+                "thin_wall": "W", "aniso": "A"}
+
+
+def group_name(kind, settings, smooth=False, baked=False, body=False, parts=None):
+    """E.g. "Hazy Principled BSDF (Multiscatter GGX, Skin, Smooth, DC, 5.3)": the parts by
+    their letters (PART_LETTERS) where not all (< 64 bytes; the version inside the brackets:
+    Blender reads a trailing ".3" as a copy's number)."""
+    words = [K.label(K.DISTRIBUTION_TERMS, settings.get("distribution", ""))]
     for key in ("subsurface_method", "fresnel_type"):
         label = _SETTING_LABEL.get(settings.get(key), "")
         if label:
-            parts.append(label)
+            words.append(label)
     if smooth:
-        parts.append("Smooth")
+        words.append("Smooth")
     if baked:
-        parts.append("Converted")
+        words.append("Converted")
     if body:
-        parts.append("Body")
-    name = f"{_LABEL[kind]} ({', '.join(parts + [version_tag()])})"
+        words.append("Body")
+    held = _parts(kind, parts, baked)
+    if held != all_parts(kind):
+        words.append("".join(PART_LETTERS[p] for p in held) or "Iso")
+    name = f"{_LABEL[kind]} ({', '.join(words + [version_tag()])})"
     for long, short in _SHORTER:  # Blender's ID names hold 63 bytes
         if len(name.encode()) <= 63:
             break
@@ -104,9 +131,10 @@ _SHORTER = (("Christensen-Burley", "Burley"),
             (K.label(K.DISTRIBUTION_TERMS, "ASHIKHMIN_SHIRLEY"), "AS"), (" BSDF (", " ("))
 
 
-def _stamp_of(kind, settings, smooth, baked=False, body=False):
-    d = {"kind": "layer", "version": GROUP_VERSION, "bsdf": kind, "settings": dict(settings),
-         "smooth": int(bool(smooth)), "blender": version_tag()}
+def _stamp_of(kind, settings, smooth, baked=False, body=False, parts=None):
+    d = {"kind": "layer", "version": LAYER_GROUP_VERSION, "bsdf": kind, "settings": dict(settings),
+         "smooth": int(bool(smooth)), "blender": version_tag(),
+         "parts": list(_parts(kind, parts, baked))}
     if baked:
         d["baked"] = 1
     if body:
@@ -114,24 +142,32 @@ def _stamp_of(kind, settings, smooth, baked=False, body=False):
     return d
 
 
-def fits(ng, kind, settings, smooth, baked=False, body=False, linked_ok=False):
+def fits(ng, kind, settings, smooth, baked=False, body=False, parts=None, linked_ok=False):
     """Whether ``ng`` is this Blender's and add-on's group of the configuration (a linked group
     is read-only here, so it does not fit a local layer unless ``linked_ok``)."""
     if ng is None or (ng.library is not None and not linked_ok):
         return False
-    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked, body)
+    return (stamp.group(ng, K.GROUP_STAMP) or {}) == _stamp_of(kind, settings, smooth, baked, body,
+                                                                parts)
+
+
+def parts_of(ng):
+    """The parts a layer group holds (its stamp; an earlier add-on's group: all of them)."""
+    st = stamp.group(ng, K.GROUP_STAMP) or {}
+    parts = st.get("parts")
+    return tuple(parts) if parts is not None else all_parts(st.get("bsdf", "PRINCIPLED"))
 
 
 def is_layer_group(ng):
     return ng is not None and (stamp.group(ng, K.GROUP_STAMP) or {}).get("kind") == "layer"
 
 
-def ensure_group(kind, settings, smooth=False, baked=False, body=False):
+def ensure_group(kind, settings, smooth=False, baked=False, body=False, parts=None):
     """The group of this configuration: found by its stamp (a renamed group is taken), else
     appended from the groups the extension ships or the per-user cache, else built (and
     cached); an outdated group of the same name is rebuilt in place (its users keep their links
     and values)."""
-    config = (kind, settings, smooth, baked, body)
+    config = (kind, settings, smooth, baked, body, _parts(kind, parts, baked))
     name = group_name(*config)
     ng = bpy.data.node_groups.get(name)
     if fits(ng, *config):
@@ -176,17 +212,16 @@ _digest = []
 #: assets/, not in it: the asset library holds assets only).
 SHIPPED_DIR = ("layer_groups",)
 #: The configurations shipped (built by each Blender scripts/build.py finds): each BSDF's
-#: default settings and the other distribution an artist picks most.
-SHIPPED = (
-    ("PRINCIPLED", {"distribution": "MULTI_GGX", "subsurface_method": "RANDOM_WALK"}),
-    ("PRINCIPLED", {"distribution": "GGX", "subsurface_method": "RANDOM_WALK"}),
-    ("METALLIC", {"distribution": "MULTI_GGX", "fresnel_type": "F82"}),
-    ("METALLIC", {"distribution": "GGX", "fresnel_type": "F82"}),
-    ("METALLIC", {"distribution": "MULTI_GGX", "fresnel_type": "PHYSICAL_CONDUCTOR"}),
-    ("METALLIC", {"distribution": "GGX", "fresnel_type": "PHYSICAL_CONDUCTOR"}),
-    ("GLOSSY", {"distribution": "MULTI_GGX"}),
-    ("GLOSSY", {"distribution": "GGX"}),
-)
+#: default settings and the other distribution an artist picks most, with the parts of the
+#: commonest materials (a plastic, a metal, a metallic map, a car paint, a lacquer).
+_PRINCIPLED_PARTS = (("dielectric",), ("metal",), ("dielectric", "metal"), ("coat", "metal"),
+                     ("coat", "dielectric"))
+SHIPPED = tuple(
+    [("PRINCIPLED", {"distribution": d, "subsurface_method": "RANDOM_WALK"}, parts)
+     for d in ("MULTI_GGX", "GGX") for parts in _PRINCIPLED_PARTS]
+    + [("METALLIC", {"distribution": d, "fresnel_type": f}, ()) for d in ("MULTI_GGX", "GGX")
+       for f in ("F82", "PHYSICAL_CONDUCTOR")]
+    + [("GLOSSY", {"distribution": d}, ()) for d in ("MULTI_GGX", "GGX")])
 
 
 def _code_digest():
@@ -204,7 +239,7 @@ def _file_name(name):
     """The .blend of a group in the per-user cache and in the extension's shipped groups."""
     import re
     slug = re.sub(r"[^A-Za-z0-9.]+", "_", name).strip("_")
-    return f"{_code_digest()}-{GROUP_VERSION}-{slug}.blend"
+    return f"{_code_digest()}-{LAYER_GROUP_VERSION}-{slug}.blend"
 
 
 def _shipped_path(name):
@@ -279,20 +314,23 @@ def _append(path, name, config):
 
 
 def _keep_one_copy(ng, groups_before, images_before):
-    """After ``ng`` was appended or built: the node groups and images that came with it give
-    way to the file's where those are the same (_share_parts), and what nothing of ``ng``
-    uses is removed, in one pass over the file (everything new, when ``ng`` is None)."""
+    """After ``ng`` was appended or built: the table images that came with it give way to the
+    file's where those are the same (share_tables), and what nothing of ``ng`` uses is removed,
+    in one pass over the file (everything new, when ``ng`` is None)."""
     groups_before, images_before = _alive(groups_before), _alive(images_before)
     new_groups = [g for g in bpy.data.node_groups if g not in groups_before]
     new_images = [i for i in bpy.data.images if i not in images_before]
-    drop = new_groups + new_images if ng is None else _share_parts(
-        ng, groups_before, images_before, new_groups, new_images)
+    if ng is not None:
+        share_tables(ng, images_before, new_images)
+    used = set() if ng is None else {ng} | {n.image for n in ng.nodes
+                                            if n.bl_idname in K.IMAGE_NODES and n.image}
+    drop = [i for i in new_groups + new_images if i not in used]
     if drop:
-        bpy.data.batch_remove([i for i in drop if i is not ng])
+        bpy.data.batch_remove(drop)
 
 
 def _alive(ids):
-    """``ids`` without those removed since (a stale group's rebuild removes its old sections)."""
+    """``ids`` without those removed since."""
     out = set()
     for i in ids:
         try:
@@ -303,53 +341,25 @@ def _alive(ids):
     return out
 
 
-def _uses(ng, out):
-    """``ng`` and the node groups and images it reads, nested ones included."""
-    out.add(ng)
-    for node in ng.nodes:
-        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and \
-                node.node_tree not in out:
-            _uses(node.node_tree, out)
-        elif node.bl_idname in K.IMAGE_NODES and node.image is not None:
-            out.add(node.image)
-    return out
-
-
 #: What Blender adds to the name of a data-block appended beside one of the same name.
 COPY_SUFFIX = re.compile(r"\.\d{3,}$")
 
 
-def _share_parts(ng, groups_before, images_before, new_groups, new_images):
-    """Point the just appended ``ng`` at the section groups and tables the file has already
-    (the same name and code, the same values) instead of the copies the append brought;
-    returns the copies, now unused."""
-
-    def originals(new, before):
-        names = {i.name: i for i in before if i.library is None}  # (never a linked one)
-        out = {}
-        for i in new:
-            base = COPY_SUFFIX.sub("", i.name)
-            if base != i.name and base in names:
-                out[i] = names[base]
-        return out
-
-    groups, images = originals(new_groups, groups_before), originals(new_images, images_before)
-    if not groups and not images:  # (the first configuration in a file: nothing to share)
-        return []
+def share_tables(ng, images_before, new_images):
+    """Point ``ng``'s table lookups at the tables the file has already (the same name, the same
+    values) instead of the copies an append brought ("<name>.001")."""
+    names = {i.name: i for i in images_before if i.library is None}  # (never a linked one)
+    copies = {}
+    for i in new_images:
+        base = COPY_SUFFIX.sub("", i.name)
+        if base != i.name and base in names and same_table(i, names[base]):
+            copies[i] = names[base]
     for node in ng.nodes:
-        sub = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
-        if sub in groups and _same_part(sub, groups[sub]):
-            node.node_tree = groups[sub]
-        elif sub in new_groups and images:
-            for inner in sub.nodes:
-                old = images.get(inner.image) if inner.bl_idname in K.IMAGE_NODES else None
-                if old is not None and _same_table(inner.image, old):
-                    inner.image = old
-    used = _uses(ng, set())
-    return [i for i in new_groups + new_images if i not in used]
+        if node.bl_idname in K.IMAGE_NODES and node.image in copies:
+            node.image = copies[node.image]
 
 
-def _same_table(new, old):
+def same_table(new, old):
     """The same table: the same hash of its values, the same packed bytes."""
     digest = new.get("hazy_gloss_table")
     return digest is not None and old.get("hazy_gloss_table") == digest and \
@@ -380,8 +390,8 @@ def write_shipped(out_dir, configs=None):
     import os
     os.makedirs(out_dir, exist_ok=True)
     written = []
-    for kind, settings in configs or SHIPPED:
-        config = (kind, dict(settings), False, False, False)
+    for kind, settings, parts in configs or SHIPPED:
+        config = (kind, dict(settings), False, False, False, parts)
         name = group_name(*config)
         if bpy.data.node_groups.get((name, None)) is not None:
             raise RuntimeError(f"write_shipped runs in an empty file; {name!r} is in this one")
@@ -484,28 +494,18 @@ def haze_params(kind, smooth):
 # Inside
 # --------------------------------------------------------------------------------------------
 
-_COLUMN = 180.0
-_ROW = 160.0
+#: Rows an unlinked vector input draws (its label and x, y, z).
+_VECTOR_ROWS = 4
+#: The title of the frame of the BSDF's copies (an ungrouped layer is told by it).
+LOBES_FRAME = "Eq. 1: the BSDF's copies, mixed by β"
 
 
-def _frame(ng, title, nodes, x0, y0, at=None):
-    """Put ``nodes`` (laid out from (0, 0) down: where they are, or ``at``: name -> (x, y)) in
-    a labelled frame at (x0, y0)."""
-    frame = ng.nodes.new("NodeFrame")
-    frame.label = title
-    frame.label_size = 16
-    frame.shrink = True
-    frame.location = (x0, y0)
-    for n in nodes:
-        x, y = at[n.name] if at is not None else tuple(n.location)
-        n.parent = frame
-        n.location = (x0 + x, y0 + y)
-    return frame
-
-
-def build(ng, kind, settings, smooth, baked=False, body=False):
+def build(ng, kind, settings, smooth, baked=False, body=False, parts=None):
     """(Re)build ``ng`` for this configuration.  An existing interface is kept when it is the
-    same (the group nodes' links and values stay)."""
+    same (the group nodes' links and values stay).  Every node computes in this one tree
+    (Blender's MaterialX and USD exporters flatten groups anyway); each section of the math
+    sits in a labelled frame of at most node_layout.FRAME_MAX nodes, with a Group Input of the
+    sockets it reads, and the BSDF copies and their Mix Shaders in a last frame."""
     ng.nodes.clear()
     template = ng.nodes.new(BSDF_NODES[kind])
     for p, v in settings.items():
@@ -513,65 +513,113 @@ def build(ng, kind, settings, smooth, baked=False, body=False):
     rebuild_interface(ng, lambda tree: _interface(tree, kind, template, smooth, baked),
                       update_sockets=False)
     ng.nodes.remove(template)
-    cfg = config_for(kind, settings, smooth=smooth, baked=baked, body=body)
+    cfg = config_for(kind, settings, smooth=smooth, baked=baked, body=body, parts=parts)
     lay = layer_graph.build(cfg)
 
-    gin = ng.nodes.new("NodeGroupInput")
-    gin.label = "Inputs (the BSDF's and the haze's)"
-    sources = {}
-    for sock in gin.outputs:
-        if sock.name:
-            sources[layer_graph.input_name(sock.name)] = sock
-    if baked:
-        for key, (name, _) in layer_graph.BAKED.items():
-            sources[layer_graph.baked_name(key)] = gin.outputs[name]
-    else:
-        for param in haze_params(kind, smooth):
-            sources[layer_graph.haze_name(param)] = gin.outputs[schema.HAZE_SOCKETS[param][0]]
+    def inputs(gin):
+        """{graph input name: socket} of a Group Input."""
+        out = {layer_graph.input_name(sock.name): sock for sock in gin.outputs if sock.name}
+        if baked:
+            out.update({layer_graph.baked_name(key): gin.outputs[name]
+                        for key, (name, _) in layer_graph.BAKED.items()})
+        else:
+            out.update({layer_graph.haze_name(p): gin.outputs[schema.HAZE_SOCKETS[p][0]]
+                        for p in haze_params(kind, smooth)})
+        return out
+
+    # -- the math: each section with a Group Input of its own, framed below ----------------
+    wanted = {k: e for k, e in lay.outputs().items() if e is not None}
+    titles = {}
+    for e in lay.graph.used(wanted):
+        if e.op != "input":
+            titles.setdefault(lay.section_of(e), []).append(e)
+    gins, routes = {}, {}
+    for title in titles:
+        gins[title] = gin = ng.nodes.new("NodeGroupInput")
+        gin.label = "Inputs"
+        routes[title] = inputs(gin)
+    first = next(iter(titles))
     if body:  # the view cosine Keep Body Colour reads, on the BSDF's normal
         lw = ng.nodes.new("ShaderNodeLayerWeight")
         lw.label = "View cosine (Keep Body Colour)"
         lw.inputs["Blend"].default_value = 0.5
-        ng.links.new(gin.outputs["Normal"], lw.inputs["Normal"])
-        lw.location = (-1.5 * _COLUMN, 300.0)
-        sources[node_body_colour.FACING] = lw.outputs["Facing"]
+        title = next((t for t in titles if t.startswith("Keep Body Colour")), first)
+        ng.links.new(gins[title].outputs["Normal"], lw.inputs["Normal"])
+        for r in routes.values():
+            r[node_body_colour.FACING] = lw.outputs["Facing"]
+        titles.setdefault(title, [])
+    made = {}
+    tb = TreeBuilder(ng, prefix="")
+    tb.set_locations = False  # (laid out once, below: each location set updates the tree)
+    outs = emit(tb, lay.graph, wanted, routes[first], nodes_by_expr=made,
+                route=lambda e: routes[lay.section_of(e)])
+    section_of = {}
+    for index in sorted(made):
+        section_of.setdefault(made[index].name, lay.section_of(lay.graph.nodes[index]))
+    members = {title: [] for title in titles}
+    for n in tb.created:
+        members[section_of[n.name]].append(n)
+    if body:
+        members[title].insert(0, lw)
+    frames = []
+    for title, nodes in members.items():
+        boxes = [node_layout.Box(n, tb.grid.get(n.name, (0, 0))[0], n.width, _height(n))
+                 for n in nodes]
+        chunked = node_layout.chunks(title, boxes, node_layout.FRAME_MAX - 1)
+        gin = gins[title]
+        for sock in gin.outputs:  # each Group Input shows the sockets it feeds
+            sock.hide = bool(sock.name) and not sock.is_linked
+        chunked[0].boxes.insert(0, node_layout.Box(gin, -1, gin.width, _height(gin)))
+        frames += chunked
 
-    # -- the math: one node group per section (readable, and far quicker to build: every
-    #    node edit in Blender updates the whole tree it is in) ------------------------------
-    outs, part_nodes = _emit_sections(ng, lay, sources)
-    ys = [0.0, 0.0]  # two columns, each part in the shorter one
-    for n in part_nodes:
-        col = 0 if ys[0] >= ys[1] else 1
-        n.location = (col * 1.6 * _COLUMN, ys[col])
-        ys[col] -= 60.0 + 22.0 * (len(n.inputs) + len(n.outputs))
-    width = 3.2 * _COLUMN
-    _frame(ng, "Haze mapping (Eqs. 3-8, corrections): a group per part, Tab to open",
-           part_nodes, 0.0, 0.0)
-    gin.location = (-3.0 * _COLUMN, 0.0)
-
-    # -- the BSDF slots and their mixes ---------------------------------------------------
-    x_lobes = width + 3.0 * _COLUMN
-    gin2 = ng.nodes.new("NodeGroupInput")
-    gin2.label = "Inputs (passed to every BSDF)"
-    gin2.location = (x_lobes - 2.0 * _COLUMN, 0.0)
-    lobe_nodes = []
+    # -- the BSDF copies and their Mix Shaders --------------------------------------------
+    gin = ng.nodes.new("NodeGroupInput")
+    gin.label = "Inputs (passed to every BSDF)"
+    lobes = []
     results = {}
     for tree_name, tree in (("BSDF", lay.cycles), ("EEVEE", lay.eevee)):
-        results[tree_name] = _closures(ng, tree, kind, settings, outs, gin2, x_lobes, lobe_nodes)
+        results[tree_name] = _closures(ng, tree, kind, settings, outs, gin, lobes)
     gout = ng.nodes.new("NodeGroupOutput")
-    gout.location = (x_lobes + 7.0 * _COLUMN, 0.0)
     for name, sock in results.items():
         ng.links.new(sock, gout.inputs[name])
-    _frame(ng, "Lobes: copies of the BSDF with the haze's values, mixed by β", lobe_nodes, 0.0, 0.0)
-    for s in gin.outputs:  # each Group Input shows the sockets it feeds
-        s.hide = bool(s.name) and not s.is_linked
-    for s in gin2.outputs:
-        s.hide = bool(s.name) and not s.is_linked
+    for sock in gin.outputs:
+        sock.hide = bool(sock.name) and not sock.is_linked
+    last = max(d for _, d in lobes) + 1
+    frames.append(node_layout.Frame(LOBES_FRAME, (
+        [node_layout.Box(gin, -1, gin.width, _height(gin))]
+        + [node_layout.Box(n, d, n.width, _height(n)) for n, d in lobes]
+        + [node_layout.Box(gout, last, gout.width, _height(gout))])))
+    node_layout.layout(frames)
+    for frame in frames:
+        f = ng.nodes.new("NodeFrame")
+        f.label = frame.title
+        f.label_size = 16
+        f.shrink = True
+        for b in frame.boxes:
+            b.key.parent = f
+            _place(b.key, b.x, b.y)
     ng[K.GROUP_PRINT] = _fingerprint(ng)
     return lay
 
 
-_edited_seen = {}  # (group session_uid, sizes) -> edited_parts (forget_edits clears it)
+def _place(node, x, y):
+    """The node's top-left corner at (x, y) in the group, whatever its frame (Blender 4.4 on
+    keeps a framed node's location relative to its frame: location_absolute is the tree's)."""
+    if hasattr(node, "location_absolute"):
+        node.location_absolute = (x, y)
+    else:
+        node.location = (x, y)
+
+
+def _height(node):
+    """The node's height for the layout (node_layout.node_height): its visible sockets, an
+    unlinked vector input as its label and three rows."""
+    rows = sum(1 for s in node.outputs if s.enabled and not s.hide)
+    for s in node.inputs:
+        if not s.enabled or s.hide or (s.hide_value and not s.is_linked and s.type != "SHADER"):
+            continue
+        rows += _VECTOR_ROWS if s.type == "VECTOR" and not s.is_linked else 1
+    return node_layout.node_height(node.bl_idname, rows)
 
 
 def forget_edits():
@@ -579,109 +627,38 @@ def forget_edits():
     _edited_seen.clear()
 
 
-def _edits_key(ng):
-    parts = [ng] + [n.node_tree for n in ng.nodes if getattr(n, "node_tree", None)]
-    return (ng.session_uid,) + tuple((len(g.nodes), len(g.links)) for g in parts)
+_edited_seen = {}  # (group session_uid, sizes) -> edited_parts (forget_edits clears it)
 
 
 def _unedited(ng):
     """``ng`` as this code just built or appended it: no edit to look for."""
-    _edited_seen[_edits_key(ng)] = []
+    _edited_seen[(ng.session_uid, len(ng.nodes), len(ng.links))] = []
     return ng
 
 
 def edited_parts(ng, cached=False):
-    """Names of the layer group ``ng`` and of its parts edited since they were built (their
-    fingerprints differ; none for a group from before fingerprints, or another Blender's: it
-    hashes otherwise, and its note says Upgrade).  ``cached``: as last found until
-    forget_edits or a node or link more or less (hashing ~1000 nodes takes ~7 ms)."""
+    """[the layer group's name] when ``ng`` was edited since it was built (its fingerprint
+    differs; none for another Blender's group: it hashes otherwise, and its note says
+    Upgrade).  ``cached``: as last found until forget_edits or a node or link more or less
+    (hashing the group takes milliseconds)."""
     if cached:  # (keyed also by node and link counts: a script's edit shows at once)
-        key = _edits_key(ng)
+        key = (ng.session_uid, len(ng.nodes), len(ng.links))
         if key not in _edited_seen:
             _edited_seen[key] = edited_parts(ng)
         return _edited_seen[key]
     if (stamp.group(ng, K.GROUP_STAMP) or {}).get("blender") != version_tag():
         return []
-    out = [ng.name] if isinstance(ng.get(K.GROUP_PRINT), str) and \
+    return [ng.name] if isinstance(ng.get(K.GROUP_PRINT), str) and \
         ng[K.GROUP_PRINT] != _fingerprint(ng) else []
-    for n in ng.nodes:
-        sub = getattr(n, "node_tree", None)
-        made = (sub.get(K.GROUP_STAMP) if sub is not None else None)
-        if hasattr(made, "get") and isinstance(made.get("print"), str) and \
-                made["print"] != _fingerprint(sub) and sub.name not in out:
-            out.append(sub.name)
-    return out
-
-
-def _emit_sections(ng, lay, sources):
-    """Emit ``lay``'s graph into ``ng`` with each section (core.layer_graph's frames) in a node
-    group of its own: its inputs are the values it reads from the group's inputs and earlier
-    sections, its outputs what later sections and the BSDF slots read.  Returns (the slots'
-    and mixes' values: sockets of ``ng`` or constants, the section nodes)."""
-    g = lay.graph
-    wanted = lay.outputs()
-    order = g.used(wanted)
-    section = {e.index: lay.section_of(e) for e in order if e.op != "input"}
-    final = {e.index for e in _exprs(wanted) if not e.is_const}
-    readers = {}
-    for e in order:
-        for a in e.args:
-            if not a.is_const:
-                readers.setdefault(a.index, set()).add(section.get(e.index))
-    sockets = {e.index: sources[e.name] for e in order if e.op == "input"}
-    nodes = []
-    tag = _short_tag(lay.config)
-    for n_sec, (title, _) in enumerate(lay.sections):
-        members = [e for e in order if section.get(e.index) == title]
-        if not members:
-            continue
-        inside = {e.index for e in members}
-        ext = []
-        for e in members:
-            for a in e.args:
-                if not a.is_const and a.index not in inside and a not in ext:
-                    ext.append(a)
-        exported = [e for e in members if e.index in final or (readers.get(e.index, set()) - {title})]
-        short = title.split(":")[0].split(" (")[0]  # (names stay far below 63 bytes)
-        sub = _section_group(f".HG {tag} {n_sec} {short}", title, g, ext, exported)
-        node = ng.nodes.new("ShaderNodeGroup")
-        node.node_tree = sub
-        node.label = title.split(":")[0]
-        node.width = 220.0
-        for i, a in enumerate(ext):
-            ng.links.new(sockets[a.index], node.inputs[i])
-        for i, e in enumerate(exported):
-            sockets[e.index] = node.outputs[i]
-        nodes.append(node)
-    values = {k: (sockets[e.index] if not e.is_const else
-                  (tuple(float(x) for x in e.value) if e.vector else float(e.value)))
-              for k, e in wanted.items() if e is not None}
-    return values, nodes
-
-
-def _exprs(outputs):
-    return [e for e in outputs.values() if e is not None]
-
-
-def _short_tag(cfg):
-    return hashlib.sha1(repr((cfg.key(), GROUP_VERSION)).encode()).hexdigest()[:6]
-
-
-def _socket_name(e):
-    return (e.label or e.name or f"value {e.index}")[:60]
-
-
-def _part_stamp():
-    """A section group's stamp: the code that built it (its name holds the configuration); the
-    group adds ``print``, its _fingerprint when built."""
-    return {"kind": "layer part", "version": GROUP_VERSION, "code": _code_digest()}
 
 
 def _fingerprint(ng):
-    """What a section group holds: its nodes (name, type, operation, unlinked input values)
-    and how many links (so a part the artist edited is told from ours)."""
+    """What a group holds: its nodes (name, type, operation, unlinked input values) and how
+    many links (so a group the artist edited is told from ours)."""
     h = hashlib.sha1(str(len(ng.links)).encode())
     for n in ng.nodes:
+        if n.bl_idname == "NodeFrame":
+            continue
         h.update(f"{n.name}|{n.bl_idname}|{getattr(n, 'operation', '')}".encode())
         for sock in n.inputs:
             if not sock.is_linked and hasattr(sock, "default_value"):
@@ -690,85 +667,17 @@ def _fingerprint(ng):
     return h.hexdigest()
 
 
-def _same_part(new, old):
-    """Whether the file's section group ``old`` computes what the just made ``new`` does: both
-    from this code, and ``old`` as ``new`` was when it was built (not edited since)."""
-    stamps = [g.get(K.GROUP_STAMP) for g in (new, old)]
-    if not all(hasattr(d, "to_dict") for d in stamps):
-        return False
-    a, b = (d.to_dict() for d in stamps)
-    base = _part_stamp()
-    if any(a.get(k) != v or b.get(k) != v for k, v in base.items()) or "print" not in a:
-        return False
-    return _fingerprint(old) == a["print"]
+def _closures(ng, tree, kind, settings, outs, gin, made):
+    """Nodes of a layer_graph closure tree (``made`` collects (node, depth): BSDF copies at
+    depth 0, each Mix Shader one column right of its inputs); returns the root's output."""
 
-
-def _section_group(name, title, g, ext, exported):
-    """One section of the layer's math as a node group (inputs ``ext``, outputs ``exported``).
-    Where the file has one of that name in use, Blender names this one "<name>.001" and
-    ensure_group gives the group the file's when the two are the same (_share_parts)."""
-    old = bpy.data.node_groups.get((name, None))  # (a local one: never a linked group)
-    if old is not None and old.users == 0:
-        bpy.data.node_groups.remove(old)
-    sub = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    iface = sub.interface
-    for a in ext:
-        iface.new_socket(name=_socket_name(a), in_out="INPUT",
-                         socket_type="NodeSocketVector" if a.vector else "NodeSocketFloat")
-    for e in exported:
-        iface.new_socket(name=_socket_name(e), in_out="OUTPUT",
-                         socket_type="NodeSocketVector" if e.vector else "NodeSocketFloat")
-    gin = sub.nodes.new("NodeGroupInput")
-    gout = sub.nodes.new("NodeGroupOutput")
-    known = {a.index: gin.outputs[i] for i, a in enumerate(ext)}
-    tb = TreeBuilder(sub, prefix="")
-    tb.set_locations = False  # (laid out once, below)
-    made = {}
-    out = emit(tb, g, exported, {}, known=known, nodes_by_expr=made)
-    for i, v in enumerate(out):
-        sub.links.new(v, gout.inputs[i])
-    nodes, seen = [], set()
-    for _, n in sorted(made.items()):
-        if n.name not in seen:
-            seen.add(n.name)
-            nodes.append(n)
-    if nodes:
-        _frame(sub, title, nodes, 0.0, 0.0, _relayout(nodes, tb.grid))
-        right = max(n.location.x for n in nodes)
-        gout.location = (right + 2.0 * _COLUMN, 0.0)
-    gin.location = (-2.0 * _COLUMN, 0.0)
-    sub[K.GROUP_STAMP] = {**_part_stamp(), "print": _fingerprint(sub)}
-    return sub
-
-
-def _relayout(nodes, grid):
-    """Where ``nodes`` go in their frame: columns by the order of dependency (TreeBuilder's
-    ``grid``: global depth and row), x from the smallest depth used, rows packed per column.
-    Returns {node name: (x, y)}."""
-    col = {d: i for i, d in enumerate(sorted({grid[n.name][0] for n in nodes}))}
-    rows, at = {}, {}
-    for n in sorted(nodes, key=lambda n: grid[n.name]):
-        c = col[grid[n.name][0]]
-        r = rows.get(c, 0)
-        rows[c] = r + 1
-        at[n.name] = (_COLUMN * c, -_ROW * r)
-    return at
-
-
-def _closures(ng, tree, kind, settings, outs, gin, x0, made):
-    """Nodes of a layer_graph closure tree, below the BSDFs already ``made``; returns the
-    output socket of its root."""
-    count = [sum(n.bl_idname not in ("ShaderNodeMixShader", "ShaderNodeAddShader") for n in made)]
-
-    def visit(node, depth):
+    def visit(node):
         if isinstance(node, layer_graph.Slot):
             bsdf = ng.nodes.new(BSDF_NODES[kind])
             for p, v in settings.items():
                 setattr(bsdf, p, v)
             bsdf.name = bsdf.label = node.role
             bsdf.hide = False
-            bsdf.location = (x0, -count[0] * 700.0)
-            count[0] += 1
             for sock in bsdf_inputs(bsdf):
                 key = (node.role, sock.name)
                 if sock.name in node.writes:
@@ -779,9 +688,9 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
                         sock.default_value = socket_value(sock, value)
                 elif sock.name in gin.outputs:
                     ng.links.new(gin.outputs[sock.name], sock)
-            made.append(bsdf)
-            return bsdf.outputs[0]
-        a, b = visit(node.a, depth + 1), visit(node.b, depth + 1)
+            made.append((bsdf, 0))
+            return bsdf.outputs[0], 0
+        (a, da), (b, db) = visit(node.a), visit(node.b)
         mix = ng.nodes.new("ShaderNodeAddShader" if node.add else "ShaderNodeMixShader")
         mix.name = mix.label = node.role
         first = 0 if node.add else 1
@@ -793,8 +702,8 @@ def _closures(ng, tree, kind, settings, outs, gin, x0, made):
                 mix.inputs[0].default_value = float(fac)
         ng.links.new(a, mix.inputs[first])
         ng.links.new(b, mix.inputs[first + 1])
-        mix.location = (x0 + (6 - depth) * _COLUMN, -(count[0] - 1) * 350.0)
-        made.append(mix)
-        return mix.outputs[0]
+        d = max(da, db) + 1
+        made.append((mix, d))
+        return mix.outputs[0], d
 
-    return visit(tree, 0)
+    return visit(tree)[0]

@@ -54,7 +54,7 @@ def graph_of(node):
     st = stamp.group(node.node_tree, K.GROUP_STAMP) or {}
     cfg = layer_group.config_for(st.get("bsdf", "PRINCIPLED"), st.get("settings", {}),
                                  smooth=bool(st.get("smooth")), baked=bool(st.get("baked")),
-                                 body=bool(st.get("body")))
+                                 body=bool(st.get("body")), parts=st.get("parts"))
     lay = _LAYERS.get(cfg.key())
     if lay is None:
         lay = _LAYERS[cfg.key()] = layer_graph.build(cfg)

@@ -42,14 +42,14 @@ def copies_of(tree, node):
 def misplaced_layer(tree):
     """Where a layer node no longer in ``tree`` went, in one line, or None: grouped with other
     nodes (Ctrl+G: a layer group node inside one of the tree's node groups) or ungrouped
-    (Ctrl+Alt+G: the layer group's section groups among the tree's nodes).  Either way it still
+    (Ctrl+Alt+G: the layer group's frames among the tree's nodes).  Either way it still
     renders, so Remove Haze must not report it gone."""
-    parts = [n.node_tree.name for n in tree.nodes if n.bl_idname == "ShaderNodeGroup" and n.node_tree
-             is not None and (stamp.group(n.node_tree, K.GROUP_STAMP) or {}).get("kind") == "layer part"]
-    if parts:
-        shown = ", ".join(f"“{p}”" for p in parts[:3]) + (", ..." if len(parts) > 3 else "")
-        return (f"its layer node was ungrouped: its parts ({shown}) are in the tree and still "
-                f"render; undo the ungroup (Ctrl+Z), or delete them and connect the BSDF yourself")
+    frames = [n.label for n in tree.nodes if n.bl_idname == "NodeFrame" and n.label.startswith(
+        layer_group.LOBES_FRAME)]
+    if frames:
+        return (f"its layer node was ungrouped: its nodes (the frame “{frames[0]}” and those "
+                f"beside it) are in the tree and still render; undo the ungroup (Ctrl+Z), or "
+                f"delete them and connect the BSDF yourself")
     path = _grouped_layer(tree, [], set())
     if path:
         return (f"its layer node “{path[-1]}” is inside the group node "

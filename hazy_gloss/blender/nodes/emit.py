@@ -21,7 +21,7 @@ def _by_id(sockets, identifier):
 
 
 def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_expr=None,
-         known=None):
+         known=None, route=None):
     """Build the nodes ``outputs`` (an Expr or a dict/list of them) need with TreeBuilder ``tb``.
 
     ``sources``: input name -> socket or constant.  Returns ``outputs`` with every Expr replaced
@@ -31,9 +31,13 @@ def emit(tb, graph, outputs, sources, *, backend="SHADER", reuse=None, nodes_by_
     (constants and links set again), so a change of values rebuilds nothing.
     ``nodes_by_expr``: a dict filled with {expression index: the node made for it} (shader
     backend; lanes of one vector share their Separate node).  ``known``: {expression index:
-    socket} of expressions made elsewhere (a node group's inputs): used, not built."""
+    socket} of expressions made elsewhere (a node group's inputs): used, not built.
+    ``route(expr)`` (shader backend): {input name: socket} for the node of ``expr``, where its
+    graph inputs come from (a layer group's frames each have a Group Input); else
+    ``sources``."""
     emitter = (_ShaderEmitter(tb, sources, graph.tables) if backend == "SHADER"
                else _CompositorEmitter(tb, sources))
+    emitter.route = route
     if reuse is not None:
         tb.reuse = list(reuse)
     known = known or {}
@@ -73,9 +77,15 @@ class _ShaderEmitter:
         self.sockets = {}
         self.depth = {}
         self.separated = {}
+        self.route = None
+        self._inputs = None  # {input name: socket} of the node being made (route)
 
     def value(self, e):
-        return _const(e) if e.is_const else self.sockets[e.index]
+        if e.is_const:
+            return _const(e)
+        if e.op == "input" and self._inputs is not None:
+            return self._inputs[e.name]
+        return self.sockets[e.index]
 
     def _depth(self, e):
         return 0 if e.is_const else self.depth.get(e.index, 0)
@@ -88,10 +98,17 @@ class _ShaderEmitter:
         return n
 
     def visit(self, e):
-        tb = self.tb
         if e.op == "input":
-            self.sockets[e.index] = self.sources[e.name]
+            self.sockets[e.index] = self.sources.get(e.name)
             return
+        self._inputs = self.route(e) if self.route is not None else None
+        try:
+            self._visit(e)
+        finally:
+            self._inputs = None
+
+    def _visit(self, e):
+        tb = self.tb
         if e.op == "SEPARATE":  # one Separate Color node per vector, shared by its lanes (one
             src = e.args[0]        # SVM node where Separate XYZ compiles to one per lane)
             if src.index not in self.separated:
