@@ -484,7 +484,8 @@ def _dielectric_part(g, x, cfg, v, bh, on, ior, tint, rough, aniso, rot):
     # transmits nothing, so the narrow lobe keeps the refraction and (1 - f) of it; its F0 is
     # raised by t = (1 - f p S_w / (r̂_c S_n)) / (1 - f), which keeps the peak (S: Multiscatter
     # GGX's energy factors at the peak, 1 for GGX) and makes R + T the original's
-    narrow = raised = tint_for(g.vmath("SCALE", rc_d, gain))
+    # (per channel: under Multiscatter GGX each channel's r keeps its own peak; the tint is RGB)
+    narrow = raised = tint_for(md["reflectivity"])
     if has_tr:
         _section(g, "Glass: the halo as a mirror, narrow F(0) up")
         f_t = g.mul(v["beta_d"], md["reflectivity_max"], label="f = β r̂ (mirror)")

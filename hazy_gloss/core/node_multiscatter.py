@@ -273,11 +273,12 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
         max_model = _dielectric_max
         if affine is not None:
             keep, a_t, b_t = affine
-            a_m, b_m = g.channel_max(a_t), g.channel_max(b_t)  # (the max channel's weights)
+            lane = _max_lane(g, ss["chroma"])  # (the max channel's weights and target)
+            a_m, b_m = g.dot(a_t, lane), g.dot(b_t, lane)
             f0 = g.select(keep, g.vmath("MULTIPLY_ADD", rc, b_t, a_t), f0)
             mn0, _ = _excess(v, tn, f0)
             target = v("MULTIPLY_ADD", rc, mn0, rc)
-            t_m = g.select(keep, g.dot(target, _max_lane(g, ss["chroma"])), t_m)
+            t_m = g.select(keep, g.dot(target, lane), t_m)
 
             def max_model(g, u, raise_ior=_dielectric_max):
                 f, df = raise_ior(g, u)

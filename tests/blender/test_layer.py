@@ -908,3 +908,47 @@ def test_haze_panel_is_the_schemas(env):
         f32 = np.float32
         assert [(n, f32(d), f32(lo), f32(hi), t) for n, d, lo, hi, t in want] == \
             [(n, f32(d), f32(lo), f32(hi), t) for n, d, lo, hi, t in got], kind
+
+
+def test_a_colour_just_under_one_says_how_little_haze_shows(env):
+    """Silver (Base Color 0.97) at haziness 0.9 on a metal: Eq. 6's energy bound leaves the
+    halo a small share of the reflection.  The note gives that share and what Reflectivity Cap
+    0.9 gives, each the paper's Eq. 7 β (float64, here), and the peak drop 1 - 0.9/0.97."""
+    rc, bh, rough, ext = 0.97, 0.9, 0.3, 5.0
+    mat, _ = principled("Silver", **{"Metallic": 1.0, "Base Color": (rc, 0.96, 0.95, 1.0),
+                                     "Roughness": rough})
+    make_hazy(env, mat, haziness=bh, haze_extent=ext)
+    notes = [n for n in env.layer.notes(mat, quick=False) if n.startswith("little haze shows")]
+    assert len(notes) == 1, env.layer.notes(mat, quick=False)
+
+    def eq7_beta(r):  # energy side (r > p): β = β_h (1 - r) / ((1 - p)(r + β_h (1 - r)))
+        a = rough ** 2
+        p = (a / (a * (1 + ext))) ** 2
+        assert r > p
+        return bh * (1 - r) / ((1 - p) * (r + bh * (1 - r)))
+    now, capped = eq7_beta(rc), eq7_beta(0.9)
+    assert now < 0.05 * bh
+    assert f"leaves the halo {100 * now:.1f}% of the reflection" in notes[0], notes[0]
+    assert f"Reflectivity Cap 0.9 gives it {100 * capped:.0f}%" in notes[0], notes[0]
+    assert f"drops by {100 * (1 - 0.9 / rc):.1f}%" in notes[0], notes[0]
+    env.api.update_material(mat, reflectivity_cap=0.9)
+    assert not [n for n in env.layer.notes(mat, quick=False) if n.startswith("little haze")]
+
+
+@pytest.mark.parametrize("haziness", [0.6, 0.9])
+@pytest.mark.parametrize("thickness", [250.0, 400.0])
+def test_a_high_index_film_on_a_dielectric_keeps_the_peak(env, haziness, thickness):
+    """A film of IOR 2 on a dielectric over black under Multiscatter GGX: the film's F(0)
+    differs per channel, and so does each channel's energy factor; every channel keeps its
+    peak (it moved by 0.2-0.4 % when one gain raised them all)."""
+    mat, _ = principled("Film IOR 2", distribution="MULTI_GGX",
+                        **{"Base Color": (0.0, 0.0, 0.0, 1.0), "Roughness": 0.25,
+                           "Thin Film Thickness": thickness, "Thin Film IOR": 2.0})
+    make_hazy(env, mat)
+    before = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
+    env.api.update_material(mat, haziness=haziness, haze_extent=5.0)
+    after = render(env, mat, light=(0.0, 0.0), passes=("glossy",))["glossy"]
+    assert before[4, 4, :3].min() > 0.01
+    err = float(np.abs(after[4, 4, :3] / before[4, 4, :3] - 1.0).max())
+    record("layer_film_ior2_peak", {f"{thickness} {haziness}": err})
+    assert err <= 1e-5, err

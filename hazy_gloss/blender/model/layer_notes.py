@@ -115,11 +115,32 @@ def _parts(node, vals, linked):
     return out
 
 
+#: A halo carrying less than this share of β_h in β hardly shows (a colour near 1 leaves the
+#: energy bound of Eq. 6 little room): the notes say how little and what the cap would give.
+FAINT_HALO = 0.05
+#: The Reflectivity Cap proposed for a faint halo (a bright metal's F(0)).
+FAINT_CAP = 0.9
+
+
 def room_notes(node, vals, linked, haze):
-    """Haze that cannot show or the peak it cannot keep, with the setting that fixes it."""
+    """Haze that cannot show, or hardly shows, or the peak it cannot keep, with the setting
+    that fixes it."""
     out = []
     cap = float(haze.get("reflectivity_cap", 1.0))
+    bh = haze.get("haziness")
     for beta, rc, what in _parts(node, vals, linked):
+        if isinstance(bh, (int, float)) and 0.0 < beta < FAINT_HALO * bh and rc is not None \
+                and FAINT_CAP < rc < min(cap, 1.0) - 1e-6 and "Reflectivity Cap" not in linked:
+            key = "beta metal" if what == "Base Color" and "beta metal" in vals else \
+                "beta dielectric" if "beta dielectric" in vals else "beta"
+            shown = layer_values.graph_of(node).shown
+            capped = layer_values.evaluate(node, {key: shown[key]},
+                                           overrides={"haze:reflectivity_cap": FAINT_CAP})[0][key]
+            out.append(f"little haze shows: {what} at {rc:.3g} leaves the halo "
+                       f"{100 * beta:.1f}% of the reflection at haziness {bh:g} (the energy "
+                       f"bound, Eq. 6); Reflectivity Cap {FAINT_CAP:g} gives it "
+                       f"{100 * capped:.0f}% (the peak then drops by "
+                       f"{100 * (1 - FAINT_CAP / rc):.1f}%)")
         if beta > 0.0 or rc is None:
             continue
         if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:

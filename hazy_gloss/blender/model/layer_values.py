@@ -64,11 +64,13 @@ def graph_of(node):
 _NEEDED = {}
 
 
-def evaluate(node, outputs, lazy=False):
+def evaluate(node, outputs, lazy=False, overrides=None):
     """({name: value} of the graph ``outputs`` of the layer node's group for the node's
-    unlinked input values, the names of its linked inputs)."""
+    unlinked input values, the names of its linked inputs); ``overrides``: {graph input name:
+    value} in place of the node's (what another setting would give)."""
     lay = graph_of(node)
     vals, linked = inputs_of(node)
+    vals.update(overrides or {})
     key = (id(lay),) + tuple((k, id(v)) for k, v in outputs.items())
     needed = _NEEDED.get(key)
     if needed is None:
