@@ -160,8 +160,11 @@ def on_depsgraph_update(scene, depsgraph):
     mats = []
     for update in depsgraph.updates:
         idd = getattr(update.id, "original", update.id)
-        if isinstance(idd, bpy.types.NodeTree) and not idd.is_embedded_data:
-            layer_group.forget_edits()  # (a group edited: the panel's note on edited groups)
+        if isinstance(idd, bpy.types.NodeTree):
+            if not idd.is_embedded_data:
+                layer_group.forget_edits()  # (a group edited: the panel's note on edited groups)
+                continue
+            idd = _owner(idd)  # (a driver added to a node reports only the material's tree)
         if isinstance(idd, bpy.types.Material) and K.STAMP in idd and idd not in mats:
             mats.append(idd)
     if not mats:
@@ -177,6 +180,21 @@ def on_depsgraph_update(scene, depsgraph):
                     f"{plain_message(exc)}")
     finally:
         _busy = False
+
+
+def _owner(tree):
+    """The material whose node tree ``tree`` is, or None."""
+    return next((m for m in bpy.data.materials if m.node_tree == tree), None)
+
+
+@persistent
+def parts_before_render(_scene=None, _dummy=None):
+    """A render in the background (a script, a farm with the add-on) renders each layer with
+    the parts its inputs reach at that frame (a key or a driver added since the last update
+    counts): no depsgraph update need have run since.  In the UI the depsgraph handler keeps
+    them up to date, and a render's handlers may run off the main thread: nothing here."""
+    if bpy.app.background:
+        parts_before_save()
 
 
 @persistent
@@ -269,6 +287,8 @@ def parts_before_save(_dummy=None):
 def register():
     if parts_before_save not in bpy.app.handlers.save_pre:
         bpy.app.handlers.save_pre.append(parts_before_save)
+    if parts_before_render not in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.append(parts_before_render)
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
     if on_load not in bpy.app.handlers.load_post:
@@ -281,7 +301,8 @@ def unregister():
     for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
                          (bpy.app.handlers.load_post, on_load),
                          (bpy.app.handlers.save_pre, repack_painted_maps),
-                         (bpy.app.handlers.save_pre, parts_before_save)):
+                         (bpy.app.handlers.save_pre, parts_before_save),
+                         (bpy.app.handlers.render_pre, parts_before_render)):
         while fn in handlers:
             handlers.remove(fn)
     _fingerprints.clear()

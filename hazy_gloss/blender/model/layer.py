@@ -574,8 +574,10 @@ def outdated_group(mat):
     uses when that is not the group this Blender and add-on build; else None."""
     node = None if is_legacy(mat) else layer_node(mat)
     want = wanted_group(node) if node is not None else None
-    # a group linked from a library is up to date when its stamp is this one's
-    if want is None or layer_group.fits(node.node_tree, *want, linked_ok=True):
+    # a group linked from a library is up to date when its stamp is this one's (whatever its
+    # parts: layer_parts.missing says which are missing)
+    if want is None or layer_group.fits(node.node_tree, *want[:5], linked_ok=True,
+                                        parts=layer_group.parts_of(node.node_tree)):
         return None
     made = layer_values.group_config(node).get("blender")
     return f"Blender {made}" if made != layer_group.version_tag() else "an earlier Hazy Gloss"

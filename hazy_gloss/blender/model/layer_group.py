@@ -170,12 +170,15 @@ def ensure_group(kind, settings, smooth=False, baked=False, body=False, parts=No
     config = (kind, settings, smooth, baked, body, _parts(kind, parts, baked))
     name = group_name(*config)
     ng = bpy.data.node_groups.get(name)
-    if fits(ng, *config):
+    if fits(ng, *config) and not edited_parts(ng, cached=True):
         return ng
-    found = next((g for g in bpy.data.node_groups if fits(g, *config)), None)
+    # (a group the artist edited is theirs: a new layer gets one as built)
+    found = next((g for g in bpy.data.node_groups if fits(g, *config)
+                  and not edited_parts(g, cached=True)), None)
     if found is not None:
         return found
-    stale = ng is not None and ng.library is None and is_layer_group(ng)
+    # an outdated group of this name is rebuilt in place; an edited one stays the artist's
+    stale = ng is not None and ng.library is None and is_layer_group(ng) and not fits(ng, *config)
     if not stale:
         cached = _from_cache(name, config)
         if cached is not None:

@@ -116,6 +116,33 @@ def cycles_closures(node, per_slot):
 _CLOSURES = {}
 
 
+def varying_math(node):
+    """How many of the group's math nodes Cycles runs at every shading point for the layer
+    node's links (the others fold into constants when it compiles the shader: a linked input,
+    a texture, makes what reads it vary).  Counts the expressions of its Cycles output."""
+    lay = graph_of(node)
+    vals, linked = inputs_of(node)
+    known = set(vals) - {graph_input_name(name) for name in linked}
+    wanted = []
+    for t in layer_graph.walk(lay.cycles):
+        if isinstance(t, layer_graph.Slot):
+            wanted += [e for e in t.writes.values() if hasattr(e, "op")]
+        elif not t.add:
+            wanted.append(t.factor)
+    wanted = [e for e in wanted if hasattr(e, "op") and not e.is_const]
+    value = _cycles_constants(lay.graph, wanted, vals, known)
+    seen, nodes, stack = set(), set(), [e for e in wanted if value(e) is None]
+    while stack:
+        e = stack.pop()
+        if e.index in seen or e.is_const or e.op == "input" or value(e) is not None:
+            continue
+        seen.add(e.index)
+        # (the lanes of one vector are one Separate Color node)
+        nodes.add(("separate", e.args[0].index) if e.op == "SEPARATE" else e.index)
+        stack.extend(e.args)
+    return len(nodes)
+
+
 #: Operand positions whose constant zero makes a Math result a constant in Cycles' folding
 #: (scene/constant_fold.cpp fold_math: 0 x = x 0 = 0, 0 / x = 0), and POWER's x^0 = 1^x = 1.
 _ZERO_MAKES_CONSTANT = {"MULTIPLY": (0, 1), "DIVIDE": (0,), "VMULTIPLY": (0, 1),
