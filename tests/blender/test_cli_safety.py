@@ -58,17 +58,26 @@ def cli(hg, clean_file):
 
 @pytest.fixture
 def hazy_blend(api, tmp_path):
-    """A saved .blend with a hazy material and a haze layer (whose export writes tables)."""
+    """A saved .blend with a hazy material and a haze layer (whose export writes tables: its
+    thin film's part reads the film's lookup table)."""
     api.create_material("Gold", kind="CONDUCTOR", core_reflectivity=(0.9, 0.6, 0.3), haziness=0.5)
-    layered = bpy.data.materials.new("Layered")
-    if bpy.app.version < (5, 0, 0):
-        layered.use_nodes = True
+    layered = _filmed_material()
     api.make_hazy(layered, haziness=0.4)
     for m in bpy.data.materials:
         m.use_fake_user = True
     path = tmp_path / "scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     return path
+
+
+def _filmed_material():
+    """A Principled material with a thin film: its haze layer's group reads a lookup table."""
+    layered = bpy.data.materials.new("Layered")
+    if bpy.app.version < (5, 0, 0):
+        layered.use_nodes = True
+    bsdf = next(n for n in layered.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Thin Film Thickness"].default_value = 300.0
+    return layered
 
 
 def _mtlx(tmp_path, name="lib.mtlx", text=MTLX):
@@ -203,9 +212,7 @@ def test_a_failed_export_removes_what_it_wrote(api, hg, tmp_path, monkeypatch, k
     mx = importlib.import_module(hg.__name__ + ".interchange.materialx")
     usd = importlib.import_module(hg.__name__ + ".interchange.usd")
     document = importlib.import_module(hg.__name__ + ".interchange.document")
-    layered = bpy.data.materials.new("Layered")
-    if bpy.app.version < (5, 0, 0):
-        layered.use_nodes = True
+    layered = _filmed_material()
     api.make_hazy(layered, haziness=0.4)
     for module in (mx, document):  # (the writer's text, wherever it is taken from)
         monkeypatch.setattr(module, "to_xml_string", lambda doc: "<materialx>\ud800</materialx>",

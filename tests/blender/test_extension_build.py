@@ -136,8 +136,8 @@ def _shipped_files(layer_group, version):
     them (the group name ends with the version that built it, in its brackets)."""
     here = layer_group.version_tag()
     out = set()
-    for kind, settings in layer_group.SHIPPED:
-        name = layer_group.group_name(kind, settings)
+    for kind, settings, parts in layer_group.SHIPPED:
+        name = layer_group.group_name(kind, settings, parts=parts)
         assert name.endswith(f" {here})")
         out.add(f"{LAYER_GROUPS}/" + layer_group._file_name(f"{name[:-len(here) - 1]}{version})"))
     return out
@@ -287,7 +287,7 @@ def test_install_enable_render_disable_uninstall(addon_module, built_zip, tmp_pa
         plain = importlib.import_module(INSTALLED_MODULE + ".blender.compat").new_material("Plain")
         core = next(n for n in plain.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
         shipped = layer_group._shipped_path(layer_group.group_name(
-            "PRINCIPLED", layer_group.settings_of(core)))
+            "PRINCIPLED", layer_group.settings_of(core), parts=("dielectric",)))
         assert Path(shipped).is_file() and Path(shipped).is_relative_to(installed_dir)
 
         assert not any(layer_group.is_layer_group(g) for g in bpy.data.node_groups)

@@ -128,6 +128,28 @@ def paper_mapping(roughness, haziness, extent):
                 eta=float(m["dielectric_ior"]))
 
 
+def coat_under_multiscatter(lobes):
+    """The coat's η under Cycles' energy compensation (mapping.md §11): the mapping's β, and
+    the F(0) = r that keeps the normal-incidence peak, r [(1-β) S_n + β p S_w] = r_c S_0, each
+    S this file's quadrature of the compensation (bisection in r)."""
+    rc, b = f0_of(CORE_IOR), lobes["beta"]
+    p = (lobes["alpha"] / lobes["alpha_wide"]) ** 2
+
+    def eta(r):
+        s = math.sqrt(r)
+        return (1 + s) / (1 - s)
+
+    target = rc * energy_compensation(0.0, lobes["alpha"], CORE_IOR)
+    lo, hi = rc, 1.0 - 1e-12
+    for _ in range(60):
+        r = 0.5 * (lo + hi)
+        e = eta(r)
+        peak = r * ((1 - b) * energy_compensation(0.0, lobes["alpha"], e)
+                    + b * p * energy_compensation(0.0, lobes["alpha_wide"], e))
+        lo, hi = (r, hi) if peak < target else (lo, r)
+    return dict(lobes, eta=eta(0.5 * (lo + hi)))
+
+
 def _white(c):
     return np.ones_like(c)
 
@@ -241,8 +263,10 @@ def test_layered_dielectric_albedo_in_a_white_furnace(hg, clean_file, name):
         lobes = paper_mapping(inputs["Roughness"], haze["haziness"], haze["haze_extent"])
         fresnel = lambda c: principled_fresnel(c, lobes["eta"])  # noqa: E731
     else:
-        lobes = paper_mapping(inputs["Coat Roughness"], haze["coat_haziness"],
-                              haze["coat_haze_extent"])
+        # the coat is always energy-compensated: the paper's β, its F(0) raised to keep the
+        # peak under the compensation
+        lobes = coat_under_multiscatter(paper_mapping(
+            inputs["Coat Roughness"], haze["coat_haziness"], haze["coat_haze_extent"]))
         fresnel = lambda c: fresnel_exact(c, lobes["eta"])  # noqa: E731  (Cycles' coat)
     exact = lambda c: fresnel_exact(c, lobes["eta"])  # noqa: E731
     coat = lobe == "coat"
