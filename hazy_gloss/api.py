@@ -74,10 +74,9 @@ def make_hazy(mat, *, haziness=None, haze_extent=None, **haze):
 
 
 def upgrade_layers(materials=None):
-    """Turn haze layers saved by an earlier Hazy Gloss (loose nodes in the tree) into layer
-    nodes, with their values, and move layer nodes whose group another Blender or Hazy Gloss
-    made to this one's (``materials``: all of the file's by default, passing over linked ones
-    with a UserWarning; a layer is also upgraded on its first edit).  Returns the names of the
+    """Move layer nodes whose group another Blender or Hazy Gloss made to this one's
+    (``materials``: all of the file's by default, passing over linked ones with a
+    UserWarning; a layer also moves on its first haze edit).  Returns the names of the
     materials upgraded; raises ValueError (one line) when there were old layers and none could
     be upgraded."""
     from .blender.model import layer
@@ -85,14 +84,14 @@ def upgrade_layers(materials=None):
     mats = _make.materials_or_all(materials)
     for m in mats:
         _material_read.check_material(m, "upgrade_layers")
-    old = [m for m in mats if layer.is_legacy(m) or layer.outdated_group(m)]
+    old = [m for m in mats if layer.outdated_group(m)]
     status, msg, notes = _make.upgrade_layers(old, every=materials is None)
     if status == "ERROR":
         raise ValueError(notes[0] if notes else msg)
     if notes:
         import warnings
         warnings.warn("; ".join(notes), UserWarning, stacklevel=2)
-    return [m.name for m in old if not layer.is_legacy(m) and not layer.outdated_group(m)]
+    return [m.name for m in old if not layer.outdated_group(m)]
 
 
 def add_haziness_map(mat, *, size=1024, param="haziness"):
@@ -159,9 +158,9 @@ def remove_eevee_output(mat):
 
 def sync_haze(mat):
     """Read a lean / in-shader material's node-editor edits back into its parameters, bring a
-    haze layer's export fallback up to date with its node, upgrade a haze layer saved by an
-    earlier Hazy Gloss (a handler does this for materials in use; call it for a material no
-    object uses).  A haze layer itself needs nothing: its node computes from its inputs.
+    haze layer's group (the parts its inputs reach) and export fallback up to date with its
+    node (a handler does this for materials in use; call it for a material no object uses).
+    A haze layer's render needs nothing: its node computes from its inputs.
     Returns whether anything changed; raises ValueError (one line) on linked data."""
     from .blender.actions import sync as _sync
     _material_read.check_material(mat, "sync_haze")

@@ -22,7 +22,7 @@ __all__ = ("Parameter", "SCHEMA", "SCHEMA_BY_NAME", "PARAMETERS", "DEFAULTS", "H
            "HAZE_DEFAULTS", "RANGES", "HAZE_SOCKETS", "HAZE_MAP_INPUTS", "LAYER_MAP_INPUTS",
            "map_inputs", "property_names", "preset_properties", "property_specs",
            "operator_property", "socket_keys",
-           "layer_sockets", "STAMP_OPTIONAL", "TEXTURE_OK")
+           "layer_sockets")
 
 MATERIAL, LAYER, BOTH = "material", "layer", "both"
 _SAME = object()  # Parameter.layer_default: as ``default``
@@ -41,8 +41,7 @@ class Parameter:
     ``more``: the panel's other properties of it, (property, label, tooltip).  ``sockets``: the
     haze layer's inputs, (socket name, tooltip) (an extent: X then Y), on the layers of the
     ``bsdfs`` (blender/model/layer_group.BSDF_NODES; () all) — an optional one on smooth
-    layers only.  ``old_stamps_lack``: stamps written before it existed do not hold it (they
-    read as the default).  ``maps``: a map (or a
+    layers only.  ``maps``: a map (or a
     constant) in texture conversion and on the command line.  ``configures``: picks the node
     configuration (a preset sets it first).  ``doc``, ``doc_layer``, ``range_note``: the
     columns of docs/parameters.md."""
@@ -67,7 +66,6 @@ class Parameter:
     sockets: tuple = ()
     bsdfs: tuple = ()
     maps: bool = False
-    old_stamps_lack: bool = False
     configures: bool = False
     why: str = ""
     doc: str = ""
@@ -194,7 +192,7 @@ SCHEMA = (
     # the haze layer's own (Make Hazy on the artist's BSDF; r_c and α_n are the BSDF's)
     Parameter(
         "reflectivity_cap", "Reflectivity Cap", "a bound on r_c", "float", 1.0, where=LAYER,
-        range=(0.0, 1.0), factor=True, panel=False, old_stamps_lack=True,
+        range=(0.0, 1.0), factor=True, panel=False,
         sockets=(("Reflectivity Cap", "r_c at most this where haze is on (1: off): room for a "
                   "halo on a colour at or near 1, which otherwise has none, at the cost of that "
                   "much peak"),),
@@ -275,13 +273,6 @@ def layer_sockets(bsdf, smooth):
     return [k for p in SCHEMA if (not p.bsdfs or bsdf in p.bsdfs)
             and (p.haze_default is not None or smooth) for k in socket_keys(p)]
 
-
-#: Haze keys a stamp may lack: the optional ones (smoothness: Eq. 7) and those layers saved
-#: before they existed could not hold (their reading is the default).
-STAMP_OPTIONAL = tuple(p.name for p in SCHEMA if p.on_layer and
-                       (p.haze_default is None or p.old_stamps_lack))
-#: Haze values a converted (baked) layer may hold as "texture" (a map); an extent per axis.
-TEXTURE_OK = tuple(p.name for p in SCHEMA if p.on_layer and p.maps and p.type != "extent")
 def map_inputs(p):
     """The map inputs of parameter ``p`` in texture conversion and on the command line (an
     extent: also one per axis), () when it takes no map."""

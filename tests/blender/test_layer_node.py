@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The layer node computes what the render depends on (issue 20): keyframes and drivers on any
 input render right on every frame, with the add-on and in a fresh process without it; links into
-the haze inputs work; a paintable haziness map; legacy layers upgrade with their look; no
+the haze inputs work; a paintable haziness map; earlier layers render as saved and move on an edit; no
 material exceeds Cycles' closure limit; every entry point answers."""
 import importlib
 import json
@@ -307,16 +307,8 @@ def test_metallic_checker_under_a_hazy_coat_stays_within_the_closure_limit(env):
 
 
 # --------------------------------------------------------------------------------------------
-# Files from before: legacy layers open, render and upgrade with their look
+# Files from before: layers of an earlier add-on open, render as saved and move on an edit
 # --------------------------------------------------------------------------------------------
-
-
-@pytest.fixture
-def legacy_file(env, tmp_path):
-    path = tmp_path / "legacy.blend"
-    path.write_bytes(open(os.path.join(DATA, "legacy_layers_v1.blend"), "rb").read())
-    bpy.ops.wm.open_mainfile(filepath=str(path))
-    return path
 
 
 def test_a_4_5_layers_keys_and_drivers_stay_on_their_inputs_in_every_blender(env, tmp_path):
@@ -341,70 +333,47 @@ def test_a_4_5_layers_keys_and_drivers_stay_on_their_inputs_in_every_blender(env
     assert env.api.last_error(mat) is None
 
 
-VIEWS = [((30.0, 0.0), (0.0, 0.0)), ((0.0, 0.0), (0.0, 0.0)), ((45.0, 30.0), (20.0, 200.0))]
 
-
-def test_legacy_layers_render_the_same_after_the_upgrade(env, legacy_file):
-    names = sorted(m.name for m in bpy.data.materials if m.name.startswith("legacy "))
-    assert len(names) == 6
-    before = {}
-    for name in names:
-        mat = bpy.data.materials[name]
-        assert env.layer.is_legacy(mat)
-        before[name] = [render(env, mat, *v)["combined"] for v in VIEWS]
-        assert env.layer.is_legacy(mat)  # opening and rendering change nothing
-    env.reports.last_reports.clear()
-    assert bpy.ops.hazy_gloss.upgrade_layers() == {"FINISHED"}
-    worst = {}
-    for name in names:
-        mat = bpy.data.materials[name]
-        assert env.layer.is_layered(mat) and not env.layer.is_legacy(mat)
-        node = env.layer.layer_node(mat)
-        assert node is not None and not [n for n in mat.node_tree.nodes
-                                         if (n.get("hazy_gloss_role") or "").startswith("layer ")]
-        after = [render(env, mat, *v)["combined"] for v in VIEWS]
-        worst[name] = max(rel_diff(a, b) for a, b in zip(after, before[name]))
-    record("layer_upgrade", {"max rel vs the legacy render": worst})
-    assert max(worst.values()) <= 2e-5, worst
-    assert env.api.read_parameters(bpy.data.materials["legacy car paint"])["coat_haziness"] == \
-        pytest.approx(0.3)
-
-
-def test_legacy_layer_upgrades_on_its_first_edit(env, legacy_file):
-    mat = bpy.data.materials["legacy Glossy"]
-    env.api.update_material(mat, haziness=0.25)
-    assert not env.layer.is_legacy(mat)
-    assert env.layer.layer_node(mat).inputs["Haziness"].default_value == pytest.approx(0.25)
-
-
-def test_upgrade_keeps_a_requested_eevee_output(env, legacy_file):
-    """A legacy layer whose stamp asks for the EEVEE-only output has it on the layer node after
-    the upgrade, by the operator or by an edit (layer.upgrade keeps the request; the action
-    rebuilds what is built from the layer)."""
-    for name, upgrade in (
-            ("legacy car paint", lambda m: bpy.ops.hazy_gloss.upgrade_layers(material=m.name)),
-            ("legacy Glossy", lambda m: env.api.update_material(m, haziness=0.25))):
-        mat = bpy.data.materials[name]
-        d = mat["hazy_gloss"].to_dict()
-        d["eevee"] = {"mode": "always"}
-        mat["hazy_gloss"] = d
-        upgrade(mat)
-        assert not env.layer.is_legacy(mat), name
-        assert env.E.requested_mode(mat) == "always" and env.E.has_eevee_output(mat), name
-
-
-def test_export_fallback_of_a_legacy_layer_has_the_users_links(env, legacy_file):
-    """A legacy layer (not upgraded) gets an export fallback too: the copy of its BSDF with the
-    user's own values and links of the inputs the layer owns, read from its stamp (here the
-    metallic map and the IOR)."""
-    mat = bpy.data.materials["legacy metallic map"]
-    assert env.layer.is_legacy(mat)
-    env.api.add_export_fallback(mat)
-    assert env.layer.is_legacy(mat)
-    fb = env.material.ours(mat.node_tree)["Export fallback"]
-    link = fb.inputs["Metallic"].links[0]
-    assert (link.from_node.name, link.from_socket.identifier) == ("Image Texture", "Color")
-    assert fb.inputs["IOR"].default_value == pytest.approx(1.6)
+def test_a_file_with_an_earlier_layer_renders_as_saved_and_moves_on_an_edit(env, tmp_path):
+    """tests/data/earlier_layers_4_5.blend: layers made by the add-on before its groups held
+    only the parts a material uses (one ~1,200-node group in section groups).  Opened here,
+    nothing moves (the notes say Upgrade) and each renders what the file renders without the
+    add-on; the first haze edit moves it to today's group of its parts, whose render is a
+    fresh Make Hazy's of the same values."""
+    path = tmp_path / "earlier.blend"
+    path.write_bytes(open(os.path.join(DATA, "earlier_layers_4_5.blend"), "rb").read())
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    lg = importlib.import_module(f"{env.hg.__name__}.blender.model.layer_group")
+    names = ("Earlier plastic", "Earlier car paint")
+    old = {n: env.layer.layer_node(bpy.data.materials[n]).node_tree for n in names}
+    assert all((g.get("hazy_gloss_group") or {}).get("version") == 3 for g in old.values())
+    for n in names:  # here, and the file as saved where the add-on is not installed
+        mat = bpy.data.materials[n]
+        scenes.setup_render("CYCLES", samples=1, resolution=(8, 8), bounces=0)
+        for o in list(bpy.data.objects):
+            bpy.data.objects.remove(o)
+        scenes.flat_plane_scene(mat, light_dir=(30.0, 0.0), view_dir=(10.0, 180.0))
+        here = scenes.render_exr()[..., :3]
+        assert env.layer.layer_node(mat).node_tree == old[n]  # (rendering moved nothing)
+        assert any("Upgrade Haze Layers" in t for t in env.api.read_parameters(mat)["notes"])
+        blend = str(tmp_path / f"{n}.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        farm = _farm(tmp_path, blend, (1,))[1][..., :3]
+        assert here.max() > 0.01 and np.array_equal(farm, here), n
+    for n in names:
+        mat = bpy.data.materials[n]
+        h = env.api.read_parameters(mat)["haziness"]
+        env.api.update_material(mat, haziness=h)  # the first haze edit: the same value
+        g = env.layer.layer_node(mat).node_tree
+        assert g != old[n] and g["hazy_gloss_group"]["version"] == lg.LAYER_GROUP_VERSION, n
+        assert not any("Upgrade" in t for t in env.api.read_parameters(mat)["notes"]), n
+        fresh = mat.copy()
+        env.api.remove_haze(fresh)
+        p = env.api.read_parameters(mat)
+        env.api.make_hazy(fresh, haziness=p["haziness"], coat_haziness=p["coat_haziness"],
+                          haze_extent=p["haze_extent"])
+        assert np.array_equal(render(env, mat, (30.0, 0.0), (10.0, 180.0))["combined"],
+                              render(env, fresh, (30.0, 0.0), (10.0, 180.0))["combined"]), n
 
 
 # --------------------------------------------------------------------------------------------

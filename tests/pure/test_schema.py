@@ -205,8 +205,8 @@ def test_check_value_of_each_haze_parameter(name):
 
 
 def test_layer_configurations_are_the_hand_written_ones():
-    """blender/model/layer_group.haze_params, stamp reading and texture values as they were
-    written by hand (a new parameter may add to them)."""
+    """blender/model/layer_group.haze_params and the maps texture conversion takes as they
+    were written by hand (a new parameter may add to them)."""
     base = ["haziness", "haze_extent_x", "haze_extent_y"]
     for bsdf in ("PRINCIPLED", "METALLIC", "GLOSSY"):
         for smooth in (False, True):
@@ -214,6 +214,4 @@ def test_layer_configurations_are_the_hand_written_ones():
                 ["coat_haziness", "coat_haze_extent"] if bsdf == "PRINCIPLED" else [])
             assert _kept(S.layer_sockets(bsdf, smooth), want), (bsdf, smooth)
             assert set(S.layer_sockets(bsdf, smooth)) <= set(S.HAZE_SOCKETS)
-    assert _kept(S.STAMP_OPTIONAL, ("smoothness", "reflectivity_cap"))
-    assert _kept(S.TEXTURE_OK, ("haziness", "coat_haziness", "coat_haze_extent"))
     assert _kept(S.LAYER_MAP_INPUTS, ("coat_haziness", "coat_haze_extent"))

@@ -121,8 +121,6 @@ def _refresh_fallback(mat):
 
 
 def _layer_node(mat):
-    if layer.is_legacy(mat):
-        layer.upgrade(mat)
     node = layer.layer_node(mat)
     if node is None:
         raise ValueError(f"{mat.name!r} has no haze layer (Make Hazy first)")

@@ -194,9 +194,7 @@ def tree_snapshot(mat):
     mixes and math the group renders with."""
     tree = mat.node_tree
     state = layer.layer_state(mat) or {}
-    legacy = bool(state.get("legacy"))
-    core = layer.find_core(tree, state.get("core")) if legacy else None
-    gnode = layer.layer_node(mat) if state and not legacy else None
+    gnode = layer.layer_node(mat) if state else None
     nodes, redirect = {}, {}
     into = _links_into(tree)
     for n in tree.nodes:
@@ -211,9 +209,7 @@ def tree_snapshot(mat):
                 return None, default_value_of(sock)
             redirect = {k: v[0] for k, v in _inline_group(n, nodes, feed).items()}
             continue
-        b = _bnode(n, core, into=into)
-        if b.core:
-            b.base = {k: dict(v) for k, v in state.get("base", {}).items()}
+        b = _bnode(n, None, into=into)
         nodes[b.name] = b
     if gnode is not None:  # links from the layer node come from inside its group
         for b in nodes.values():
@@ -226,12 +222,7 @@ def tree_snapshot(mat):
     if state:
         h = layer.haze_of(mat)
         lay = dict(haze={k: (list(v) if isinstance(v, tuple) else v) for k, v in h.items()})
-        if legacy:
-            lay.update(core=core.name if core is not None else None,
-                       core_type=layer.core_type(core) if core is not None else None,
-                       baked=bool(state.get("baked")), live_math=bool(state.get("math")),
-                       nodes=sorted(r for r in material.ours(tree) if r.startswith("layer ")))
-        elif gnode is not None:
+        if gnode is not None:
             st = stamp.group(gnode.node_tree, K.GROUP_STAMP) or {}
             kind = st.get("bsdf", "PRINCIPLED")
             settings = st.get("settings", {})

@@ -265,7 +265,7 @@ def _update_layer(mat, given, node):
                 other is None or other.bl_idname not in CORE_NODES or material.is_ours(other)):
             return ("ERROR", f"“{mat.name}” has no Principled, Metallic or Glossy BSDF named "
                     f"“{name}” (its haze layer is on “{have.name}”)", [])
-        if have is not None and name != have.name and not layer.is_legacy(mat):
+        if have is not None and name != have.name:
             return ("ERROR", f"“{mat.name}” has a haze layer on “{have.name}” already (one layer per "
                     f"material): Remove Haze first to put it on “{name}”", [])
     if layer.is_baked(mat):  # (its group has no haze inputs: nothing would change)
@@ -295,7 +295,7 @@ def remove_haze(mat):
     where = stamp.own_way_out(state.get("problems", []))  # (a grouped or ungrouped layer node)
     if where is not None:  # (it still renders: removing the record would hide it)
         return "ERROR", f"Cannot remove the haze of “{mat.name}”: {where}", []
-    if not state.get("legacy") and kept is not None and lnode is not None and (
+    if kept is not None and lnode is not None and (
             not kept.mute or kept.outputs[0].is_linked):
         # (Remove Haze gives that node the layer node's values and links: the artist's edits)
         return "ERROR", (f"“{kept.name}” in “{mat.name}” is in use again (un-muted or "
@@ -306,16 +306,16 @@ def remove_haze(mat):
            for why, keys in state.get("problems", [])):
         notes.append("the layer's record of the BSDF's own values was damaged: the inputs it "
                      "could not restore keep the values the layer gave them")
-    if not state.get("legacy") and layer.original_node(mat) is None:
+    if layer.original_node(mat) is None:
         notes.append("the BSDF kept beside the layer node was deleted: a new one with the "
                      "layer node's values and links takes its place")
-    elif not state.get("legacy") and layer.layer_node(mat) is None:
+    elif layer.layer_node(mat) is None:
         swapped = layer.tagged_layer_node(mat)
         notes.append(f"the layer node “{swapped.name}” uses another group now: it stays, as "
                      f"yours; the BSDF is back beside it, unconnected" if swapped is not None
                      else "the layer node was deleted, and its links with it: the BSDF is "
                           "back, unconnected")
-    copies = [] if state.get("legacy") else layer.layer_copies(mat)
+    copies = layer.layer_copies(mat)
     if copies:
         notes.append(f"{', '.join(f'“{n.name}”' for n in copies)}, a copy of the layer node, "
                      f"stay{'s' if len(copies) == 1 else ''} (yours) and still render"
@@ -547,13 +547,12 @@ def materials_or_all(materials):
 
 
 def upgrade_layers(materials, every=False):
-    """Upgrade the legacy haze layers (loose nodes) among ``materials`` to the layer node, and
-    move layer nodes on another Blender's or add-on's group to this one's; ``every`` (the
-    file's materials, none named) passes over linked ones with a note.  Returns (status,
-    message, notes)."""
+    """Move the layer nodes among ``materials`` on another Blender's or add-on's group to this
+    one's; ``every`` (the file's materials, none named) passes over linked ones with a note.
+    Returns (status, message, notes)."""
     done, notes, linked = [], [], []
     for mat in materials:
-        if not layer.is_legacy(mat) and layer.outdated_group(mat) is None:
+        if layer.outdated_group(mat) is None:
             continue
         if every and mat.library is not None:
             linked.append(mat)
@@ -563,10 +562,7 @@ def upgrade_layers(materials, every=False):
             notes.append(problem)
             continue
         try:
-            if layer.is_legacy(mat):
-                layer.upgrade(mat)
-            else:
-                layer.refresh_group(mat)
+            layer.refresh_group(mat)
         except ValueError as exc:
             notes.append(f"“{mat.name}”: {plain_message(exc)}")
             continue
@@ -598,9 +594,6 @@ def add_haziness_map(mat, *, size=1024, param="haziness"):
     problem = edit_problem(mat)
     if problem is not None:
         return "ERROR", problem, []
-    if layer.is_legacy(mat):
-        layer.upgrade(mat)
-        sync.refresh_derived(mat)  # a requested EEVEE-only output is rebuilt on the layer node
     node = layer.layer_node(mat)
     if node is None:
         problems = (layer.layer_state(mat) or {}).get("problems")

@@ -5,11 +5,8 @@ A haze layer (blender.model.layer) needs nothing here: its node group computes e
 layer node's inputs, whatever changes them.  A ``depsgraph_update_post`` handler (persistent
 across file loads) sees which materials were updated; for a lean or in-shader one it reads the
 user's node-editor edits of the add-on's nodes back into the stamp
-(blender.model.material_edits.adopt_node_edits); a layer of the form before
-(blender.model.legacy_layer: copies of the core that had to follow it) is upgraded to the layer
-node on the first edit of its core after the file was opened.  Scripts
-that edit a material no object uses (no depsgraph update) call ``api.sync_haze(mat)``.
-When the file's node groups change in number (an append), the copies of the layer's groups and
+(blender.model.material_edits.adopt_node_edits).  Scripts that edit a material no object
+uses (no depsgraph update) call ``api.sync_haze(mat)``.  When the file's node groups change in number (an append), the copies of the layer's groups and
 tables an append of hazy materials brought give way to the file's (group_copies.merge_copies);
 a layer node whose inputs now reach another part of the haze mapping moves to the group that
 holds it (``follow_parts``, on every update and before a save); before a save, painted
@@ -21,23 +18,24 @@ from bpy.app.handlers import persistent
 
 from ... import constants as K
 from . import eevee_output, messages
-from ..model import (fallback, group_copies, layer, layer_animation, layer_group, legacy_layer,
-                     material_edits, material_read, stamp)
+from ..model import (fallback, group_copies, layer, layer_animation, layer_group, layer_values,
+                     material_edits, material_read)
 from .messages import plain_message
 
-_fingerprints = {}  # material session_uid -> fingerprint of a legacy layer's core
+_fingerprints = {}  # ("fallback", material session_uid) -> fingerprint of the layer node's inputs
 _busy = False
 _group_count = -1  # node groups in the file at the last update (merge_copies when it changes)
 
 
 def sync(mat, *, force=False):
     """For a lean / in-shader material: read the user's node-editor edits of the add-on's nodes
-    back into its parameters (material_edits.adopt_node_edits); returns whether there were any.  For
-    a legacy haze layer whose core was edited since it was first seen (or ``force``): upgrade it
-    to the layer node; returns whether it was.  A haze layer of today: nothing to do (False)."""
+    back into its parameters (material_edits.adopt_node_edits); returns whether there were any.
+    A haze layer: its group computes everything; what is built from it follows (the parts its
+    inputs reach, the EEVEE-only output, the export fallback; ``force``: rebuild the fallback);
+    returns whether something moved."""
     if mat is None or mat.library is not None:
         return False
-    if _todays_layer(mat):  # its group computes everything: an EEVEE output, a fallback
+    if _todays_layer(mat):
         if follow_parts(mat):
             refresh_derived(mat)
             return True
@@ -50,32 +48,7 @@ def sync(mat, *, force=False):
             return False
         adopted, _ = material_edits.adopt_node_edits(mat)
         return bool(adopted)
-    if not layer.is_legacy(mat):
-        return _follow_fallback(mat, force)
-    state = layer.layer_state(mat) or {}
-    problem = stamp.layer_problem(mat, state.get("problems", []))
-    if problem is not None:  # upgrading would take the damaged values for the user's
-        messages.last_error[mat.session_uid] = problem
-        return False
-    core = legacy_layer.find_core(mat.node_tree, state.get("core"))
-    if core is None:
-        messages.last_error[mat.session_uid] = (
-            "The BSDF the haze layer sits on is gone: Remove Haze, then Make Hazy again")
-        return False
-    key = mat.session_uid
-    now = legacy_layer.fingerprint(core)
-    seen = _fingerprints.get(key)
-    _fingerprints[key] = now
-    if not force and (seen is None or seen == now):
-        return False
-    try:
-        layer.upgrade(mat)
-    except Exception as exc:  # noqa: BLE001  (a handler must never raise into Blender)
-        messages.last_error[key] = plain_message(exc)
-        return False
-    _fingerprints.pop(key, None)
-    refresh_derived(mat)
-    return True
+    return _follow_fallback(mat, force)
 
 
 def follow_parts(mat):
@@ -97,7 +70,7 @@ def follow_parts(mat):
 
 def _todays_layer(mat):
     """A cheap look at the stamp (every edit of a layered material asks): a record of today's
-    layer node.  Anything else (damaged, legacy, no layer) takes the full reading."""
+    layer node.  Anything else (damaged, no layer) takes the full reading."""
     try:
         rec = mat.get(K.STAMP, {}).get("layer")
         return rec is not None and rec.get("version") == layer.LAYER_VERSION
@@ -114,7 +87,7 @@ def _follow_fallback(mat, force):
     if node is None:
         return False
     key = ("fallback", mat.session_uid)
-    now = legacy_layer.fingerprint(node)
+    now = layer_values.input_fingerprint(node)
     if not force and _fingerprints.get(key) == now:
         return False
     _fingerprints[key] = now

@@ -33,7 +33,7 @@ from ... import constants as K
 from ...core import conventions, gulbrandsen_inverse
 from ...interchange import engines, materialx, openpbr_corrections
 from ...interchange.brdf import fresnel_conductor
-from . import layer, layer_group, legacy_layer, material, material_read, stamp
+from . import layer, layer_group, material, material_read, stamp
 from ..nodes.builder import default_value_of, socket_value
 
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
@@ -384,15 +384,10 @@ def _put(tree, sock, value=None, source=None):
             sock.default_value = v
 
 
-def _user_input(tree, core, base, name):
-    """(value, source socket or None) of the core's input ``name`` as the user set it: the
-    stamped user value or link of an input the layer owns, else what the core holds now."""
+def _user_input(tree, core, name):
+    """(value, source socket or None) of the core's input ``name``: the layer node's own
+    inputs are the user's values and links."""
     sock = core.inputs.get(name)
-    b = base.get(name)
-    if b is not None:
-        src = legacy_layer.resolve_link(tree, b["link"]) if "link" in b else None
-        val = b.get("value", default_value_of(sock) if sock is not None else None)
-        return val, src
     if sock is None:
         return None, None
     src = sock.links[0].from_socket if sock.is_linked else None
@@ -410,13 +405,8 @@ def _layer_fallback(mat):
     roughness and anisotropy."""
     tree = mat.node_tree
     state = layer.layer_state(mat) or {}
-    if state.get("legacy"):
-        core = layer.find_core(tree, state.get("core"))
-        base = dict(state.get("base", {}))
-    else:  # the layer node's inputs are the user's own values and links
-        node = layer.layer_node(mat)
-        core = _CoreProxy(node, state) if node is not None else None
-        base = {}
+    node = layer.layer_node(mat)
+    core = _CoreProxy(node, state) if node is not None else None
     if core is None:
         raise ValueError(f"the core node of {mat.name!r} is gone: Remove Haze and Make Hazy again")
     notes = []
@@ -431,10 +421,10 @@ def _layer_fallback(mat):
         for sock in fb.inputs:
             if sock.name in skip or core.inputs.get(sock.name) is None:
                 continue
-            val, src = _user_input(tree, core, base, sock.name)
+            val, src = _user_input(tree, core, sock.name)
             _put(tree, sock, val, src)
     else:
-        _metal_fallback(tree, fb, core, base, notes)
+        _metal_fallback(tree, fb, core, notes)
     first = next((n for n in tree.nodes if n.bl_idname in _USD_FIRST), None)
     if first is not None and first != fb:
         what = ("the layer's core: the narrow lobe, with the inputs the haze raises"
@@ -470,11 +460,11 @@ class _CoreProxy:
     __hash__ = object.__hash__
 
 
-def _metal_fallback(tree, fb, core, base, notes):
+def _metal_fallback(tree, fb, core, notes):
     """A metallic Principled for a Metallic / Glossy core (F82: Base Color and Edge Tint are
     Principled's metal F82 model; Physical Conductor: r and the F82 tint of its Fresnel;
     Glossy: Color as F0, tint 1)."""
-    u = lambda name: _user_input(tree, core, base, name)  # noqa: E731
+    u = lambda name: _user_input(tree, core, name)  # noqa: E731
     dist = core.distribution if core.distribution in ("GGX", "MULTI_GGX") else "GGX"
     if core.distribution != dist:
         notes.append(f"the Principled fallback has no {core.distribution.title()}: GGX")

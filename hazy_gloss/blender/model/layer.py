@@ -17,8 +17,6 @@ set since), and removes the layer node: the tree is the artist's again.
 The material's stamp (``mat["hazy_gloss"]["layer"]``) records only what the tree cannot tell:
 which nodes are the layer and the core, where the core was, and the layer's settings (the
 smooth haze curve, Keep Body Colour, the EEVEE-only output).  Values live in the sockets.
-A layer of the form before (LAYER_VERSION 1, loose nodes: blender.model.legacy_layer) is upgraded on
-its first edit, or by :func:`upgrade`.
 
 Reading a layer back (:func:`read`, :func:`notes`, :func:`summary`) is here; what the layer node's
 group computes for its values is blender.model.layer_values, what the layer cannot do for them
@@ -34,7 +32,7 @@ from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
 from . import (layer_animation, layer_group, layer_notes, layer_parts, layer_values, layer_wiring,
-               legacy_layer, stamp)
+               stamp)
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
 
@@ -77,9 +75,8 @@ def _tagged(tree, key):
 
 
 def layer_state(mat):
-    """The layer's record (a dict with "node", "original", "restore", "problems"), the legacy
-    layer's state (blender.model.legacy_layer, with "legacy": True), or None.  A tree that holds a
-    layer node whose stamp lost its record is a damaged layer ("lost": True)."""
+    """The layer's record (a dict with "node", "original", "restore", "problems"), or None.  A
+    tree that holds a layer node whose stamp lost its record is a damaged layer ("lost": True)."""
     if mat is None:
         return None
     raw = _raw_state(mat)
@@ -94,16 +91,11 @@ def layer_state(mat):
         what = stamp.describe(mat)
         return {"version": LAYER_VERSION, "lost": True, "problems": [
             (f"the stamp is {what}, but the tree holds the haze layer node “{node.name}”", None)]}
-    old = legacy_layer.layer_state(mat)
-    if old is not None:
-        old = dict(old)
-        old["legacy"] = True
-    return old
+    return None
 
 
 def is_layered(mat):
-    """Whether ``mat`` has a haze layer (of today's form or the legacy one, damaged or not).
-    Cheap for the common case (a stamp without a "layer" entry and no tagged node), which
+    """Whether ``mat`` has a haze layer (damaged or not).  Cheap for the common case (a stamp without a "layer" entry and no tagged node), which
     every slider change of a hazy material asks."""
     if mat is None:
         return False
@@ -114,21 +106,13 @@ def is_layered(mat):
         has_entry = False
     if not has_entry:
         tree = getattr(mat, "node_tree", None)
-        if tree is None or not any(n.get(K.LAYER_NODE_KEY) or n.get(legacy_layer.CORE_KEY)
-                                   for n in tree.nodes):
+        if tree is None or not any(n.get(K.LAYER_NODE_KEY) for n in tree.nodes):
             return False
     return layer_state(mat) is not None
 
 
-def is_legacy(mat):
-    return bool((layer_state(mat) or {}).get("legacy"))
-
-
 def is_baked(mat):
     """A layer whose haze comes from converted maps (texture conversion)."""
-    state = layer_state(mat) or {}
-    if state.get("legacy"):
-        return legacy_layer.is_baked(mat)
     node = layer_node(mat)
     return node is not None and bool(layer_values.group_config(node).get("baked"))
 
@@ -168,21 +152,6 @@ def layer_copies(mat):
 def original_node(mat):
     """The artist's BSDF kept beside the layer node (by the stamp's name, else its tag), or None."""
     return _kept_node(mat, "original", K.ORIGINAL_NODE_KEY)
-
-
-def find_core(tree, name=None):
-    """The node whose inputs are the core's: the layer node (today's form) or the legacy core."""
-    mat = _material_of(tree)
-    node = layer_node(mat) if mat is not None else None
-    return node if node is not None else legacy_layer.find_core(tree, name)
-
-
-def _material_of(tree):
-    import bpy
-    for m in bpy.data.materials:
-        if m.node_tree is not None and m.node_tree == tree:
-            return m
-    return None
 
 
 def _problems(mat, raw):
@@ -334,11 +303,7 @@ def animated_inputs(node):
 
 def remove(mat):
     """Take the layer off: the artist's BSDF is where it was with the layer node's values, links
-    and animation; the layer node and what was built for it go.  A legacy layer is taken off
-    as that code did."""
-    if is_legacy(mat):
-        legacy_layer.remove(mat)
-        return
+    and animation; the layer node and what was built for it go."""
     tree = mat.node_tree
     raw = _raw_state(mat) or {}
     node, core = layer_node(mat), original_node(mat)
@@ -499,8 +464,6 @@ def held_haze(mat, keys):
 
 def haze_of(mat):
     """The haze parameters a layer renders with (HAZE keys; a linked socket gives TEXTURE)."""
-    if is_legacy(mat):
-        return legacy_layer.haze_of(mat)
     node = layer_node(mat)
     h = dict(HAZE)
     h["smoothness"] = None
@@ -528,16 +491,14 @@ def haze_of(mat):
 
 
 # --------------------------------------------------------------------------------------------
-# apply: make, update, upgrade
+# apply: make, update
 # --------------------------------------------------------------------------------------------
 
 
 def apply(mat, haze, *, core=None):
-    """Make ``mat``'s layer render ``haze``: a new layer on ``core`` (or the legacy layer's
-    core, upgraded), else the layer node's haze sockets set — and its group swapped when the
-    haze curve changes (smooth or Eq. 7) or Keep Body Colour is switched.  Returns {}."""
-    if is_legacy(mat):
-        core = upgrade(mat)
+    """Make ``mat``'s layer render ``haze``: a new layer on ``core``, else the layer node's haze
+    sockets set — and its group swapped when the haze curve changes (smooth or Eq. 7), Keep
+    Body Colour is switched or the parts it needs change.  Returns {}."""
     node = layer_node(mat)
     if node is None:
         if core is None:
@@ -572,7 +533,7 @@ def wanted_group(node, haze=None):
 def outdated_group(mat):
     """The Blender version (e.g. "5.2") or "an earlier Hazy Gloss" whose group the layer node
     uses when that is not the group this Blender and add-on build; else None."""
-    node = None if is_legacy(mat) else layer_node(mat)
+    node = layer_node(mat)
     want = wanted_group(node) if node is not None else None
     # a group linked from a library is up to date when its stamp is this one's (whatever its
     # parts: layer_parts.missing says which are missing)
@@ -624,27 +585,6 @@ def swap_group(node, ng):
     layer_animation.follow_names(node, curves)
 
 
-def upgrade(mat):
-    """A legacy layer (loose nodes) becomes today's layer node, with its haze values.  Returns
-    the layer node.  A request for the EEVEE-only output is kept; the caller rebuilds what is
-    built from a layer (sync.refresh_derived: that output, the export fallback)."""
-    haze = legacy_layer.haze_of(mat)
-    tree = mat.node_tree
-    state = legacy_layer.layer_state(mat) or {}
-    core = legacy_layer.find_core(tree, state.get("core"))
-    eevee = (_stamp(mat).get("eevee") or {}).get("mode")
-    legacy_layer.remove(mat)
-    if core is None:
-        raise ValueError(f"the core node of {mat.name!r}'s haze layer is gone: Make Hazy again")
-    node = wrap(mat, core, {k: v for k, v in haze.items() if v != TEXTURE},
-                keep_body_colour=bool(haze.get("keep_body_colour")))
-    if eevee:
-        d = _stamp(mat)
-        d["eevee"] = {"mode": eevee}
-        mat[K.STAMP] = d
-    return node
-
-
 # --------------------------------------------------------------------------------------------
 # Reading
 # --------------------------------------------------------------------------------------------
@@ -654,8 +594,6 @@ def read(mat):
     """The perceptual view of a layered material: the haze parameters and the core's own, as
     the layer node holds them (linked inputs report their unlinked value and are listed in
     ``textured``).  Raises ValueError (one line) when the layer is damaged."""
-    if is_legacy(mat):
-        return legacy_layer.read(mat)
     state = layer_state(mat) or {}
     if state.get("problems"):
         raise stamp.StampError(stamp.layer_problem(mat, state["problems"]))

@@ -199,6 +199,27 @@ def values(node):
     return evaluate(node, graph_of(node).shown)
 
 
+def input_fingerprint(node):
+    """A hash of what a copy of ``node`` must follow: its inputs (values, and the sockets
+    linked into them through links that render) and its enum settings (the export fallback is
+    rebuilt when it changes)."""
+    into = {}
+    for link in node.id_data.links:  # (one pass: a socket's ``links`` scans them all)
+        if link.to_node == node and not link.is_muted and link.is_valid:
+            into[link.to_socket.identifier] = link.from_socket
+    items = []
+    for s in node.inputs:
+        src = into.get(s.identifier)
+        if src is not None:
+            items.append((s.identifier, "L", src.node.name, src.identifier))
+        elif hasattr(s, "default_value"):
+            v = s.default_value
+            items.append((s.identifier, tuple(v) if hasattr(v, "__len__") else v))
+    items += [(p, getattr(node, p)) for p in ("distribution", "subsurface_method", "fresnel_type")
+              if hasattr(node, p)] + [node.mute]
+    return hash(tuple(items))
+
+
 def plain(v):
     """A socket value as plain Python (lists for vectors and colours), for records."""
     if hasattr(v, "__len__") and not isinstance(v, str):

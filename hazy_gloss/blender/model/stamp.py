@@ -9,31 +9,25 @@ safe result, never a Python exception from deep inside:
 
 - :func:`read_material`: the parameters of a lean / in-shader material, each key checked on its
   own (core.parameters.check_value) -> (valid values, {key: problem});
-- :func:`check_layer`: a haze layer's state sanitised (invalid entries left out, so removing
-  the layer restores what can be restored) and its problems, each tagged with the haze
-  parameter that fixes it (None: only Remove Haze does);
+- :func:`check_layer_node`: a haze layer's record with what does not read left out (the layer
+  node and the kept BSDF are then found by their tags);
 - :func:`group`: any other stamp as a dict, or None when it is not one.
 
 bpy-free apart from reading the ID properties handed in (duck-typed ``to_dict``/``to_list``).
 """
 from __future__ import annotations
 
-import ast
 import math
 
 from ... import constants as K
 from ...core.lobes import check_kind
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS, _short, check_value
-from ...schema import STAMP_OPTIONAL, TEXTURE_OK
 
-__all__ = ("StampError", "plain", "group", "read_material", "check_layer", "material_problem")
+__all__ = ("StampError", "plain", "group", "read_material", "check_layer_node",
+           "material_problem")
 
 #: Nesting beyond this is junk (the add-on's stamps are at most five levels deep).
 MAX_DEPTH = 12
-#: The haze layer's values that may be per-texel maps (texture conversion).
-TEXTURE = K.TEXTURED
-_TEXTURE_OK = TEXTURE_OK
-_INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
 
 
 class StampError(ValueError):
@@ -109,7 +103,7 @@ def read_material(mat):
     """(values, problems) of a material's stamp: ``values`` {key: normalised value} of every
     parameter that reads, ``problems`` {key: one-line reason} of those that do not ("*" when
     the stamp is not a group at all).  (None, {}) without a stamp.  A haze layer's stamp
-    (``"layer"`` in it) is :func:`check_layer`'s."""
+    (``"layer"`` in it) is :func:`check_layer_node`'s."""
     d = raw_material(mat)
     if d is None:
         return None, {}
@@ -162,186 +156,6 @@ def material_problem(mat, problems):
 
 def _finite_number(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _value_ok(value, sock):
-    """Whether a stored input value fits the core's socket (a number for a float socket, 3 or
-    4 numbers for a colour / vector)."""
-    if sock is None:
-        return False
-    vector = getattr(sock, "type", "VALUE") in ("RGBA", "VECTOR")
-    if isinstance(value, list):
-        return vector and len(value) in (3, 4) and all(_finite_number(x) for x in value)
-    return _finite_number(value)
-
-
-def _ref_ok(ref):
-    return isinstance(ref, list) and len(ref) == 2 and all(isinstance(x, str) for x in ref)
-
-
-def _core_node(mat, name):
-    tree = getattr(mat, "node_tree", None)
-    if tree is None:
-        return None
-    tagged = [n for n in tree.nodes if n.get("hazy_gloss_core")]
-    return next((n for n in tagged if n.name == name), tagged[0] if tagged else None)
-
-
-def _inputs(core, entries, where, problems, fatal):
-    """The valid {input: {"value": ...} / {"link": [node, socket]}} of ``entries``."""
-    out = {}
-    if not isinstance(entries, dict):
-        if fatal:
-            problems.append((f"layer.{where} is {_kind_of(entries)}, not a group", None))
-        return out
-    for name, e in entries.items():
-        sock = core.inputs.get(name) if core is not None else None
-        bad = None
-        if core is not None and sock is None:
-            bad = f"layer.{where}.{name} names no input of “{core.name}”"
-        elif not isinstance(e, dict) or not ({"value", "link"} & set(e)):
-            bad = f"layer.{where}.{name} must hold a value or a link, got {_short(e)}"
-        elif "link" in e and not _ref_ok(e["link"]):
-            bad = f"layer.{where}.{name}.link must be [node, socket] names, got {_short(e['link'])}"
-        elif "value" in e and core is not None and not _value_ok(e["value"], sock):
-            want = "3 or 4 finite numbers" if sock.type in ("RGBA", "VECTOR") else "a finite number"
-            bad = f"layer.{where}.{name}.value must be {want}, got {_short(e['value'])}"
-        if bad is None:
-            out[name] = {k: (list(v) if isinstance(v, list) else v) for k, v in e.items()
-                         if k in ("value", "link")}
-        elif fatal:
-            problems.append((bad, None))
-    return out
-
-
-#: Haze keys a stamp may lack: smoothness (Eq. 7), and what layers saved before it existed
-#: could not hold (their reading is the default).
-_OPTIONAL_HAZE = STAMP_OPTIONAL
-
-
-def _haze(raw, baked, problems):
-    """The layer's haze parameters that read (HAZE defaults for the missing optional ones)."""
-    out = {}
-    if not isinstance(raw, dict):
-        problems.append((f"layer.haze is {_kind_of(raw)}, not a group of haze parameters",
-                         tuple(k for k in HAZE_PARAMETERS if k not in _OPTIONAL_HAZE)))
-        return out
-    for key in HAZE_PARAMETERS:
-        if key not in raw:
-            if key not in _OPTIONAL_HAZE:
-                problems.append((f"layer.haze.{key} is missing", (key,)))
-            continue
-        v = raw[key]
-        if key == "haze_extent" and baked and isinstance(v, list) and len(v) == 2 \
-                and TEXTURE in v:
-            try:
-                out[key] = tuple(x if x == TEXTURE else check_value(key, x)[0] for x in v)
-            except ValueError as exc:
-                problems.append((f"layer.haze.{exc}", (key,)))
-            continue
-        if baked and v == TEXTURE and key in _TEXTURE_OK:
-            out[key] = v
-            continue
-        try:
-            out[key] = check_value(key, v)
-        except ValueError as exc:
-            text = str(exc)
-            problems.append((f"layer.haze.{text}" if text.startswith(key) else
-                             f"layer.haze.{key}: {text}", (key,)))
-    return out
-
-
-def _images():
-    try:
-        import bpy
-    except ImportError:
-        return None
-    return bpy.data.images
-
-
-def _baked(raw, problems):
-    images = _images()
-    if not isinstance(raw, dict):
-        problems.append((f"layer.baked is {_kind_of(raw)}, not a group", None))
-        return {"maps": {}}
-    out = {"maps": {}}
-    maps = raw.get("maps", {})
-    if not isinstance(maps, dict):
-        problems.append((f"layer.baked.maps is {_kind_of(maps)}, not a group", None))
-        maps = {}
-    for k, name in maps.items():
-        try:
-            key = ast.literal_eval(k)
-        except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-            key = None
-        if not isinstance(key, tuple) or not isinstance(name, str):
-            problems.append((f"layer.baked.maps[{_short(k, 40)}] must name an image, got "
-                             f"{_short(name)}", None))
-            continue
-        if images is not None and images.get(name) is None:
-            problems.append((f"layer.baked.maps names the image {_short(name)}, which is not in "
-                             f"this file (convert the maps again)", None))
-            continue
-        out["maps"][k] = name
-    interp = raw.get("interpolation", "Linear")
-    if interp not in _INTERPOLATIONS:
-        problems.append((f"layer.baked.interpolation must be one of {', '.join(_INTERPOLATIONS)}, "
-                         f"got {_short(interp)}", None))
-    else:
-        out["interpolation"] = interp
-    sources = raw.get("sources")
-    if isinstance(sources, list) and all(isinstance(n, str) for n in sources):
-        out["sources"] = list(sources)  # what the maps were computed from (stale-map check)
-    elif "sources" in raw:
-        problems.append((f"layer.baked.sources must list the inputs the maps were computed "
-                         f"from, got {_short(sources)} (convert the maps again)", None))
-    if "vector" in raw:
-        if _ref_ok(raw["vector"]):
-            out["vector"] = list(raw["vector"])
-        else:
-            problems.append((f"layer.baked.vector must be [node, socket] names, got "
-                             f"{_short(raw['vector'])}", None))
-    return out
-
-
-def check_layer(mat, raw):
-    """A haze layer's state (``raw``, the stamp's ``"layer"`` as plain Python) sanitised, with
-    ``"problems"``: [(one-line reason, haze parameters that fix it or None)].  Invalid entries
-    are left out; internal bookkeeping that does not read (structure, signature, math node
-    names, core name, the values last written) is dropped silently, which only makes the next
-    update rebuild the layer's own nodes."""
-    problems = []
-    if not isinstance(raw, dict):
-        problems.append((f"layer is {_kind_of(raw)}, not a group", None))
-        return {"problems": problems}
-    state = {}
-    core_name = raw.get("core")
-    state["core"] = core_name if isinstance(core_name, str) else None
-    core = _core_node(mat, state["core"])
-    rebuild = False
-    for key in ("structure", "signature"):
-        if isinstance(raw.get(key), str):
-            state[key] = raw[key]
-        else:
-            rebuild = True
-    math_nodes = raw.get("math", [])
-    if isinstance(math_nodes, list) and all(isinstance(n, str) for n in math_nodes):
-        state["math"] = list(math_nodes)
-    else:
-        state["math"] = []
-        rebuild = True
-    if rebuild:  # without them the next update cannot reuse the layer's nodes: it rebuilds
-        state.pop("structure", None)
-    if "version" in raw and isinstance(raw["version"], int) and not isinstance(raw["version"], bool):
-        state["version"] = raw["version"]
-    state["base"] = _inputs(core, raw.get("base", {}), "base", problems, fatal=True)
-    state["written"] = _inputs(core, raw.get("written", {}), "written", problems, fatal=False)
-    baked = "baked" in raw
-    if baked:
-        state["baked"] = _baked(raw["baked"], problems)
-    state["haze"] = _haze(raw.get("haze", {}), baked, problems)
-    state["problems"] = problems
-    return state
 
 
 def describe(mat):
@@ -411,20 +225,6 @@ def _baked_value_reads(key, value):
     except (ValueError, TypeError):
         return False
     return True
-
-
-def lost_layer(mat, d):
-    """The state of a haze layer whose stamp no longer says so — the stamp is not a group, or
-    a group without ``"layer"`` nor ``"kind"`` — while the tree still has the layer's core
-    node (tagged): {"problems": [...]} (only Remove Haze helps), else None."""
-    try:
-        present = K.STAMP in mat
-    except TypeError:
-        return None
-    if not present or (d is not None and "kind" in d) or _core_node(mat, None) is None:
-        return None
-    what = _kind_of(raw_material(mat)) if d is None else "a group without its \"layer\" entry"
-    return {"problems": [(f"the stamp is {what}, but the tree holds a haze layer", None)]}
 
 
 #: A layer problem's "keys" when its line says its own way out (a grouped or ungrouped layer

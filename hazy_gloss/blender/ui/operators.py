@@ -101,9 +101,8 @@ class HAZY_GLOSS_OT_remove_haze(_OneMaterialOperator, bpy.types.Operator):
 
 
 class HAZY_GLOSS_OT_upgrade_layers(bpy.types.Operator):
-    """Make every haze layer of an earlier Hazy Gloss (loose nodes) one layer node, with its
-    values, and move layer nodes another Blender made to this one's group (the first change of
-    such a layer does it too)"""
+    """Move haze layer nodes whose group another Blender or an earlier Hazy Gloss made to this
+    one's group (the first haze change of such a layer does it too)"""
 
     bl_idname = "hazy_gloss.upgrade_layers"
     bl_label = "Upgrade Haze Layers"

@@ -376,24 +376,6 @@ def draw_layer(layout, context, mat, idname, hg, problem):
     keyframed and driven here too), its settings, what it computes; the BSDF's own inputs are
     on the node."""
     col = layout.column()
-    if layer.is_legacy(mat):
-        state = layer.layer_state(mat) or {}
-        problem_text = stamp.layer_problem(mat, state.get("problems", []))
-        if problem_text is not None:
-            box = col.box()
-            box.alert = True
-            box.label(text=problem_text, icon="ERROR")
-            if stamp.damaged_haze(state.get("problems", [])):
-                col.menu("HAZY_GLOSS_MT_presets", text="Presets", icon="PRESET")
-            col.operator("hazy_gloss.remove_haze", icon="X")
-            return
-        box = col.box()
-        box.label(text="A haze layer of an earlier Hazy Gloss (loose nodes in the tree)", icon="INFO")
-        box.label(text="It renders as it did; the first change here makes it one node")
-        box.operator("hazy_gloss.upgrade_layers", icon="FILE_REFRESH")
-        draw_haze(col, hg)
-        col.operator("hazy_gloss.remove_haze", icon="X")
-        return
     try:
         layer.read(mat)  # a damaged record or a missing layer node raises, in one line
         info = layer.summary(mat)
