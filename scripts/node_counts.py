@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Node counts of lean (constant) vs in-shader-mapping materials, and of haze layers on
-Principled materials; writes the tables into docs/node-groups.md (between the "node-counts"
-markers) and prints them.
+Principled materials (checked against the most their groups may hold, LIMITS); writes the
+tables into docs/node-groups.md (between the "node-counts" markers) and prints them.
 
     .venv/bin/python scripts/node_counts.py
 """
@@ -37,8 +37,22 @@ def count_tree(tree):
     return inner(tree)
 
 
+def count_all(tree):
+    """Every node of a tree and of its groups (recursively): frames, group inputs and outputs
+    included."""
+    return sum(1 + (count_all(n.node_tree) if n.bl_idname == "ShaderNodeGroup" and n.node_tree
+                    else 0) for n in tree.nodes)
+
+
+#: The most nodes (nested groups expanded) a layer's group holds, by the materials it is for.
+LIMITS = {"plastic": 250, "metal": 250, "textured plastic": 250, "car paint": 450,
+          "every feature": 700}
+
+
 def layer_rows(api):
-    """Nodes a haze layer adds to a Principled material, by material (BSDFs, mixes, math)."""
+    """A haze layer on Principled materials with the Principled's default distribution
+    (Multiscatter GGX): the nodes its group holds, the math Cycles runs per shading point for
+    the material's links, its BSDF slots."""
     import numpy as np
     rows = []
 
@@ -46,12 +60,13 @@ def layer_rows(api):
         from hazy_gloss.blender import compat
         mat = compat.new_material("layer")
         b = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-        b.distribution = inputs.pop("distribution", "GGX")
+        if "distribution" in inputs:
+            b.distribution = inputs.pop("distribution")
         for k, v in inputs.items():
             b.inputs[k].default_value = v
         return mat, b
 
-    def texture(mat, b, name, grey=True):
+    def texture(mat, b, name):
         img = bpy.data.images.new(name, 4, 4, float_buffer=True)
         img.pixels.foreach_set(np.full(64, 0.3, np.float32))
         t = mat.node_tree.nodes.new("ShaderNodeTexImage")
@@ -61,37 +76,44 @@ def layer_rows(api):
     cases = []
     mat, b = principled(**{"Base Color": (0.5, 0.1, 0.05, 1.0)})
     cases.append(("plastic", mat, dict(haziness=0.1)))
+    mat, b = principled()
+    texture(mat, b, "Base Color")
+    texture(mat, b, "Roughness")
+    cases.append(("textured plastic", mat, dict(haziness=0.3)))
+    mat, b = principled(distribution="GGX")
+    texture(mat, b, "Base Color")
+    texture(mat, b, "Roughness")
+    cases.append(("textured plastic, GGX", mat, dict(haziness=0.3)))
     mat, b = principled(**{"Base Color": (0.5, 0.1, 0.05, 1.0)})
     cases.append(("plastic, Keep Body Colour", mat, dict(haziness=0.1, keep_body_colour=True)))
     mat, b = principled(**{"Metallic": 1.0})
     cases.append(("metal", mat, dict(haziness=0.5)))
-    mat, b = principled(**{"Metallic": 1.0, "Anisotropic": 0.5})
-    cases.append(("metal, anisotropic halo", mat, dict(haziness=0.5, haze_extent=(8.0, 2.0))))
-    mat, b = principled(**{"Metallic": 1.0, "Coat Weight": 1.0})
-    cases.append(("car paint (metal, hazy coat)", mat, dict(haziness=0.3, coat_haziness=0.4)))
-    mat, b = principled()
-    texture(mat, b, "Metallic")
-    cases.append(("metallic map", mat, dict(haziness=0.5)))
-    mat, b = principled()
-    texture(mat, b, "Roughness")
-    cases.append(("plastic, roughness map", mat, dict(haziness=0.1)))
     mat, b = principled(**{"Metallic": 1.0})
     texture(mat, b, "Base Color")
     texture(mat, b, "Roughness")
-    cases.append(("metal, base colour + roughness maps", mat, dict(haziness=0.5)))
-    mat, b = principled(distribution="MULTI_GGX", **{"Metallic": 1.0})
-    texture(mat, b, "Roughness")
-    cases.append(("metal, roughness map, Multiscatter GGX", mat, dict(haziness=0.5)))
+    cases.append(("textured metal", mat, dict(haziness=0.5)))
+    mat, b = principled(**{"Metallic": 1.0, "Anisotropic": 0.5})
+    cases.append(("metal, anisotropic halo", mat, dict(haziness=0.5, haze_extent=(8.0, 2.0))))
+    mat, b = principled()
+    texture(mat, b, "Metallic")
+    cases.append(("metallic map", mat, dict(haziness=0.5)))
+    mat, b = principled(**{"Metallic": 1.0, "Coat Weight": 1.0})
+    cases.append(("car paint", mat, dict(haziness=0.3, coat_haziness=0.4)))
+    mat, b = principled(**{"Coat Weight": 1.0, "Thin Film Thickness": 300.0,
+                           "Transmission Weight": 0.5, "Sheen Weight": 0.5, "Anisotropic": 0.5})
+    cases.append(("every feature", mat, dict(haziness=0.3, coat_haziness=0.4)))
     from hazy_gloss.blender.model import layer, layer_values
+    from hazy_gloss.core import layer_graph
     for label, mat, haze in cases:
-        top = len(mat.node_tree.nodes)
         api.make_hazy(mat, **haze)
         node = layer.layer_node(mat)
-        from hazy_gloss.core import layer_graph
-        slots = len(layer_graph.slots_of(layer_values.graph_of(node).cycles))  # (and one for EEVEE)
-        kept, exact = layer_probe.rendered_slots(layer_values, node)
-        rows.append(f"| {label} | {top} | {len(mat.node_tree.nodes) - top} | {node.node_tree.name} | "
-                    f"{count_tree(node.node_tree)} | {slots} | {kept}{'' if exact else ' (at most)'} |")
+        slots = len(layer_graph.slots_of(layer_values.graph_of(node).cycles))
+        n = count_all(node.node_tree)
+        limit = LIMITS.get(label)
+        rows.append(f"| {label} | {node.node_tree.name} | {n}"
+                    f"{f' (<= {limit})' if limit else ''} | {layer_values.varying_math(node)} | "
+                    f"{slots} |")
+        assert limit is None or n <= limit, (label, n, limit)
     return rows
 
 
@@ -117,13 +139,14 @@ def main():
              "node inside node groups.", "",
              "| kind | configuration | lean (constants) | in-shader mapping | in-shader, Multiscatter GGX |",
              "|---|---|---:|---:|---:|"] + rows
-    lines += ["", "A haze layer (Make Hazy) on a Principled material: the nodes its tree gains (the "
-              "layer node; the BSDF stays beside it, muted), the group the layer node uses (shared "
-              "by every material of its configuration), its nodes (sub-groups included), its BSDF "
-              "slots and how many of them Cycles renders for these values (a Mix whose factor "
-              "folds to 0 or 1 drops its other side; the group has one more, folded, for EEVEE):", "",
-              "| material | its nodes | added | group | nodes in the group | BSDF slots | rendered |",
-              "|---|---:|---:|---|---:|---:|---:|"] + layer_rows(api)
+    lines += ["", "A haze layer (Make Hazy adds one node to the material's tree) on Principled "
+              "materials with the Principled's default distribution, Multiscatter GGX: the group "
+              "the layer node uses (shared by every material of its configuration, which names the "
+              "parts it holds), every node in it (frames and group inputs included), the math "
+              "nodes Cycles runs at every shading point for the material's links (the rest folds "
+              "into constants when it compiles the shader) and the BSDF copies it mixes:", "",
+              "| material | group | nodes in the group | math per shading point | BSDF copies |",
+              "|---|---|---:|---:|---:|"] + layer_rows(api)
     text = "\n".join(lines)
     print(text)
     doc = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs",

@@ -36,9 +36,10 @@ LOBES = ("CONDUCTOR", "F82_TINT", "DIELECTRIC", "LEGACY", "COAT")
 
 #: Unrolled Newton steps on (*) at the mapping's β, per lobe type: "m" the max channel's r̂
 #: with its own F_ss (the coat, the dielectric), "c" every channel (the conductor on the chord
-#: of its F_ss), "x" the conductor's steps with its exact F_ss.  The error each count leaves
+#: of its F_ss), "a" every channel of a dielectric whose tint raises F0 (its F_ss affine in r,
+#: the start from r̂ close), "x" the conductor's steps with its exact F_ss.  The error each count leaves
 #: is measured in docs/performance.md ("error against cost").
-STEPS = {"COAT": {"m": 2}, "F82_TINT": {"c": 2}, "DIELECTRIC": {"m": 2, "c": 2},
+STEPS = {"COAT": {"m": 2}, "F82_TINT": {"c": 2}, "DIELECTRIC": {"m": 2, "c": 2, "a": 1},
          "CONDUCTOR": {"c": 1, "x": 1}}
 #: Glossy lobes (their β_max family, core.multiscatter._solve_glossy): "k" for r̂_m(β_max)
 #: (k̂_max), "m" the max channel r̂_m, "c" every channel, "b" β_max.
@@ -272,10 +273,12 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
         t_m = g.madd(rc_m, mn0m, rc_m)
         max_model = _dielectric_max
         if affine is not None:
+            # the layer reads every channel's r only where the tint raises F0 (keep = 1):
+            # there the model is affine, elsewhere the max channel's r̂ alone
             keep, a_t, b_t = affine
             lane = _max_lane(g, ss["chroma"])  # (the max channel's weights and target)
             a_m, b_m = g.dot(a_t, lane), g.dot(b_t, lane)
-            f0 = g.select(keep, g.vmath("MULTIPLY_ADD", rc, b_t, a_t), f0)
+            f0 = g.vmath("MULTIPLY_ADD", rc, b_t, a_t)
             mn0, _ = _excess(v, tn, f0)
             target = v("MULTIPLY_ADD", rc, mn0, rc)
             t_m = g.select(keep, g.dot(target, lane), t_m)
@@ -284,15 +287,12 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
                 f, df = raise_ior(g, u)
                 return g.select(keep, g.madd(u, b_m, a_m), f), g.select(keep, b_m, df)
         u = solve_max(ss["reflectivity_max"], t_m, lambda u: max_model(g, u))
-        sd = dielectric_s(g, u)
-        one = (1.0, 1.0, 1.0)
         if affine is None:
-            model = _affine(g, sd, g.sub(1.0, sd))
+            sd = dielectric_s(g, u)
+            model, n = _affine(g, sd, g.sub(1.0, sd)), steps["c"]
         else:
-            model = _affine(g, g.select(keep, a_t, g.vmath("SCALE", one, sd)),
-                            g.select(keep, b_t, g.vmath("SCALE", one, g.sub(1.0, sd))))
-        r = solve(v, g.vmath("MINIMUM", g.vmath("SCALE", ss["chroma"], u), 1.0), target, model,
-                  steps["c"])
+            model, n = _affine(g, a_t, b_t), steps["a"]
+        r = solve(v, g.vmath("MINIMUM", g.vmath("SCALE", ss["chroma"], u), 1.0), target, model, n)
         return dict(beta=beta, reflectivity=r, reflectivity_max=u, halo_intensity=g.mul(beta, u))
     r = solve(v, ss["reflectivity"], target, model, steps["c"])
     if lobe == "CONDUCTOR":  # the exact F_ss at each iterate, F' by the secant
