@@ -15,7 +15,8 @@ is, per channel,
 clamped to [0, 1].  S is the sensitivity's real part: 5.x reads it from the scene's LUT
 (an RGB image here, the Linear Rec.709 table; core.thin_film builds it as Cycles does), 4.5
 evaluates Belcour & Barla's Gaussian fit, whose shift m·π(…) is the same φ^m, converted to RGB
-as Cycles does (M (S_xyz ⊙ M⁻¹ 1)): so both generations are this one sum.  The film IOR is
+as Cycles does (M (S_xyz ⊙ M⁻¹ 1)), read here from a finer table of it
+(core.thin_film.gauss_table): so both generations are this one sum.  The film IOR is
 blended towards 1 below 1 nm (5.x) or 30 nm (4.5).
 """
 from __future__ import annotations
@@ -27,13 +28,6 @@ from . import thin_film as _tf
 __all__ = ("dielectric_film", "THICKNESS_CUTOFF")
 
 THICKNESS_CUTOFF = _tf.THICKNESS_CUTOFF
-#: 4.5's Gaussian fit (kernel/closure/bsdf_util.h iridescence_lookup_sensitivity): X, Y, Z
-#: amplitudes, positions, variances, and X's second term.
-_GAUSS_VAL = (5.4856e-13, 4.4201e-13, 5.2481e-13)
-_GAUSS_POS = (1.6810e+06, 1.7953e+06, 2.2084e+06)
-_GAUSS_VAR = (4.3278e+09, 9.3046e+09, 6.6121e+09)
-_GAUSS_X2 = (1.64408e-8, 2.2399e+06, 4.5282e+09)
-_GAUSS_NORM = 1.0685e-7
 
 
 def _sign(g, x):
@@ -41,32 +35,26 @@ def _sign(g, x):
     return g.madd(g.less(x, 0.0), -2.0, 1.0)
 
 
-def _lut_sensitivity(g, opd, working_space):
-    """The LUT's real part at ``opd`` (nm), per channel: lookup_table_read at
-    x = 2π OPD / 60000, on an RGB image of its 512 entries (texel centres at the nodes)."""
-    table = _tf.sensitivity_table(working_space, version=(5, 3))[0]  # (3, 512) re
+def _sensitivity(g, name, table, opd, opd_per_u):
+    """A sensitivity table's entry at ``opd`` (nm), per channel: entry i sits at OPD
+    i opd_per_u, so u = (OPD / opd_per_u + ½) / n (texel centres; g.table clamps to them)."""
     n = table.shape[1]
-    x = g.clamp(g.mul(opd, 2.0 * np.pi / 60000.0), 0.0, 1.0)
-    u = g.div(g.madd(x, float(n - 1), 0.5), float(n))
-    return g.table(f"thin film LUT {working_space}", table.T[None, :, :], u, 0.5)
+    return g.table(name, table.T[None, :, :], g.madd(opd, 1.0 / (opd_per_u * n), 0.5 / n), 0.5)
+
+
+def _lut_sensitivity(g, opd, working_space):
+    """5.x: the LUT's real part, lookup_table_read at x = 2π OPD / 60000 nm (512 entries)."""
+    table = _tf.sensitivity_table(working_space, version=(5, 3))[0]  # (3, 512) re
+    return _sensitivity(g, f"thin film LUT {working_space}", table, opd,
+                        60000.0 / (2.0 * np.pi * (table.shape[1] - 1)))
 
 
 def _gauss_sensitivity(g, opd):
-    """4.5's Gaussian fit at ``opd`` (nm), shift 0, converted to Linear Rec.709 as Cycles
-    converts the film's XYZ (rgb = M (xyz ⊙ M⁻¹ 1))."""
-    m = _tf.xyz_to_rgb_matrix("Linear Rec.709", version=(4, 5))
-    white = np.linalg.inv(m) @ np.ones(3)
-    phase = g.mul(opd, 2.0 * np.pi * 1e-9)
-    ph2 = g.mul(phase, phase)
-    out = None
-    terms = [(i, _GAUSS_VAL[i] * np.sqrt(2.0 * np.pi * _GAUSS_VAR[i]), _GAUSS_POS[i], _GAUSS_VAR[i])
-             for i in range(3)] + [(0, _GAUSS_X2[0], _GAUSS_X2[1], _GAUSS_X2[2])]
-    for lane, amp, pos, var in terms:
-        xyz = g.mul(g.math("COSINE", g.mul(phase, pos)), g.math("EXPONENT", g.mul(ph2, -var)))
-        col = m[:, lane] * white[lane] * amp / _GAUSS_NORM
-        term = g.vmath("SCALE", tuple(float(c) for c in col), xyz)
-        out = term if out is None else g.vmath("ADD", out, term)
-    return out
+    """4.5: its Gaussian fit at shift 0 in RGB, from a table (core.thin_film.gauss_table:
+    four Gaussians per order cost 28 nodes, a lookup 9)."""
+    table = _tf.gauss_table()
+    return _sensitivity(g, "thin film Gaussian fit Linear Rec.709", table, opd,
+                        _tf.GAUSS_OPD_MAX / (table.shape[1] - 1))
 
 
 def _smoothstep(g, x, e1):

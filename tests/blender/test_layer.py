@@ -951,4 +951,6 @@ def test_a_high_index_film_on_a_dielectric_keeps_the_peak(env, haziness, thickne
     assert before[4, 4, :3].min() > 0.01
     err = float(np.abs(after[4, 4, :3] / before[4, 4, :3] - 1.0).max())
     record("layer_film_ior2_peak", {f"{thickness} {haziness}": err})
-    assert err <= 1e-5, err
+    # 1e-5 in 5.x; 4.5's film F is read from a table of its Gaussian fit (1.5e-5 in F): the
+    # budget of an approximation, 1e-4
+    assert err <= (1e-5 if bpy.app.version >= (5, 0, 0) else 1e-4), err

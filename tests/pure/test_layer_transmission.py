@@ -156,7 +156,9 @@ def test_node_film_is_core_thin_film(version):
                        g.tables)
         ref = thin_film.dielectric_reflectance(eta, 0.5, 1.0, d, nf, version=version)
         worst = max(worst, float(np.abs(np.asarray(got, np.float64) - ref).max()))
-    assert worst <= 2e-6, worst
+    # 4.5: its Gaussian fit read from a table, linear between entries 0.034 rad of the fastest
+    # cosine apart: (0.034)²/8 of the sensitivity, times Σ 2|C_m| <= 0.1
+    assert worst <= (2e-5 if version < (5, 0) else 2e-6), worst
 
 
 @pytest.mark.parametrize("version", [(4, 5), (5, 3)])
@@ -185,7 +187,9 @@ def test_filmed_dielectric_keeps_its_peak(version, transmission):
         w_peak = thin_film.dielectric_reflectance(ior, 0.5, wide["Specular Tint"],
                                                   version=version, **film)
     after = (1.0 - f) * n_peak + f * p * w_peak
-    assert np.allclose(after, before, rtol=5e-6, atol=1e-8), (after, before)
+    # (4.5: the film's F from the table, test_node_film_is_core_thin_film)
+    rtol = 5e-5 if version < (5, 0) else 5e-6
+    assert np.allclose(after, before, rtol=rtol, atol=1e-8), (after, before)
 
 
 def test_colour_tables_and_new_math():
