@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """bpy-free checks of the built-in presets (the paper's Table 3 and figure examples) and of the
 numpy plots the material panel shows (Figure 3 left: k_h vs r_c; Figure 2: BRDF slice)."""
+import importlib.util
 import math
 import subprocess
 import sys
@@ -13,9 +14,11 @@ from hazy_gloss.core import haze_mapping
 from hazy_gloss.utils import plots, presets
 
 ROOT = Path(__file__).resolve().parents[2]
-# the render harness' independent microfacet BRDFs (numpy, no bpy, no project code)
-sys.path.insert(0, str(ROOT / "tests" / "blender"))
-import analytic  # noqa: E402
+# the render harness' independent microfacet BRDFs (numpy, no bpy, no project code), loaded by
+# its path: tests/blender on sys.path would shadow this directory's modules of the same names
+_spec = importlib.util.spec_from_file_location("hg_analytic", ROOT / "tests" / "blender" / "analytic.py")
+analytic = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(analytic)
 
 # api.PARAMETERS (api imports bpy, so the list is repeated here)
 API_PARAMETERS = {"kind", "distribution", "core_reflectivity", "edge_tint", "roughness",
