@@ -110,20 +110,33 @@ FURNACE = ("water", "N-BK7 crown glass", "diamond", "frosted window (Transmissio
 @pytest.mark.parametrize("name", FURNACE)
 def test_white_furnace_keeps_the_energy(env, name):
     """A single interface in a white world: every pixel is R + T of the closures.  With
-    Multiscatter GGX (energy-preserving lobes) the hazy material's is the original's."""
+    Multiscatter GGX (energy-preserving lobes) the hazy material's is the original's, and the
+    halo's light comes out of the transmission: Cycles' passes apart, T drops by what R (and
+    the diffuse base) gains, never rises."""
     _, build, _, _ = CASES[name]
     mat = build("MULTI_GGX")
     node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     node.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)  # no absorption
     env.api.make_hazy(mat)
-    e0 = R.furnace(mat)
+    p0 = R.furnace_passes(env.exr.read_exr, mat)
+    e0 = p0["combined"]
+    # the passes add up to the combined pass
+    assert np.abs(p0["glossy"] + p0["transmission"] + p0["diffuse"] - e0).max() <= 1e-5, p0
     out = {}
     for h in HAZINESS:
         env.api.update_material(mat, haziness=h)
-        e = R.furnace(mat)
-        out[str(h)] = (e - e0).tolist()
+        p = R.furnace_passes(env.exr.read_exr, mat)
+        e = p["combined"]
+        gain = p["glossy"] - p0["glossy"]
+        loss = (p0["transmission"] - p["transmission"]) + (p0["diffuse"] - p["diffuse"])
+        out[str(h)] = dict(change=(e - e0).tolist(), reflection_gain=gain.tolist(),
+                           transmission_loss=(p0["transmission"] - p["transmission"]).tolist())
         assert np.abs(e - e0).max() <= 1e-3, (h, e, e0)
-    record("real_materials_furnace", {name: dict(original=e0.tolist(), change=out)})
+        assert gain.min() > 5e-3, (h, gain)  # the halo reflects more ...
+        assert np.abs(gain - loss).max() <= 1e-3, (h, gain, loss)  # ... taken from T (and D)
+        assert np.all(p["transmission"] <= p0["transmission"] + 1e-3), (h, p, p0)
+    record("real_materials_furnace", {name: dict(original=e0.tolist(),
+                                                 transmitted=p0["transmission"].tolist(), **out)})
 
 
 def _sphere_scene(mat, sun_theta):
