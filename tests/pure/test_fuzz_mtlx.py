@@ -138,7 +138,7 @@ def test_fuzz_materialx_reader(tmp_path):
         table.setdefault(attack, {})[outcome] = k
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "fuzz_mtlx.json").write_text(json.dumps(
-        {"cases": sum(counts.values()), "most_work": most, "work_unit": Counter.unit,
+        {"cases": sum(counts.values()), "most_work": most, "work_unit": Counter().unit,
          "by_attack": table}, indent=1))
     assert not failures, failures[:10]
     assert sum(counts.values()) > 4000
