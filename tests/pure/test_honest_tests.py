@@ -37,9 +37,13 @@ def _files():
 
 
 def _is_clock(node):
-    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-            and node.func.attr in CLOCKS and isinstance(node.func.value, ast.Name)
-            and node.func.value.id == "time")
+    """time.<clock>(), or a clock imported by its name (``from time import perf_counter``)."""
+    if not isinstance(node, ast.Call):
+        return False
+    f = node.func
+    if isinstance(f, ast.Attribute):
+        return f.attr in CLOCKS and isinstance(f.value, ast.Name) and f.value.id == "time"
+    return isinstance(f, ast.Name) and f.id in CLOCKS - {"time", "time_ns"}
 
 
 def _is_outside(node):
@@ -167,6 +171,8 @@ def test_no_test_skips_on_outside_paths_or_environment():
     "assert fuzz.slowest[0] < 5.0\n",
     "assert out['seconds'] < 60\n",
     "import signal\nsignal.setitimer(signal.ITIMER_REAL, 5.0)\n",
+    "from time import monotonic\ndef test():\n    t = monotonic()\n    f()\n"
+    "    assert monotonic() - t < 2\n",
 ])
 def test_the_scan_finds_wall_clock_asserts(src):
     assert wall_clock_problems(src)
