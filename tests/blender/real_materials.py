@@ -139,3 +139,24 @@ def furnace(mat, views=(0.0, 50.0), samples=1024):
         scenes.uniform_world(1.0)
         vals.append(float(scenes.render_exr()[..., :3].mean()))
     return np.array(vals)
+
+
+def furnace_passes(read_exr, mat, views=(0.0, 50.0), samples=1024):
+    """:func:`furnace` split by Cycles' light passes: per view the mean pixel of the reflection
+    ("glossy"), the transmission and the diffuse light ((direct + indirect) x colour each) and
+    of the combined pass; {name: (views,) array}."""
+    kinds = ("glossy", "transmission", "diffuse")
+    names = ["combined"] + [f"{k}_{p}" for k in kinds for p in ("direct", "indirect", "color")]
+    out = {k: [] for k in kinds + ("combined",)}
+    for view in views:
+        for o in list(bpy.data.objects):
+            bpy.data.objects.remove(o)
+        scenes.setup_render("CYCLES", samples=samples, resolution=(4, 4), bounces=2)
+        scenes.flat_plane_scene(mat, view_dir=(view, 0.0), strength=0.0)
+        scenes.uniform_world(1.0)
+        ps = scenes.render_passes(read_exr, names)
+        out["combined"].append(float(ps["combined"].mean()))
+        for k in kinds:
+            light = (ps[f"{k}_direct"] + ps[f"{k}_indirect"]) * ps[f"{k}_color"]
+            out[k].append(float(light.mean()))
+    return {k: np.array(v) for k, v in out.items()}

@@ -592,7 +592,12 @@ PASSES = {
     "diffuse_direct": ("use_pass_diffuse_direct", ("Diffuse Direct", "DiffDir")),
     "diffuse_color": ("use_pass_diffuse_color", ("Diffuse Color", "DiffCol")),
     "emission": ("use_pass_emit", ("Emission", "Emit")),
+    "glossy_indirect": ("use_pass_glossy_indirect", ("Glossy Indirect", "GlossInd")),
+    "diffuse_indirect": ("use_pass_diffuse_indirect", ("Diffuse Indirect", "DiffInd")),
     "transmission_direct": ("use_pass_transmission_direct", ("Transmission Direct", "TransDir")),
+    "transmission_indirect": ("use_pass_transmission_indirect",
+                              ("Transmission Indirect", "TransInd")),
+    "transmission_color": ("use_pass_transmission_color", ("Transmission Color", "TransCol")),
     "normal": ("use_pass_normal", ("Normal",)),
 }
 

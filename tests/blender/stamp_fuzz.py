@@ -22,7 +22,8 @@ Outcomes per (attack, driver):
   exception inside a property getter or setter (Blender prints and swallows those: caught via
   sys.excepthook), a panel that raised;
 - ``noop``: an operator that had nothing to do and said so (Make Hazy on a hazy material);
-- ``hang``: over the per-driver alarm;
+- ``hang``: over the per-driver work bound (tests/pure/work_bound.py: the add-on's Python
+  calls, counted: the same on every machine);
 - ``multi-line``: a refusal message of more than one line;
 - ``silent panel``: a stamp that read_parameters refuses, drawn without the message or without
   a way out (the presets menu or Remove Haze);
@@ -38,8 +39,8 @@ import copy
 import importlib
 import math
 import os
+import importlib.util
 import re
-import signal
 import sys
 import tempfile
 import time
@@ -54,6 +55,21 @@ if HERE not in sys.path:
 
 import scenes  # noqa: E402
 from test_ui import StandIn, fake_context  # noqa: E402  (the layout stand-in)
+
+
+def load_work_bound():
+    """tests/pure/work_bound.py, by its path (tests/pure on sys.path would shadow test modules
+    of the same names here)."""
+    if "work_bound" not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            "work_bound", os.path.join(os.path.dirname(HERE), "pure", "work_bound.py"))
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules["work_bound"] = mod
+    return sys.modules["work_bound"]
+
+
+work_bound = load_work_bound()
 
 STAMP = "hazy_gloss"
 DELETE = object()
@@ -120,14 +136,6 @@ _UNCLEAR = re.compile(r"is not iterable|could not convert|has no attribute|updat
                       r"index out of range|argument must be|0-dimensional|unsupported operand|"
                       r"not subscriptable|object is not|division by zero|unhashable|"
                       r"^'[^']*'$")
-
-
-class Hang(Exception):
-    pass
-
-
-def _alarm(_sig, _frame):
-    raise Hang()
 
 
 def plain(v):
@@ -253,20 +261,23 @@ def cases(bases):
 
 
 class Fuzz:
-    def __init__(self, pkg, folder, *, alarm=10.0):
+    def __init__(self, pkg, folder, *, work_limit=None):
         mod = lambda n: importlib.import_module(f"{pkg}.{n}")  # noqa: E731
         self.api = mod("api")
         self.panels = mod("blender.ui.panels")
         self.errors = mod("blender.actions.messages")  # the refused changes the panel shows
         self.reports = mod("blender.ui.reports")
         self.folder = folder
-        self.alarm = alarm
+        self.work_limit = work_limit  # operations one driver may take (None: count only)
+        # the add-on's own Python calls (loops uncounted: their callback would double the run)
+        self.work = work_bound.Counter(only=[os.path.dirname(self.api.__file__) + os.sep],
+                                       loops=False)
         self.counts = collections.Counter()  # (material type, attack, driver, outcome)
         self.examples = {}  # (driver, outcome) -> (case, message)
         self.messages = collections.Counter()  # every message that was not "ok"
         self.cases = self.planned = 0
         self.seconds = 0.0
-        self.slowest = (0.0, None)
+        self.most = (0, None)  # the most operations one driver took, and where
         rna = bpy.ops.hazy_gloss.apply_preset.get_rna_type()
         self.preset = list(rna.properties["preset"].enum_items.keys())[-1]
         scene = bpy.context.scene
@@ -287,12 +298,9 @@ class Fuzz:
         had_stamp = STAMP in mat
         self._hook = []
         old_hook, sys.excepthook = sys.excepthook, self._excepthook
-        old = signal.signal(signal.SIGALRM, _alarm)
-        signal.setitimer(signal.ITIMER_REAL, self.alarm)
-        t0 = time.perf_counter()
         try:
-            outcome, msg = fn(mat)
-        except Hang:
+            outcome, msg = self.work.run(fn, mat, limit=self.work_limit)
+        except work_bound.WorkLimit:
             outcome, msg = "hang", ""
         except (ValueError, TypeError) as exc:
             msg = str(exc)
@@ -307,12 +315,9 @@ class Fuzz:
         except Exception as exc:  # noqa: BLE001 (counted)
             outcome, msg = f"uncaught {type(exc).__name__}", str(exc)
         finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, old)
             sys.excepthook = old_hook
-        dt = time.perf_counter() - t0
-        if dt > self.slowest[0]:
-            self.slowest = (dt, (typ, case, driver))
+        if self.work.count > self.most[0]:
+            self.most = (self.work.count, (typ, case, driver))
         if self._hook and not outcome.startswith("uncaught"):
             outcome, msg = "uncaught " + self._hook[0].split(":")[0], self._hook[0]
         if outcome == "refused" and _UNCLEAR.search(msg):
@@ -447,6 +452,13 @@ class Fuzz:
 
     # -- the run -------------------------------------------------------------------------
     def run(self, budget=None, stride=1):
+        """Every case (every ``stride``-th), driven, saved, reloaded and driven again; the
+        Counter of outcomes.  ``budget``: CPU seconds for a quick look by hand (main), never
+        in the tests."""
+        with self.work:
+            return self._run(budget, stride)
+
+    def _run(self, budget, stride):
         # budget in this process's CPU seconds: on a 2-core machine running four suites at once
         # wall time stretched 4x and cut the run short (460 of 702 cases)
         t_start = time.perf_counter()
@@ -548,7 +560,7 @@ def main(root, budget=None, stride=1):
         counts = f.run(budget=budget, stride=stride)
         print("=" * 30 + " stamp fuzz")
         print(f"{f.cases} cases, {sum(counts.values())} driver calls, {f.seconds:.0f} s; "
-              f"slowest {f.slowest[0]:.2f} s {f.slowest[1]}")
+              f"most work {f.most[0]} {f.work.unit} {f.most[1]}")
         print(table(counts))
         print()
         print(table(counts, by=("driver",)))

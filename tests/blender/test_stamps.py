@@ -12,7 +12,6 @@ a way out, operators report ERROR, nothing is deleted.
   mutation (every seventh by default); outcomes counted in out/measurements (docs/verification.md).
 """
 import importlib
-import os
 from types import SimpleNamespace
 
 import bpy
@@ -225,30 +224,31 @@ def test_export_stamps_of_the_wrong_type(env, tmp_path):
     assert any("Maps" in str(s) and "damaged" in str(s) for s in rep.skipped)
 
 
-# No time budget by default: a CPU budget cut CI's slower machine short (590 of 748 cases) and
-# failed the run; the stride bounds the work. HAZY_GLOSS_FUZZ_SECONDS caps it for a quick look.
-FUZZ_BUDGET = float(os.environ["HAZY_GLOSS_FUZZ_SECONDS"]) if os.environ.get("HAZY_GLOSS_FUZZ_SECONDS") else None
-FUZZ_STRIDE = int(os.environ.get("HAZY_GLOSS_FUZZ_STRIDE", "7"))
+#: every seventh case: 7 is prime to the 20 mutations, so every mutation meets every kind of key
+FUZZ_STRIDE = 7
+#: the add-on's Python calls one driver may take (stamp_fuzz.work_bound): the most any driver
+#: takes is 66 739 in 5.3 (112 026 at every 35th case in 4.5, whose count includes generators
+#: resumed); 2 000 000 is a reader gone round in circles
+FUZZ_WORK = 2_000_000
 
 
 def test_stamp_fuzz(env, tmp_path):
-    """Every key path x every mutation of the four material types' stamps (every seventh case
-    by default: 7 is prime to the 20 mutations, so every mutation meets every kind of key;
-    HAZY_GLOSS_FUZZ_STRIDE=1 for all), through every driver, then saved, reloaded and driven
-    again: only ok, refused (one line, the add-on's own words) or noop."""
-    fuzz = stamp_fuzz.Fuzz(env.hg.__name__, str(tmp_path), alarm=10.0)
-    counts = fuzz.run(budget=FUZZ_BUDGET, stride=FUZZ_STRIDE)
+    """Every key path x every mutation of the four material types' stamps (every seventh case),
+    through every driver, then saved, reloaded and driven again: only ok, refused (one line,
+    the add-on's own words) or noop, each driver within FUZZ_WORK operations.
+    ``python tests/blender/stamp_fuzz.py <root>`` runs every case."""
+    fuzz = stamp_fuzz.Fuzz(env.hg.__name__, str(tmp_path), work_limit=FUZZ_WORK)
+    counts = fuzz.run(stride=FUZZ_STRIDE)
     by_outcome = {}
     for (_, _, _, outcome), n in counts.items():
         by_outcome[outcome] = by_outcome.get(outcome, 0) + n
     record("stamp_fuzz", {"cases": fuzz.cases, "driver_calls": sum(counts.values()),
-                          "seconds": fuzz.seconds, "slowest_driver_s": fuzz.slowest[0],
+                          "most_work": fuzz.most[0], "most_work_at": str(fuzz.most[1]),
+                          "work_unit": fuzz.work.unit,
                           "outcomes": by_outcome,
                           "by_attack": {k[0]: dict(c) for k, c in stamp_fuzz.summary(counts).items()}})
     bad = {k: n for k, n in counts.items() if k[3] not in ("ok", "refused", "noop")}
     examples = {k: v for k, v in fuzz.examples.items() if k[1] not in ("ok", "refused", "noop")}
     assert not bad, (stamp_fuzz.table(bad), examples)
     assert fuzz.planned >= 600, fuzz.planned
-    if FUZZ_BUDGET is None:
-        assert fuzz.cases == fuzz.planned, (fuzz.cases, fuzz.planned)  # every case ran
-    assert fuzz.slowest[0] < 5.0, fuzz.slowest
+    assert fuzz.cases == fuzz.planned, (fuzz.cases, fuzz.planned)  # every case ran

@@ -4,23 +4,26 @@ and the File > Import operator): mutations of one of our own documents.
 
 Outcomes allowed: the materials (each recognised, or not with its reasons; every returned
 parameter finite), or one ValueError line naming the file.  Never another exception, never more
-than CASE_TIME seconds.  Counts go to out/measurements/fuzz_mtlx.json (docs/verification.md)."""
+than CASE_WORK operations (work_bound.Counter: Python calls and loop iterations, the same on
+every machine; the seconds are benchmarks/time_limits.py's).  Counts go to
+out/measurements/fuzz_mtlx.json (docs/verification.md)."""
 import collections
 import json
 import math
 import random
 import re
-import signal
-import time
 from pathlib import Path
 
 import pytest
 
 from hazy_gloss.interchange import materialx as M
 from test_interchange import _sources
+from work_bound import Counter, WorkLimit
 
 OUT = Path(__file__).resolve().parents[2] / "out" / "measurements"
-CASE_TIME = 5.0
+#: operations one document may take: the most any case takes is about 7600 (a damaged value,
+#: read to the end of the file); 25 times that is a reader gone quadratic or round in circles
+CASE_WORK = 200_000
 VALUES = ("nan", "inf", "-inf", "1e999", "-1", "", "a", "1,2", "0,0,0,0,0", "1e-45", "-0",
           "1e38,1e38,1e38", "x" * 5000)
 TYPES = ("float", "color3", "vector3", "BSDF", "string", "integer", "bogus")
@@ -62,10 +65,6 @@ def mutations(text, seed=1):
     yield "entity expansion (billion laughs)", BILLION_LAUGHS
 
 
-class _Timeout(Exception):
-    pass
-
-
 def _finite(im):
     for v in (im.parameters or {}).values():
         for x in (v if isinstance(v, (tuple, list)) else (v,)):
@@ -75,22 +74,16 @@ def _finite(im):
 
 
 def _run(cases, path, finite):
-    """Read every (attack, document) under the per-case timer: (Counter of (attack, outcome),
-    failures, slowest case in s).  Outcomes allowed: "read" (every returned value ``finite``),
-    "read, a damaged material said", "ValueError" (one line naming the file)."""
-    counts, failures, slowest = collections.Counter(), [], 0.0
-
-    def alarm(*_):
-        raise _Timeout()
-
-    old = signal.signal(signal.SIGALRM, alarm)
-    try:
+    """Read every (attack, document) under the per-case work bound: (Counter of (attack,
+    outcome), failures, the most operations a case took).  Outcomes allowed: "read" (every
+    returned value ``finite``), "read, a damaged material said", "ValueError" (one line naming
+    the file)."""
+    counts, failures, most = collections.Counter(), [], 0
+    with Counter() as work:
         for attack, doc in cases:
             Path(path).write_text(doc)
-            t0 = time.perf_counter()
-            signal.setitimer(signal.ITIMER_REAL, CASE_TIME)
             try:
-                got = M.read(path)
+                got = work.run(M.read, path, limit=CASE_WORK)
                 outcome = "read" if all(finite(im) for im in got) else "non-finite values"
                 if outcome == "read" and any(any(n.startswith("damaged") for n in im.notes)
                                              for im in got):
@@ -99,34 +92,54 @@ def _run(cases, path, finite):
                 outcome = "ValueError"
                 if "\n" in str(exc) or path not in str(exc):
                     failures.append(f"{attack}: not one line naming the file: {str(exc)[:200]!r}")
-            except _Timeout:
+            except WorkLimit:
                 outcome = "hang"
             except Exception as exc:  # noqa: BLE001  (what the fuzz looks for)
                 outcome = type(exc).__name__
-            finally:
-                signal.setitimer(signal.ITIMER_REAL, 0)
-            slowest = max(slowest, time.perf_counter() - t0)
+            most = max(most, work.count)
             counts[(attack, outcome)] += 1
             if outcome not in ("read", "read, a damaged material said", "ValueError"):
                 failures.append(f"{attack}: {outcome}")
-    finally:
-        signal.signal(signal.SIGALRM, old)
-    return counts, failures, slowest
+    return counts, failures, most
+
+
+def test_the_work_bound_stops_a_reader_that_never_ends(tmp_path, monkeypatch):
+    """The bound can fail: a reader that loops (calling Python code in its loop, or not) is a
+    "hang"."""
+    def loops(path):
+        i = 0
+        while i >= 0:
+            i += 1
+
+    def step(i):
+        return i + 1
+
+    def loops_calling(path):
+        i = 0
+        while i >= 0:
+            i = step(i)
+
+    import sys
+    for reader in (loops, loops_calling) if sys.version_info >= (3, 12) else (loops_calling,):
+        monkeypatch.setattr(M, "read", reader)
+        counts, failures, most = _run([("a reader that never ends", "<materialx/>")],
+                                      str(tmp_path / "case.mtlx"), _finite)
+        assert failures == ["a reader that never ends: hang"], failures
+        assert most == CASE_WORK + 1
 
 
 def test_fuzz_materialx_reader(tmp_path):
     base = M.write(_sources(), tmp_path / "base.mtlx", validate_with_package=False).path
     text = Path(base).read_text()
     path = str(tmp_path / "case.mtlx")
-    t_all = time.perf_counter()
-    counts, failures, slowest = _run(mutations(text), path, _finite)
+    counts, failures, most = _run(mutations(text), path, _finite)
     table = {}
     for (attack, outcome), k in sorted(counts.items()):
         table.setdefault(attack, {})[outcome] = k
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "fuzz_mtlx.json").write_text(json.dumps(
-        {"cases": sum(counts.values()), "seconds": round(time.perf_counter() - t_all, 1),
-         "slowest_case_s": round(slowest, 3), "by_attack": table}, indent=1))
+        {"cases": sum(counts.values()), "most_work": most, "work_unit": Counter().unit,
+         "by_attack": table}, indent=1))
     assert not failures, failures[:10]
     assert sum(counts.values()) > 4000
     assert counts[("truncation", "ValueError")] >= 290  # every cut but the whole file

@@ -496,14 +496,29 @@ def test_openpbr_flavour_validates_with_its_embedded_12_nodedef(tmp_path, stdlib
         assert _diff(got[name].parameters, normalise(dict(p))) == 0.0
 
 
-def test_research_examples_are_recognised():
-    ex = Path("/work/research/interchange/examples")
-    if not ex.is_dir():
-        pytest.skip("research examples not on this machine")
-    (c,) = M.read(ex / "hazy_conductor.mtlx")
-    assert c.parameters["kind"] == "CONDUCTOR"
-    assert c.parameters["haziness"] == pytest.approx(0.5, abs=1e-6)
-    assert not c.exact and any("textured" in n for n in c.notes)  # β comes from an image
+def test_foreign_mix_with_a_textured_weight_is_read_at_its_default(tmp_path, stdlib):
+    """A two-lobe conductor mix whose weight comes from an image: read at the image's default
+    (the same material as with that constant weight), and said (not exact)."""
+    from hazy_gloss.core.mapping import gulbrandsen_ior
+    eta, kap = gulbrandsen_ior(np.array([0.8, 0.6, 0.5]), np.array([0.9, 0.7, 0.6]))
+    const = _foreign_conductor(tmp_path / "c.mtlx", 0.5, (0.02, 0.02), (0.12, 0.12), eta, kap)
+    doc = mx.createDocument()
+    mx.readFromXmlFile(doc, str(const))
+    mix = doc.getNode("mix1")
+    mix.removeInput("mix")
+    img = doc.addNode("image", "beta_map", "float")
+    img.setInputValue("file", "beta.png", "filename")
+    img.setInputValue("default", 0.5)  # mix = 1 - β with the narrow lobe as fg
+    mix.addInput("mix", "float").setConnectedNode(img)
+    textured = tmp_path / "t.mtlx"
+    mx.writeToXmlFile(doc, str(textured))
+    assert _load(textured, stdlib).validate()[0]
+    (c,) = M.read(const)
+    (t,) = M.read(textured)
+    assert c.exact and not t.exact
+    assert any("mix weight β is textured" in n for n in t.notes), t.notes
+    assert t.parameters["kind"] == "CONDUCTOR"
+    assert _diff(t.parameters, c.parameters) == 0.0
 
 
 # --------------------------------------------------------------------------------------------

@@ -101,13 +101,13 @@ def test_perceptual_roundtrip(kw, mode):
     assume(not _renderer_limited(kw, out))  # the limited cases are in test_breaks_*
     inv = _inverse_of(out, kw, mode)
     g = np.broadcast_to(np.asarray(kw["edge_tint"], float), (3,))
-    if (mode == "conductor" and set(inv.clamped) == {MANIFOLD} and np.any(g < 1e-9)
-            and float(out.reflectivity_max) > 0.99):
-        pass  # known: spurious off-manifold flag for g ~ 0 as r -> 1 (test_boundary_..._r_to_1)
-    else:
+    if not (mode == "conductor" and np.any(g < 1e-9) and float(out.reflectivity_max) > 0.99):
         assert bool(inv.exact), (S.describe(kw), inv.clamped)
         assert bool(inv.unique), S.describe(kw)
         assert inv.clamped == {}
+    else:  # at most the known false flag (test_off_manifold_false_flag_as_r_goes_to_1, xfail);
+        # the values themselves must still come back
+        assert set(inv.clamped) <= {MANIFOLD}, (S.describe(kw), inv.clamped)
     errs = _roundtrip_errors(kw, inv, mode)
     for f, e in errs.items():
         S.WORST.add(f"inverse roundtrip {mode}", f, e, S.describe(kw))
@@ -304,6 +304,22 @@ def test_boundary_edge_tint_is_not_flagged_r_to_1():
     assert float(out.ior[0]) == 850.7106889749564
     inv = inverse_haze_mapping(out.beta, 0.5, out.alpha_wide, ior=out.ior,
                                extinction=out.extinction)
+    assert bool(inv.exact), inv.clamped
+
+
+@pytest.mark.xfail(strict=True, reason="known bug: inverse_haze_mapping flags a point the "
+                   "forward mapping made as off Gulbrandsen's manifold when one channel's edge "
+                   "tint is 0 and another's r goes to 1 (η ≈ 3e3, κ ≈ 5e3): the values come "
+                   "back, exact is False")
+def test_off_manifold_false_flag_as_r_goes_to_1():
+    """Found by a random search of 20000 points near r = 1 (1 hit)."""
+    kw = dict(core_reflectivity=(0.6968738402189343, 1.1339166456791894e-05, 0.9948892373426146),
+              edge_tint=(0.7420883180428374, 0.0, 0.7211938168631702), alpha=0.0697425360980966,
+              haziness=0.9298629705711801, haze_extent=1.7487899868615608, distribution="GGX",
+              smoothness=2.0, alpha_max=None)
+    out = haze_mapping(**kw)
+    inv = _inverse_of(out, kw, "conductor")
+    assert max(_roundtrip_errors(kw, inv, "conductor").values()) <= TOL  # the values are right
     assert bool(inv.exact), inv.clamped
 
 

@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """A haze layer on transmissive and filmed dielectrics (issue 21 items 1-2), as node math
 (core.layer_graph evaluated in numpy with Blender's node semantics), against derivations written
-here: the peak equation of the closures the group builds, their energy at normal incidence, the
-film's F(0) against core.thin_film.  The renders are tests/blender/test_real_materials.py."""
+here: the peak equation of the closures the group builds, the film's F(0) against
+core.thin_film.  Their energy is rendered (tests/blender/test_real_materials.py: a white furnace,
+reflection and transmission passes apart)."""
 from __future__ import annotations
 
 import math
@@ -89,13 +90,9 @@ def test_glass_keeps_its_ior_its_peak_and_its_energy(version, ior, haziness):
     f0_n = f0 * float(narrow["Specular Tint"][0])
     peak = (1.0 - f) * f0_n + f * p
     assert peak == pytest.approx(f0, rel=2e-6)
-    # energy at normal incidence (smooth lobes): R + T of the two closures is 1, as the glass'
-    r = (1.0 - f) * f0_n + f
-    t = (1.0 - f) * (1.0 - f0_n)
-    assert r + t == pytest.approx(1.0, abs=1e-6)
-    # the halo takes what the reflection gains: T drops by R's rise, no more
-    assert (1.0 - f0) - t == pytest.approx(r - f0, abs=1e-6)
     assert f > 0.0  # haze is there
+    # the energy (T drops by what R gains) is measured by Cycles in a white furnace, the
+    # reflection and transmission passes apart: tests/blender/test_real_materials.py
 
 
 @pytest.mark.parametrize("level", [0.2, 0.5, 0.8])
