@@ -21,15 +21,13 @@ from __future__ import annotations
 
 import os
 import stat
-import sys
-import tempfile
 from contextlib import contextmanager
 from typing import NamedTuple
 
 import numpy as np
 
 from . import constants as K
-from .oiio import MISSING, error_text, format_of, open_input, openimageio, read_rows
+from .oiio import MISSING, error_text, format_of, held_stderr, open_input, openimageio, read_rows
 
 __all__ = ("ImageFileError", "ImageInfo", "FORMAT_NAMES", "check_image_file", "read_exr")
 
@@ -68,32 +66,6 @@ class ImageInfo(NamedTuple):
 
 def _rows(width):
     return max(1, (K.STRIP_TEXELS // max(width, 1)))
-
-
-@contextmanager
-def _held_stderr():
-    """stderr (the file descriptor: the C libraries write there) into a temporary file while
-    the block runs; yields a list that the block clears to drop what was written."""
-    keep = [True]
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-        tmp = tempfile.TemporaryFile()
-    except (OSError, ValueError, AttributeError):  # no real descriptor: nothing held
-        yield keep
-        return
-    os.dup2(tmp.fileno(), 2)
-    try:
-        yield keep
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        if keep[0]:
-            tmp.seek(0)
-            text = tmp.read()
-            if text:
-                os.write(2, text)
-        tmp.close()
 
 
 class _File:
@@ -136,16 +108,34 @@ class _File:
         return ImageFileError(f"{self.path} is a damaged {FORMAT_NAMES[self.format]} file "
                               f"(cut off or corrupt: {why or 'no reason given'})")
 
-    def subimages(self):
-        """Every subimage's spec (level 0), checked against the file's size."""
+    def cannot_load(self, why):
+        return ImageFileError(f"{self.path} is an {FORMAT_NAMES[self.format]} file Blender "
+                              f"cannot load ({why})")
+
+    def subimages(self, for_blender=True):
+        """Every subimage's spec (level 0), checked against the file's size; ``for_blender``:
+        and against what Blender's loader assumes."""
         specs, texels, stored = [], 0, 0
-        while self.inp.seek_subimage(len(specs), 0):
+        while True:
+            why = error_text(self.inp) if specs else None  # e.g. libjpeg's "premature end"
+            if why:
+                raise self.damaged(why)
+            if not self.inp.seek_subimage(len(specs), 0):
+                break
             if len(specs) >= _MAX_SUBIMAGES:
                 raise self.damaged(f"more than {_MAX_SUBIMAGES} parts")
             spec = self.inp.spec()
             if spec.deep:
-                raise ImageFileError(f"{self.path} is an {FORMAT_NAMES[self.format]} file "
-                                     f"Blender cannot load (part {len(specs)} holds deep data)")
+                raise self.cannot_load(f"part {len(specs)} holds deep data")
+            window = (spec.x, spec.y, spec.width, spec.height)
+            if for_blender and specs and window != (specs[0].x, specs[0].y, specs[0].width,
+                                                    specs[0].height):
+                # its multilayer reader sizes every part's buffer by the first part's window:
+                # a file whose parts differ corrupts its memory (bpy 5.3, tested)
+                raise self.cannot_load(f"part {len(specs)}'s data window {window[2]}x"
+                                       f"{window[3]} at ({window[0]}, {window[1]}) is not part "
+                                       f"0's {specs[0].width}x{specs[0].height} at "
+                                       f"({specs[0].x}, {specs[0].y})")
             w, h = spec.width, spec.height
             if w < 1 or h < 1 or spec.nchannels < 1:
                 raise self.damaged(f"part {len(specs)} has {w}x{h} pixels, {spec.nchannels} "
@@ -161,6 +151,11 @@ class _File:
             specs.append(spec)
         if not specs:
             raise self.damaged(error_text(self.inp))
+        # opened again: some readers (WebP) decode nothing after a seek past the last subimage
+        self.inp.close()
+        self.inp, why = open_input(self.oiio, self.path)
+        if self.inp is None:
+            raise self.damaged(why)
         return specs
 
     def read(self, spec, subimage, level, y0, y1, fmt, channels):
@@ -189,7 +184,7 @@ class _File:
 @contextmanager
 def _opened(path):
     path = os.fspath(path)
-    with _held_stderr() as keep:
+    with held_stderr() as keep:
         f = None
         try:
             f = _File(path)
@@ -211,7 +206,8 @@ def check_image_file(path):
     - no header claiming more pixels than the file can hold
       (:data:`~hazy_gloss.constants.MAX_TEXELS_PER_BYTE` per byte, at most
       :data:`~hazy_gloss.constants.MAX_IMAGE_PIXELS`), no deep OpenEXR data (Blender does not
-      load it);
+      load it), the same data window in every part of a multi-part OpenEXR (Blender's loader
+      assumes it, and corrupts its memory on a file that differs);
     - every subimage (OpenEXR part; level 0 of a mip- or rip-mapped file, what Blender reads)
       decodes without an error (scanline and tiled OpenEXR in every codec, PNG, JPEG, TIFF,
       ...).
@@ -235,13 +231,14 @@ def read_exr(path):
     dict.  Row 0 is the BOTTOM row (Blender's pixel order, like ``Image.pixels``).  Any codec
     (ZIP, PIZ, DWAA, DWAB, RLE, NONE, ...), scanline or tiled (level 0).
 
-    Raises :class:`ImageFileError` (a ``ValueError``; one line naming the file and the defect)
-    for a damaged file, another format, a channel in two parts, or more than
+    Parts of different data windows are read (they are not handed to Blender).  Raises
+    :class:`ImageFileError` (a ``ValueError``; one line naming the file and the defect) for a
+    damaged file, another format, a channel in two parts, or more than
     :data:`~hazy_gloss.constants.MAX_EXR_DECODED_BYTES` of float32 values."""
     with _opened(path) as f:
         if f.format != "OPEN_EXR":
             raise ImageFileError(f"{f.path} is a {FORMAT_NAMES[f.format]} file, not OpenEXR")
-        specs = f.subimages()
+        specs = f.subimages(for_blender=False)
         total = sum(4 * s.width * s.height * s.nchannels for s in specs)
         if total > K.MAX_EXR_DECODED_BYTES:
             raise ImageFileError(f"{f.path}: {total} bytes of float32 values exceeds the limit "

@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from . import constants as K
-from .oiio import error_text, open_input, read_rows
+from .oiio import error_text, held_stderr, open_input, read_rows
 
 __all__ = ("OiioStripWriter", "OiioStrips", "ArrayStrips", "StripError", "run_strips",
            "strip_rows", "worker_count", "ZIP_LEVEL", "PNG_LEVEL")
@@ -87,6 +87,8 @@ class OiioStripWriter:
         else:
             spec.attribute("compression", f"zip:{ZIP_LEVEL}" if self.codec == "ZIP"
                            else self.codec.lower())
+            spec.attribute("DateTime", "")  # none: a rerun writes the same bytes
+        self.names = list(spec.channelnames)
         self.out = oiio.ImageOutput.create(self.path)
         if self.out is None or not self.out.open(self.path, spec):
             why = error_text(self.out if self.out is not None else oiio)
@@ -129,13 +131,26 @@ class OiioStripWriter:
 
     def verify(self):
         """Decode the file once: its size and values must be those written (lossy codecs:
-        finite).  Raises StripError naming what differs."""
+        finite).  Raises StripError naming what differs (the libraries' own messages on stderr
+        dropped with it)."""
+        with held_stderr() as keep:
+            try:
+                self._verify()
+            except StripError:
+                keep[0] = False
+                raise
+
+    def _verify(self):
         reader = OiioStrips(self.oiio, self.path)
         try:
-            if (reader.width, reader.height, reader.channels) != \
-                    (self.width, self.height, self.channels):
+            try:
+                names = list(reader.spec.channelnames)
+            except UnicodeDecodeError:
+                names = ["(not UTF-8)"]
+            if (reader.width, reader.height, names) != (self.width, self.height, self.names):
                 raise StripError(f"{self.path} reads back as {reader.width}x{reader.height} "
-                                 f"({reader.channels} channels), not {self.width}x{self.height}")
+                                 f"({', '.join(names)}), not {self.width}x{self.height} "
+                                 f"({', '.join(self.names)})")
             h = hashlib.sha256()
             rows = strip_rows(self.width)
             for y0 in range(0, self.height, rows):
@@ -189,11 +204,13 @@ class OiioStrips:
         """Rows y0..y1; ``native``: in the file's own type (no conversion)."""
         nch = min(self.channels, nch or self.channels)
         fmt = self.oiio.UNKNOWN if native else self.oiio.UINT8 if self.byte else self.oiio.FLOAT
-        a = read_rows(self.inp, self.spec, 0, 0, self.y + y0, self.y + y1, range(nch), fmt)
-        why = error_text(self.inp)
-        if why or a is None or not hasattr(a, "shape"):
-            raise StripError(f"{self.path}: rows {y0}..{y1} cannot be read "
-                             f"({why or 'no reason given'})")
+        with held_stderr() as keep:
+            a = read_rows(self.inp, self.spec, 0, 0, self.y + y0, self.y + y1, range(nch), fmt)
+            why = error_text(self.inp)
+            if why or a is None or not hasattr(a, "shape"):
+                keep[0] = False
+                raise StripError(f"{self.path}: rows {y0}..{y1} cannot be read "
+                                 f"({why or 'no reason given'})")
         a = np.asarray(a).reshape(y1 - y0, self.width, nch)
         if native:
             return a

@@ -13,6 +13,8 @@ message a Blender without the module gives).
 on OpenEXRCore (OpenImageIO's default) reads an uncompressed OpenEXR file whose last chunk is cut
 off without an error, the classic one (the OpenEXR library Blender itself reads with) refuses it.
 The classic reader reads a tiled file by tiles only: :func:`read_rows` reads rows of either.
+The libraries under it (libpng, OpenEXR) also print their errors on stderr: :func:`held_stderr`
+holds them while a file is read, for the caller to drop when its own one line says it.
 """
 from __future__ import annotations
 
@@ -20,10 +22,13 @@ import glob
 import importlib.util
 import os
 import sys
+import tempfile
+from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ("openimageio", "MISSING", "open_input", "error_text", "read_rows", "format_of")
+__all__ = ("openimageio", "MISSING", "open_input", "error_text", "read_rows", "format_of",
+           "held_stderr")
 
 #: What to say where the module is missing.
 MISSING = ("Blender's OpenImageIO Python module is not available (blender.org builds and the "
@@ -130,3 +135,30 @@ def read_rows(inp, spec, subimage, level, y0, y1, channels, fmt):
     if a is None or not hasattr(a, "shape"):
         return a
     return np.asarray(a).reshape(bottom - top, spec.width, -1)[y0 - top:y1 - top]
+
+
+@contextmanager
+def held_stderr():
+    """stderr (the file descriptor: the C libraries write there) into a temporary file while
+    the block runs, written out after it; yields a list whose one item the block sets to
+    False to drop what was written (an error that its own message reports)."""
+    keep = [True]
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no real descriptor: nothing held
+        yield keep
+        return
+    tmp = tempfile.TemporaryFile()
+    os.dup2(tmp.fileno(), 2)
+    try:
+        yield keep
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        if keep[0]:
+            tmp.seek(0)
+            text = tmp.read()
+            if text:
+                os.write(2, text)
+        tmp.close()

@@ -73,8 +73,12 @@ def test_writer_round_trip(workdir):
         for name, arr in channels.items():
             assert got[name].dtype == np.float32
             assert np.array_equal(got[name], arr.astype(np.float32)), (label, name)
-        info = imagecheck.check_image_file(path)
-        assert info.format == "OPEN_EXR"
+        if label == "multi-part mixed":  # parts of different sizes: read, not for Blender
+            with pytest.raises(imagecheck.ImageFileError, match=r"Blender cannot load \(part 1's "
+                                                                r"data window 3x17 at \(-2, 5\)"):
+                imagecheck.check_image_file(path)
+        else:
+            assert imagecheck.check_image_file(path).format == "OPEN_EXR"
         if recomp:
             passes = recomposite.passes_from_exr(path)
             assert passes["original"].shape == (6, 5, 4)
@@ -82,7 +86,8 @@ def test_writer_round_trip(workdir):
 
 def test_fuzz_exr_readers(workdir):
     """Every mutation: a result or the documented exception in one line, read_exr's traced peak
-    under 64 MB; every truncation refused; whatever read_exr accepts the check accepts too."""
+    under 64 MB; every truncation refused; whatever read_exr accepts the check accepts too, but
+    parts of different data windows (read, but not for Blender)."""
     table, failures = Counter(), []
     path = str(workdir / "case.exr")
     rss0 = _max_rss()
@@ -98,7 +103,7 @@ def test_fuzz_exr_readers(workdir):
         if res[0] == "accepted":
             out = res[1]
             assert all(a.dtype == np.float32 and a.ndim == 2 for a in out.values()), attack
-            if chk[0] != "accepted":
+            if chk[0] != "accepted" and "Blender cannot load" not in str(chk[1]):
                 failures.append(f"{attack}: read_exr accepted what the check refused: {chk[1]}")
         if attack == "truncate" and (res[0], chk[0]) != ("rejected", "rejected"):
             failures.append(f"{label}: a file cut to {len(data)} bytes was accepted")

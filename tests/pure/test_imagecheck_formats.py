@@ -216,7 +216,7 @@ def _valid_files(tmp_path):
     """{name: path} of a valid PNG, JPEG, scanline (two-part) and tiled OpenEXR."""
     rng = np.random.default_rng(3)
     exr, _ = F.encode_exr([{"channels": {"R": rng.random((40, 30), np.float32)}, "name": "a"},
-                           {"channels": {"G": rng.random((9, 7), np.float32)}, "name": "b",
+                           {"channels": {"G": rng.random((40, 30), np.float32)}, "name": "b",
                             "compression": "RLE"}])
     tiled = F.encode_tiled_exr({"Y": rng.random((20, 24), np.float32)}, levels="MIPMAP")
     files = {"a.png": F.encode_png(rng.integers(0, 256, (50, 40, 3)), idat_parts=3),
