@@ -91,10 +91,7 @@ def error_text(source):
 def open_input(oiio, path):
     """``oiio.ImageInput.open(path)`` with the classic OpenEXR reader: (input, None), or
     (None, the reason in one line)."""
-    try:
-        before = oiio.get_int_attribute("openexr:core", 0)
-    except Exception:  # a build without the attribute
-        before = None
+    before = oiio.get_int_attribute("openexr:core", 0)  # process-wide: set back at once
     if before:
         oiio.attribute("openexr:core", 0)  # consulted when the reader is created
     try:
