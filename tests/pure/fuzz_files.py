@@ -167,7 +167,7 @@ def encode_exr(parts, *, multipart=None, header_hook=None):
 
 
 def encode_tiled_exr(channels, tile=(4, 4), levels="ONE"):
-    """A single-part uncompressed tiled EXR (for the structure check and Blender): ``levels``
+    """A single-part uncompressed tiled EXR (for the image check and Blender): ``levels``
     "ONE", "MIPMAP" or "RIPMAP" (rounding down; lower levels hold every 2^l-th pixel)."""
     h, w = next(iter(channels.values())).shape
     tx, ty = tile
