@@ -89,7 +89,8 @@ class OiioStripWriter:
                            else self.codec.lower())
             spec.attribute("DateTime", "")  # none: a rerun writes the same bytes
         self.names = list(spec.channelnames)
-        self.out = oiio.ImageOutput.create(self.path)
+        # by the format's name: a temporary's name may not end in .exr or .png
+        self.out = oiio.ImageOutput.create("png" if self.png else "openexr")
         if self.out is None or not self.out.open(self.path, spec):
             why = error_text(self.out if self.out is not None else oiio)
             self.out = None
