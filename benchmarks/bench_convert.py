@@ -142,10 +142,11 @@ def run_floor(binputs, boutputs, core, paths, out, outputs):
     the same arrays written and verified by the same strip writers (the conversion's renames
     into place are left out)."""
     from hazy_gloss import imagestream as S
+    from hazy_gloss.oiio import openimageio
     t = time.perf_counter()
     specs, _ = core.resolve_inputs(paths)
     warnings = []
-    oiio = binputs.openimageio()
+    oiio = openimageio()
     for name, spec in specs.items():
         if not spec.is_constant:
             r = binputs._Source(name, spec.role, spec.source).strips(None, warnings, oiio)

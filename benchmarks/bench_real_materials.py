@@ -81,10 +81,10 @@ def main():
     t0 = time.perf_counter()
     C.start_blender()
     import bpy
-    from hazy_gloss import api, exr
+    from hazy_gloss import api, imagecheck
     from hazy_gloss.blender.model import layer, layer_notes
     import real_materials as R
-    rows, furnace = measure(api, layer, layer_notes, exr.read_exr, R)
+    rows, furnace = measure(api, layer, layer_notes, imagecheck.read_exr, R)
     res = {"rows": rows, "furnace": furnace, "blender": bpy.app.version_string,
            "machine": C.machine(), "seconds": time.perf_counter() - t0,
            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}

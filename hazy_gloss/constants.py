@@ -114,30 +114,18 @@ HAZE_PANEL = "Haze"
 LAYER_NODE_KEY = "hazy_gloss_layer"
 ORIGINAL_NODE_KEY = "hazy_gloss_original"
 
-#: Limits of the add-on's own file readers (hazy_gloss.exr, hazy_gloss.imagecheck): anything
-#: beyond them is a damaged or hostile file, refused before memory is allocated for it.
+#: Limits of the add-on's image files (hazy_gloss.imagecheck): anything beyond them is a damaged
+#: or hostile file, refused before memory is allocated for it.
 MAX_IMAGE_PIXELS = 1 << 30  # width x height (e.g. 32768 x 32768; 16 GiB as RGBA float)
-MAX_EXR_DECODED_BYTES = 1 << 31  # decoded pixel data read_exr accepts (a 4K 30-channel render: 1 GiB)
-MAX_EXR_NAME = 255  # attribute / type / channel name bytes (OpenEXR's long-name limit)
-MAX_EXR_ATTRIBUTES = 4096  # per header
-MAX_EXR_PARTS = 4096
-MAX_EXR_CHANNELS = 4096  # per part
-MAX_EXR_CHUNKS = 1 << 22  # offset-table entries in all parts (a 32K x 32K ZIP image has 2048)
-EXR_MAGIC = 20000630  # the first 4 bytes of an OpenEXR file (little-endian int)
-#: Texels per file byte beyond which an EXR data window is not believed: a loose bound (a
-#: constant 32768-wide HTJ2K image packs ~4000 texels into a byte) that stops tiny files whose
-#: header would make Blender allocate gigabytes.
-MAX_EXR_TEXELS_PER_BYTE = 1 << 16
-#: Deflate (zlib) expands at most 1032:1: the bound on what a PNG's image data or a ZIP EXR
-#: chunk can hold (the PNG check also allows 4096 bytes of slack).
-MAX_DEFLATE_RATIO = 1100
-#: PNG chunks, or JPEG markers before the image data, that a file may have: bounds the check's
-#: time on crafted files (~1 s); a PNG of 8 GB in 8 KB chunks stays below.
-MAX_IMAGE_CHUNKS = 1 << 20
+MAX_EXR_DECODED_BYTES = 1 << 31  # float32 values read_exr returns (a 4K 30-channel render: 1 GiB)
+#: Texels per file byte beyond which a header's image size is not believed: a loose bound (a
+#: constant 32768-wide HTJ2K image packs ~4000 texels into a byte, deflate at most ~1032 bytes)
+#: that stops tiny files whose header would make Blender allocate gigabytes.
+MAX_TEXELS_PER_BYTE = 1 << 16
 #: Texture conversion in strips (hazy_gloss/imagestream.py): texels per strip (memory per map
-#: in flight), and the zlib levels of its writers (measured on a 1K β map: EXR ZIP level 4 within
-#: 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 % smaller than Blender's,
-#: level 6 3 % smaller still for more time).
+#: in flight), and the zlib levels its writers ask OpenImageIO for (measured on a 1K β map: EXR
+#: ZIP level 4 within 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 %
+#: smaller than Blender's, level 6 3 % smaller still for more time).
 STRIP_TEXELS = 1 << 18
 EXR_ZIP_LEVEL = 4
 PNG_ZIP_LEVEL = 3

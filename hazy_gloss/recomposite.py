@@ -29,7 +29,7 @@ import numpy as np
 from . import constants as K
 from .core import node_math
 from .core.graph import Graph, evaluate
-from .exr import ExrError, read_exr
+from .imagecheck import ImageFileError, read_exr
 
 #: View layer custom property read by the hazy materials (Attribute node, type VIEW_LAYER).
 PROPERTY = "hg_recomposite"
@@ -67,8 +67,10 @@ def passes_from_exr(path, original=None, layers=LAYERS):
     AOVs ``beta``, ``peak_ratio``, ``mask``, ``haziness`` (H, W) and ``reflectivity``,
     ``core_reflectivity`` (H, W, 3).  Row 0 = bottom row.
 
-    Raises :class:`~hazy_gloss.exr.ExrError` (a ValueError) for a damaged or unsupported file
-    or passes of different sizes, KeyError for a well-formed file without the passes; both
+    The file is read through OpenImageIO (:func:`hazy_gloss.imagecheck.read_exr`): every codec
+    Blender writes (ZIP, PIZ, DWAA, DWAB, RLE, NONE, ...), scanline or tiled.  Raises
+    :class:`~hazy_gloss.imagecheck.ImageFileError` (a ValueError) for a damaged or unsupported
+    file or passes of different sizes, KeyError for a well-formed file without the passes; both
     one line naming the file."""
     ch = read_exr(path)
     if original is None:
@@ -93,7 +95,7 @@ def passes_from_exr(path, original=None, layers=LAYERS):
     def same_size(passes):
         sizes = {k: v.shape[:2] for k, v in passes.items()}
         if len(set(sizes.values())) > 1:
-            raise ExrError(f"{path}: the recomposite passes have different sizes "
+            raise ImageFileError(f"{path}: the recomposite passes have different sizes "
                            f"({', '.join(f'{k} {w}x{h}' for k, (h, w) in sizes.items())})")
         return passes
 

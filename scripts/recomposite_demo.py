@@ -31,7 +31,8 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hazy_gloss  # noqa: E402
-from hazy_gloss import exr, recomposite as rc  # noqa: E402  (bpy-free)
+from hazy_gloss import recomposite as rc  # noqa: E402  (bpy-free)
+from hazy_gloss.oiio import openimageio  # noqa: E402
 from gallery import analytic_sphere, band_world  # noqa: E402  (scripts/ is on sys.path)
 
 ORIGINAL = {"metal": 0.15, "plastic": 0.02}
@@ -144,15 +145,16 @@ def _seconds(text):
 
 def layer_times(comp, path):
     """{layer: (path tracing s, synchronisation s)} from the Cycles metadata of an EXR."""
-    with open(path, "rb") as fh:
-        data = fh.read()
-    attrs, _ = exr._parse_header(exr._Reader(data, str(path)), 8, 0)
+    inp = openimageio().ImageInput.open(str(path))
+    spec = inp.spec()
+    inp.close()
     out = {}
-    for key, (_, raw) in attrs.items():
+    for attr in spec.extra_attribs:
+        key = attr.name
         if key.startswith("cycles.") and key.endswith(".render_time"):
             layer = key[len("cycles."):-len(".render_time")]
-            sync = attrs.get(f"cycles.{layer}.synchronization_time", (None, b"0"))[1]
-            out[layer] = (_seconds(raw.decode().rstrip("\0")), _seconds(sync.decode().rstrip("\0")))
+            sync = spec.get_string_attribute(f"cycles.{layer}.synchronization_time", "0")
+            out[layer] = (_seconds(str(attr.value)), _seconds(sync))
     return out
 
 

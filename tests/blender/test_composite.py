@@ -365,28 +365,102 @@ def test_operators_setup_and_clear(mods):
     assert scene.render.image_settings.file_format == file_format
 
 
+#: Every codec Blender writes (DWA and B44 lossy; HTJ2K from 5.0).
+CODECS = ("NONE", "ZIP", "ZIPS", "RLE", "PIZ", "PXR24", "B44", "B44A", "DWAA", "DWAB", "HTJ2K")
+
+
 def test_exr_reader_codecs(mods, tmp_path):
-    """The bpy-free reader against Blender's own loader, for every codec it supports."""
+    """The bpy-free reader (OpenImageIO) against Blender's own loader, for every codec Blender
+    writes: bit for bit, the lossy ones included (both decode with the OpenEXR library)."""
     _, comp = mods
     scenes.setup_render(samples=1, resolution=(23, 37), bounces=0)
     img = bpy.data.images.new("HG ramp", 23, 37, float_buffer=True)
     rng = np.random.default_rng(1)
     buf = rng.random((37, 23, 4), dtype=np.float32) * 4.0
     img.pixels.foreach_set(buf.ravel())
-    for codec in ("NONE", "ZIP", "ZIPS", "RLE"):
-        s = bpy.context.scene.render.image_settings
-        if hasattr(s, "media_type"):
-            s.media_type = "IMAGE"
-        s.file_format = "OPEN_EXR"
-        s.color_depth = "32"
-        s.color_mode = "RGBA"
+    s = bpy.context.scene.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "IMAGE"
+    s.file_format, s.color_mode = "OPEN_EXR", "RGBA"
+    codecs = [c for c in CODECS if c in s.bl_rna.properties["exr_codec"].enum_items]
+    assert {"ZIP", "PIZ", "DWAA", "DWAB"} <= set(codecs)
+    for codec in codecs:
+        s.color_depth = "16" if codec.startswith("B44") else "32"  # B44: half only
         s.exr_codec = codec
         path = str(tmp_path / f"ramp_{codec}.exr")
         img.save_render(path, scene=bpy.context.scene)
         ch = rc.read_exr(path)
         got = np.stack([ch[k] for k in ("R", "G", "B", "A")], axis=-1)
-        assert np.array_equal(got, buf), codec
+        loaded = bpy.data.images.load(path, check_existing=False)
+        want = np.empty(37 * 23 * 4, np.float32)
+        loaded.pixels.foreach_get(want)
+        bpy.data.images.remove(loaded)
+        assert np.array_equal(got, want.reshape(37, 23, 4)), codec
+        if codec in ("NONE", "ZIP", "ZIPS", "RLE", "PIZ"):  # lossless: the pixels written
+            assert np.array_equal(got, buf), codec
     os.remove(path)
+
+
+def _weights(passes, **edit):
+    """Per pixel and channel, Δc_k of Eq. 11 (out = V0 + Σ_k Δc_k V_k), read off the
+    recomposite itself, which is linear in the five renders: V0 = 0, V_k = 1, the others 0."""
+    zero = np.zeros_like(passes["original"])
+    out = []
+    for key in rc.BUFFER_KEYS:
+        probe = dict(passes, original=zero, **{k: zero for k in rc.BUFFER_KEYS})
+        probe[key] = np.ones_like(zero)
+        out.append(rc.recomposite(probe, **edit)[..., :3])
+    return out
+
+
+def test_recomposite_reads_zip_piz_and_dwab_passes(mods, tmp_path):
+    """The same render saved as ZIP, PIZ and DWAB (a farm's lossless and lossy codecs): PIZ
+    reads back the ZIP passes bit for bit; DWAB's recomposite differs from ZIP's by no more
+    than its passes do, carried through Eq. 11: with Δc_k the weights (from each file's AOVs),
+    |out' - out| <= |δV0| + Σ_k |Δc'_k| |δV_k| + Σ_k |Δc'_k - Δc_k| |V_k| (exact algebra:
+    out' - out = δV0 + Σ Δc'_k δV_k + Σ (Δc'_k - Δc_k) V_k), plus float32 rounding: each
+    of the two evaluations rounds ~20 operations, each by at most 2^-24 of a magnitude below
+    |V0| + 4 Σ_k |V_k| (the differences d12, d13, d34 and their products by β, r ≤ 1)."""
+    api, comp = mods
+    scene = bpy.context.scene
+    build_scene(api, samples=4, bounces=0)
+    comp.setup_recomposite(scene)
+    passes = {}
+    _, _, path = passes_render(scene, comp, tmp_path, "zip")
+    passes["ZIP"] = rc.passes_from_exr(path)
+    result = bpy.data.images["Render Result"]
+    for codec in ("PIZ", "DWAB"):
+        scene.render.image_settings.exr_codec = codec
+        p = str(tmp_path / f"{codec}.exr")
+        result.save_render(p, scene=scene)
+        inp = importlib.import_module(api.__name__.rpartition(".")[0] + ".oiio").openimageio() \
+            .ImageInput.open(p)
+        assert inp.spec().get_string_attribute("compression").startswith(codec.lower()), codec
+        inp.close()
+        passes[codec] = rc.passes_from_exr(p)
+    zip_, piz, dwab = passes["ZIP"], passes["PIZ"], passes["DWAB"]
+    assert all(np.array_equal(piz[k], zip_[k]) for k in zip_), "PIZ is lossless"
+    lossy = [k for k in rc.BUFFER_KEYS + ("original",) if not np.array_equal(dwab[k], zip_[k])]
+    assert lossy, "DWAB stored the renders exactly: the bound below would test nothing"
+    hazy = _hazy(zip_)
+    for edit in ({}, {"haziness": EDITED}, {"haziness": 0.1, "core_reflectivity": (0.3, 0.5, 0.8)}):
+        out = rc.recomposite(zip_, **edit)[..., :3]
+        out_d = rc.recomposite(dwab, **edit)[..., :3]
+        w, w_d = _weights(zip_, **edit), _weights(dwab, **edit)
+        v = [zip_[k][..., :3] for k in rc.BUFFER_KEYS]
+        v_d = [dwab[k][..., :3] for k in rc.BUFFER_KEYS]
+        bound = np.abs(dwab["original"][..., :3] - zip_["original"][..., :3])
+        for k in range(4):
+            bound += np.abs(w_d[k]) * np.abs(v_d[k] - v[k]) + np.abs(w_d[k] - w[k]) * np.abs(v[k])
+        size = np.abs(zip_["original"][..., :3]) + 4 * sum(np.abs(x) for x in v)
+        size_d = np.abs(dwab["original"][..., :3]) + 4 * sum(np.abs(x) for x in v_d)
+        bound += 20 * 2.0 ** -24 * (size + size_d)
+        err = np.abs(out_d - out)
+        assert (err <= bound).all(), (edit, float((err - bound).max()))
+        assert edit == {} or np.abs(out - zip_["original"][..., :3])[hazy].max() > 0  # an edit
+    record("recomposite", {"DWAB passes: max |recomposite(DWAB) - recomposite(ZIP)|, edited":
+                           float(np.abs(rc.recomposite(dwab, haziness=EDITED)
+                                        - rc.recomposite(zip_, haziness=EDITED)).max())})
 
 
 def test_damaged_source_is_refused_before_blender_loads_it(mods, tmp_path):
@@ -406,7 +480,7 @@ def test_damaged_source_is_refused_before_blender_loads_it(mods, tmp_path):
     data = whole.read_bytes()
     cut = tmp_path / "cut.exr"
     cut.write_bytes(data[:len(data) // 2])
-    with pytest.raises(ic.ImageFileError, match=r"cut\.exr is a truncated OpenEXR file"):
+    with pytest.raises(ic.ImageFileError, match=r"cut\.exr is a damaged OpenEXR file"):
         comp.build_compositor(bpy.context.scene, source=str(cut), original="ViewLayer")
     assert not [i for i in bpy.data.images if i.filepath and "cut.exr" in i.filepath]
 

@@ -12,8 +12,8 @@ library batches, progress.
   each tile with its own values;
 - a library folder converts in one CLI run: a broken set reported (one line, exit 4), the
   others done, a summary line; the progress bar shows with --progress, --quiet silences it;
-- the thread count changes no byte; files that pass the structure check but are damaged
-  inside (fuzzed) give values or one line through the streaming reader, never a crash.
+- the thread count changes no byte; files damaged inside (fuzzed) give values or one line
+  through the check and the streaming reader, never a crash.
 """
 import importlib
 import os
@@ -43,6 +43,7 @@ def mods(hg, clean_file):
         pbr = importlib.import_module(hg.__name__ + ".blender.actions.convert_pbr")
         ops = importlib.import_module(hg.__name__ + ".blender.ui.convert_ops")
         stream = importlib.import_module(hg.__name__ + ".imagestream")
+        oiio = importlib.import_module(hg.__name__ + ".oiio")
     return M
 
 
@@ -70,7 +71,8 @@ x = np.arange(n, dtype=np.float32) / np.float32(n)
 def haze(y0, y1):
     y = (np.arange(y0, y1, dtype=np.float32) / np.float32(n))[:, None]
     return (np.float32(0.45) + np.float32(0.4) * np.sin(np.float32(6.28) * (3 * x + 2 * y))).astype(np.float32)
-w = S.ExrStripWriter(folder + "/haze.exr", n, n, codec="NONE")
+from hazy_gloss.oiio import openimageio
+w = S.OiioStripWriter(openimageio(), folder + "/haze.exr", n, n, "OPEN_EXR", "NONE", channels=1)
 for y0 in range(0, n, rows):
     w.append(w.encode(y0, haze(y0, min(n, y0 + rows))))
 w.close()
@@ -82,7 +84,6 @@ res = api.convert_maps({"haziness": folder + "/haze.exr", "roughness": 0.2,
 seconds = time.perf_counter() - t
 peak = status("VmHWM") - base
 # rows at the top, middle and bottom of the written beta map against the mapping in memory
-from hazy_gloss.blender.model.convert_inputs import openimageio
 inp = openimageio().ImageInput.open(res["beta"])
 ok = []
 for y0 in (0, n // 2, n - 16):
@@ -168,7 +169,7 @@ def test_udim_pbr_set_converts_tile_by_tile_and_is_wired(mods, tmp_path):
     baked = {os.path.basename(im.filepath) for im in images}
     assert {os.path.basename(p) for p in res.values()} <= baked  # every written map is wired
     # per tile: the metal tile's raised base colour, the dielectric tile's IOR, read back
-    exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".exr")
+    exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".imagecheck")
     beta_metal = {t: exr.read_exr(res["beta_metal"].replace("<UDIM>", str(t)))["R"] for t in (1001, 1002)}
     # the same set, tile 1002 alone, gives tile 1002's maps
     solo = tmp_path / "solo"
@@ -247,13 +248,13 @@ def test_threads_change_no_byte(mods, tmp_path):
     assert runs[0] == runs[1]
 
 
-def test_damaged_files_that_pass_the_check_are_one_line(mods, tmp_path):
-    """Byte flips inside the pixel data (the structure check passes them): the streaming
-    reader gives values or one ConversionError line; Blender is never handed the file."""
+def test_damaged_files_are_one_line(mods, tmp_path):
+    """Byte flips inside the pixel data: the check (a decode) and the streaming reader give
+    values or one ConversionError line; Blender is never handed the file."""
     rng = np.random.default_rng(22)
     exr = _exr_bytes(tmp_path, n=40)
     png = Path(write_png(tmp_path / "f.png", rng.integers(0, 65536, (40, 40)), 16)).read_bytes()
-    oiio = mods.binputs.openimageio()
+    oiio = mods.oiio.openimageio()
     assert oiio is not None
     seen = {"values": 0, "refused": 0}
     for i in range(300):
@@ -279,29 +280,29 @@ def test_damaged_files_that_pass_the_check_are_one_line(mods, tmp_path):
     assert seen["values"] + seen["refused"] == 300 and seen["refused"] > 0, seen
 
 
-def test_openimageio_codecs_and_the_whole_image_fallback(mods, tmp_path):
-    """PIZ (written by OpenImageIO, proved by a decoded read-back) holds the floats the add-on's
-    ZIP writer holds; without OpenImageIO (HAZY_GLOSS_NO_OIIO=1: files read whole by Blender)
-    the CLI writes the same bytes as the streaming run, and says how it read them."""
+def test_openimageio_codecs_and_a_blender_without_it(mods, tmp_path):
+    """PIZ (written by OpenImageIO, proved by a decoded read-back) holds the floats ZIP holds;
+    without OpenImageIO (HAZY_GLOSS_NO_OIIO=1, as a distribution's Blender without its Python
+    module) the CLI refuses in one line naming the module, and writes nothing."""
     paths, _ = make_inputs(tmp_path / "in", n=40, aniso=True)
-    exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".exr")
+    exr = importlib.import_module(mods.core.__name__.rsplit(".", 1)[0] + ".imagecheck")
     zip_ = mods.api.convert_maps(paths, str(tmp_path / "zip"))
     piz = mods.api.convert_maps(paths, str(tmp_path / "piz"), exr_codec="PIZ")
     assert set(zip_) == set(piz)
-    oiio = mods.binputs.openimageio()
+    oiio = mods.oiio.openimageio()
     for name in zip_:
-        assert exr.exr_header_check(piz[name])[0].compression == "PIZ"
-        a = oiio.ImageInput.open(piz[name]).read_image(0, 0, 0, 3, oiio.FLOAT)
+        inp = oiio.ImageInput.open(piz[name])
+        assert inp.spec().get_string_attribute("compression") == "piz"
+        a = inp.read_image(0, 0, 0, 3, oiio.FLOAT)
+        inp.close()
         b = exr.read_exr(zip_[name])
         assert np.array_equal(a[::-1, :, 0], b["R"]), name
     args = [sys.executable, "-m", "hazy_gloss", "convert", "--haziness", paths["haziness"],
             "--core-reflectivity", paths["core_reflectivity"], "--roughness", paths["roughness"]]
-    streamed = subprocess.run(args + ["--out", str(tmp_path / "s")], env=_env(tmp_path),
-                              capture_output=True, text=True, timeout=300)
-    whole = subprocess.run(args + ["--out", str(tmp_path / "w")],
-                           env=dict(_env(tmp_path), HAZY_GLOSS_NO_OIIO="1"),
-                           capture_output=True, text=True, timeout=300)
-    assert streamed.returncode == 0 and whole.returncode == 0, whole.stderr
-    assert "OpenImageIO module was not found" in whole.stdout
-    assert "OpenImageIO" not in streamed.stdout
-    assert snapshot(tmp_path / "s") == snapshot(tmp_path / "w")
+    without = subprocess.run(args + ["--out", str(tmp_path / "w")],
+                             env=dict(_env(tmp_path), HAZY_GLOSS_NO_OIIO="1"),
+                             capture_output=True, text=True, timeout=300)
+    assert without.returncode == 2, without.stderr
+    lines = [ln for ln in without.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "OpenImageIO Python module is not available" in lines[0], lines
+    assert not (tmp_path / "w").exists()

@@ -109,13 +109,13 @@ def test_truncated_exr_is_one_clear_error_not_a_crash(api, core, tmp_path):
     trunc.write_bytes(data[:len(data) // 2])
     out = tmp_path / "o"
     with pytest.raises(core.ConversionError, match=r"haziness \(trunc.exr\): .*trunc.exr is a "
-                                                   r"truncated OpenEXR file") as info:
+                                                   r"damaged OpenEXR file") as info:
         api.convert_maps({"haziness": str(trunc)}, str(out))
     one_line(info.value)
     assert not out.exists()  # checked before the output folder is even created
     # an image datablock of that file (not loaded yet) is checked the same way
     img = bpy.data.images.load(str(trunc), check_existing=False)
-    with pytest.raises(core.ConversionError, match="truncated OpenEXR"):
+    with pytest.raises(core.ConversionError, match="damaged OpenEXR"):
         api.convert_maps({"haziness": img}, str(out))
 
 
@@ -151,15 +151,18 @@ def test_every_cut_of_a_file_is_refused_and_whole_files_pass(binputs, tmp_path, 
     (tmp_path / f"trailing.{fmt}").write_bytes(data + b"\0" * 4096)  # data after the end: fine
     assert binputs.check_readable(str(tmp_path / f"trailing.{fmt}"), "x")
     cut = tmp_path / f"cut.{fmt}"
+    # every cut loses pixels, but a PNG's after its last IDAT (only IEND: libpng has decoded
+    # every row by then, and so does Blender)
+    end = len(data) - 12 if fmt == "png" else len(data)
     accepted = []
-    for n in sorted(set(range(1, len(data), max(1, len(data) // 400))) | {len(data) - 1}):
+    for n in sorted(set(range(1, end, max(1, len(data) // 400))) | {end - 1}):
         cut.write_bytes(data[:n])
         try:
             binputs.check_readable(str(cut), "x")
             accepted.append(n)
         except binputs.ConversionError as exc:
             one_line(exc)
-            assert "truncated" in str(exc) or "corrupt" in str(exc), str(exc)
+            assert "damaged" in str(exc), str(exc)
     assert accepted == []
 
 
@@ -173,61 +176,6 @@ def test_every_blender_exr_codec_passes_the_check(binputs, tmp_path):
         assert binputs.check_readable(str(p), codec) == "OpenEXR"
 
 
-def _attr(name, typ, data):
-    return name.encode() + b"\0" + typ.encode() + b"\0" + struct.pack("<i", len(data)) + data
-
-
-@pytest.mark.parametrize("w, h, xs, ys, mode, chunks", [
-    # chunk counts of tiled files written by the OpenEXR 3.5.3 library (offset table sizes)
-    (33, 17, 16, 16, 0x00, 6), (33, 17, 16, 16, 0x01, 11), (33, 17, 16, 16, 0x11, 13),
-    (33, 17, 16, 16, 0x02, 48), (33, 17, 16, 16, 0x12, 70), (64, 64, 7, 5, 0x02, 667),
-    (5, 300, 16, 16, 0x11, 44), (5, 300, 7, 5, 0x12, 492), (5, 300, 7, 5, 0x00, 60)])
-def test_tiled_exr_chunk_counts(binputs, tmp_path, w, h, xs, ys, mode, chunks):
-    """A tiled EXR (one level, mipmaps, ripmaps; rounding down/up): built here with the chunk
-    count OpenEXR gives and each chunk's tile and level coordinates; whole passes, cut fails."""
-    win = struct.pack("<4i", 0, 0, w - 1, h - 1)
-    head = (b"\x76\x2f\x31\x01" + struct.pack("<I", 2 | 0x200)
-            + _attr("channels", "chlist", b"R\0" + struct.pack("<iB3xii", 2, 0, 1, 1) + b"\0")
-            + _attr("compression", "compression", b"\x03") + _attr("dataWindow", "box2i", win)
-            + _attr("displayWindow", "box2i", win) + _attr("lineOrder", "lineOrder", b"\0")
-            + _attr("pixelAspectRatio", "float", struct.pack("<f", 1))
-            + _attr("screenWindowCenter", "v2f", struct.pack("<2f", 0, 0))
-            + _attr("screenWindowWidth", "float", struct.pack("<f", 1))
-            + _attr("tiles", "tiledesc", struct.pack("<IIB", xs, ys, mode)) + b"\0")
-    # the tiles in the order OpenEXR lists them: level by level (ripmaps: x fastest), each
-    # level's tiles row by row; level sizes halve, rounded down (mode bit 4 clear) or up
-    up = mode >> 4
-
-    def size(n, lv):
-        return max(1, -(-n // (1 << lv)) if up else n // (1 << lv))
-
-    def count(n):
-        lv = 0
-        while size(n, lv) > 1:
-            lv += 1
-        return lv + 1
-
-    levels = {0: [(0, 0)], 1: [(lv, lv) for lv in range(count(max(w, h)))],
-              2: [(lx, ly) for ly in range(count(h)) for lx in range(count(w))]}[mode & 0x0F]
-    tiles = [(tx, ty, lx, ly) for lx, ly in levels for ty in range(-(-size(h, ly) // ys))
-             for tx in range(-(-size(w, lx) // xs))]
-    assert len(tiles) == chunks  # the count the OpenEXR library gives
-    body, offsets, pos = [], [], len(head) + 8 * chunks
-    for tile in tiles:
-        c = struct.pack("<4ii", *tile, 1) + b"\0"  # one byte of ZIP data
-        offsets.append(pos)
-        body.append(c)
-        pos += len(c)
-    data = head + struct.pack(f"<{chunks}Q", *offsets) + b"".join(body)
-    p = tmp_path / "tiled.exr"
-    p.write_bytes(data)
-    assert binputs.check_readable(str(p), "x") == "OpenEXR"
-    for n in (len(head) + 8 * chunks - 1, len(data) - 1):
-        p.write_bytes(data[:n])
-        with pytest.raises(binputs.ConversionError, match="truncated OpenEXR"):
-            binputs.check_readable(str(p), "x")
-
-
 def test_headers_claiming_huge_images_are_refused(binputs, tmp_path):
     """A 300-byte PNG claiming 40000x40000 (Blender would try to allocate 25.6 GB) and an EXR
     whose data window is 2^30 wide: refused by the check."""
@@ -239,23 +187,25 @@ def test_headers_claiming_huge_images_are_refused(binputs, tmp_path):
     png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 40000, 40000, 16, 2, 0, 0, 0))
            + chunk(b"IDAT", zlib.compress(b"\0" * 240001)) + chunk(b"IEND", b""))
     (tmp_path / "big.png").write_bytes(png)
-    with pytest.raises(binputs.ConversionError, match="cannot hold 40000x40000"):
+    with pytest.raises(binputs.ConversionError, match=r"claims 40000x40000 pixels, which \d+ "
+                                                      r"bytes cannot hold"):
         binputs.check_readable(str(tmp_path / "big.png"), "x")
     data = bytearray(_exr_bytes(tmp_path))
     at = data.index(b"dataWindow\0box2i\0") + len(b"dataWindow\0box2i\0") + 4
     data[at:at + 16] = struct.pack("<4i", 0, 0, (1 << 30) - 1, 31)
     (tmp_path / "wide.exr").write_bytes(bytes(data))
-    with pytest.raises(binputs.ConversionError, match="data window 1073741824x32"):
+    # (OpenEXR's classic reader refuses the header itself; its reason is in the line)
+    with pytest.raises(binputs.ConversionError, match=r"wide\.exr is a damaged OpenEXR file"):
         binputs.check_readable(str(tmp_path / "wide.exr"), "x")
 
 
-@pytest.mark.parametrize("case", ["png_no_iend", "not_image", "folder", "nul"])
+@pytest.mark.parametrize("case", ["png_cut", "not_image", "folder", "nul"])
 def test_bad_files_are_one_line(api, core, tmp_path, case):
     paths, _ = make_inputs(tmp_path / "in")
-    if case == "png_no_iend":
+    if case == "png_cut":
         bad = tmp_path / "h.png"
-        bad.write_bytes(Path(paths["haziness"]).read_bytes()[:-12])
-        pattern = r"haziness \(h.png\): .*h.png is a truncated PNG \(no IEND"
+        bad.write_bytes(Path(paths["haziness"]).read_bytes()[:-40])  # into the image data
+        pattern = r"haziness \(h.png\): .*h.png is a damaged PNG file \(cut off or corrupt: "
     elif case == "not_image":
         bad = tmp_path / "h.exr"
         bad.write_bytes(b"<html>not found</html>")
@@ -277,7 +227,7 @@ def test_operator_reports_truncated_exr(hg, clean_file, tmp_path):
     data = _exr_bytes(tmp_path)
     trunc = tmp_path / "trunc.exr"
     trunc.write_bytes(data[:len(data) // 2])
-    with pytest.raises(RuntimeError, match="truncated OpenEXR"):  # the ERROR report
+    with pytest.raises(RuntimeError, match="damaged OpenEXR"):  # the ERROR report
         bpy.ops.hazy_gloss.convert_maps(haziness_path=str(trunc), wire=False,
                                         directory=str(tmp_path / "op"))
     assert not (tmp_path / "op").exists()
@@ -291,7 +241,7 @@ def test_operator_reports_truncated_exr(hg, clean_file, tmp_path):
 def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_path, monkeypatch):
     """A file cut off after it was written (Blender's PNG writer reported success on a file cut
     off by a full disk): simulated by cutting the third file once it is complete.  The
-    read-back of its bytes catches it; nothing changes."""
+    decode that proves each map catches it; nothing changes."""
     paths, out, before = old_set(api, tmp_path, fmt="PNG")
     real = boutputs._MapFile.close_file
     calls = []
@@ -305,8 +255,8 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_pa
 
     monkeypatch.setattr(boutputs._MapFile, "close_file", full_disk)
     with pytest.raises(boutputs.ConversionError, match=r"could not write .*roughness_wide.png "
-                                                    r"\(disk full\?\): .* has \d+ bytes, \d+ were "
-                                                    "written") as info:
+                                                    r"\(disk full\?\): .*roughness_wide.*png: .*"
+                                                    r"cannot be read") as info:
         api.convert_maps(paths, str(out), file_format="PNG")
     one_line(info.value)
     assert snapshot(out) == before
@@ -315,7 +265,7 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_pa
 @pytest.mark.parametrize("fmt, where", [("OPEN_EXR", 0.5), ("OPEN_EXR", 0.01), ("PNG", 0.5)])
 def test_write_that_reads_back_different_is_caught(api, boutputs, tmp_path, monkeypatch, fmt, where):
     """A complete file with one other byte (a failing device; in the pixels, or in the EXR
-    header and offset table): the hash of the bytes read back catches it, without decoding."""
+    header): the decode that proves each map catches it (other values, or no file at all)."""
     paths, out, before = old_set(api, tmp_path, fmt=fmt)
     real = boutputs._MapFile.close_file
 
@@ -327,8 +277,7 @@ def test_write_that_reads_back_different_is_caught(api, boutputs, tmp_path, monk
 
     monkeypatch.setattr(boutputs._MapFile, "close_file", flip)
     with pytest.raises(boutputs.ConversionError, match=r"could not write .*beta.(exr|png) \(disk "
-                                                    r"full\?\): bytes \d+..\d+ of .* read back "
-                                                    "differently"):
+                                                    r"full\?\): .*(cannot be read|reads back)"):
         api.convert_maps(paths, str(out), file_format=fmt)
     assert snapshot(out) == before
 
@@ -683,7 +632,7 @@ def test_cli_exit_codes_and_one_line_errors(hg, clean_file, tmp_path):
     cwd = tmp_path / "cwd"
     cwd.mkdir()
     cases = {  # reason in the one line -> arguments
-        "trunc.exr is a truncated OpenEXR file": ["--haziness", str(tmp_path / "trunc.exr"),
+        "trunc.exr is a damaged OpenEXR file": ["--haziness", str(tmp_path / "trunc.exr"),
                                                   "--out", str(tmp_path / "o")],
         "cannot create the output folder /proc/": ["--haziness", paths["haziness"],
                                                    "--out", "/proc/hazy_gloss_test/x"],

@@ -310,12 +310,12 @@ def test_damaged_texture_files_get_a_placeholder_and_a_note(api, tmp_path):
     _save_png(tmp_path / "paint.1001.png", (0.9, 0.1, 0.1, 1.0))
     tile = data[:len(data) - 20]  # IEND and the end of the image data lost
     (tmp_path / "paint.1002.png").write_bytes(tile)
-    cases = {"Cut": ("cut.png", r"texture not loaded: .*cut\.png is a truncated PNG \(.*: the "
-                                r"Image Texture points at it"),
+    cases = {"Cut": ("cut.png", r"texture not loaded: .*cut\.png is a damaged PNG file \(cut "
+                                r"off or corrupt: .*\): the Image Texture points at it"),
              "Page": ("page.png", r"texture not loaded: .*page\.png is not an image file "
                                   r"Blender reads"),
              "Tiles": ("paint.&lt;UDIM&gt;.png", r"tile 1002 not loaded: .*paint\.1002\.png is "
-                                                 r"a truncated PNG")}
+                                                 r"a damaged PNG file")}
     for name, (file, pattern) in cases.items():
         doc = tmp_path / f"{name}.mtlx"
         doc.write_text(
@@ -371,7 +371,7 @@ def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
     res = 16  # the camera sees uv 0.375-0.625: texels 12-19, 2 x 2 pixels each
     scenes.setup_render("CYCLES", samples=1, resolution=(res, res), bounces=0)
     scenes.flat_plane_scene(mat)
-    read_exr = importlib.import_module(hg.__name__ + ".exr").read_exr
+    read_exr = importlib.import_module(hg.__name__ + ".imagecheck").read_exr
     want = scenes.render_aovs(read_exr, tree, {k: t.outputs["Color"] for k, t in texs.items()})
 
     bpy.ops.wm.read_homefile(use_empty=True)

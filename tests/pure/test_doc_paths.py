@@ -24,7 +24,7 @@ DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
 REPO_DIRS = ("hazy_gloss", "scripts", "benchmarks", "tests", "node_groups", "docs")
 PKG_DIRS = ("core", "blender", "interchange", "utils")
 #: Names a backticked dotted name may start from, relative to the package.
-PKG_NAMES = ("api", "constants", "core", "blender", "interchange", "utils", "convert", "exr",
+PKG_NAMES = ("api", "constants", "core", "blender", "interchange", "utils", "convert", "oiio",
              "imagecheck", "imagestream", "recomposite")
 #: Where a bare file name (a backticked span that is only ``name.py``) may live.
 SEARCH = ("hazy_gloss", "scripts", "benchmarks", "tests", "node_groups")

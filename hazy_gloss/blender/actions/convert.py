@@ -7,9 +7,9 @@ what needs Blender is in four modules:
 
 - blender/model/convert_inputs.py: reading the perceptual maps in strips (files through Blender's own
   OpenImageIO, datablocks in place), every file checked before Blender reads it;
-- blender/model/convert_outputs.py: writing float OpenEXR or 16-bit PNG strip by strip, **all or
-  nothing** (the maps proved by their bytes read back, renamed into place together, the
-  folder restored on any failure, interruption or cancel);
+- blender/model/convert_outputs.py: writing float OpenEXR or 16-bit PNG strip by strip through
+  OpenImageIO, **all or nothing** (the maps proved by decoding them once, renamed into place
+  together, the folder restored on any failure, interruption or cancel);
 - this module: the options checked, the run (:func:`convert_maps_steps`, a generator that
   yields after every strip: the modal operator steps it between events), each strip mapped
   from perceptual to physical values (:class:`_Run`);
@@ -32,8 +32,8 @@ from ... import constants as K
 from ... import convert as conversion
 from ... import imagestream as stream
 from ...convert import ConversionError
-from ..model.convert_inputs import (UDIM_TOKEN, _Source, _reason, _short, _tile_paths, openimageio,
-                                    udim_tiles)
+from ...oiio import openimageio
+from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, _short, _tile_paths, udim_tiles
 from ..model.convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
                                      _out_path, _undo)
 from ..model.convert_wiring import wire_material
@@ -240,9 +240,6 @@ class _Run:
         self.alpha_given, self.tile_texels = alpha_given, tile_texels
         self.constants = {n: s.source for n, s in specs.items() if s.is_constant}
         self.oiio = openimageio()
-        if self.oiio is None and any(s.tiles or s.path for s in sources.values()):
-            report.warnings.append("Blender's OpenImageIO module was not found: files are read "
-                                   "whole through Blender's loader (memory grows with the image)")
 
     def open(self, tile, names=None):
         """({name: _Decoded}, (w, h)) of this tile's inputs, sizes checked (or resampled)."""

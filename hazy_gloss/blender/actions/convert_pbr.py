@@ -30,7 +30,8 @@ from ...schema import HAZE_MAP_INPUTS, HAZE_SOCKETS, LAYER_MAP_INPUTS
 from .. import compat
 from ..model import layer, layer_group, layer_values
 from .convert import _check_prefix, _check_targets
-from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, openimageio, udim_tiles
+from ...oiio import openimageio
+from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, udim_tiles
 from ..model.convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
                                      _out_path)
 from ..model.convert_wiring import _image_for, _load_image

@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The inputs of a texture conversion, read through bpy: perceptual maps as strips of linear or raw values.
 
-Files are read through Blender's own OpenImageIO module (:func:`openimageio`) and decoded as
+Files are read through Blender's own OpenImageIO module (:mod:`hazy_gloss.oiio`) and decoded as
 Blender would (colour maps to linear, data maps raw); datablocks (packed and unsaved ones
 included) are read in place, whole, as measured in Blender 4.5 / 5.x (``Image.pixels`` of an
 8-bit image holds the file's encoded values whatever its colour space; float images are already
 scene-linear).  Every file is checked (:func:`check_readable`: exists, an image format, not cut
-off) before Blender reads it: Blender 5.0.1 segfaults on a truncated EXR.
+off; one decode through OpenImageIO) before anything is written or Blender reads it: Blender
+5.0.1 segfaults on a truncated EXR.
 
 Also here, shared with the writing side (blender/model/convert_outputs.py): Blender's messages while
 it reads or writes a file (:class:`_BlenderMessages`), signals held during renames
@@ -350,8 +351,7 @@ class _Source:
                 raise ConversionError(f"{self.label}: UDIM tile {tile} is missing")
         label = self.label if self.tiles is None else f"{self.label} tile {tile}"
         if path is not None and oiio is not None:
-            check_readable(path, label)
-            try:
+            try:  # checked before anything was written (check); a strip read wrong is an error
                 reader = stream.OiioStrips(oiio, path, label)
             except stream.StripError:
                 reader = None  # a file OpenImageIO does not read: Blender's loader below
@@ -540,55 +540,8 @@ def _read_datablock(img, role, label, warnings):
 
 
 # --------------------------------------------------------------------------------------------
-# OpenImageIO (Blender's own) and the strip readers
+# The strip readers
 # --------------------------------------------------------------------------------------------
-
-_OIIO = []
-
-
-def openimageio():
-    """Blender's bundled OpenImageIO Python module, or None.
-
-    Inside Blender ``import OpenImageIO`` works (it is in Blender's Python's site-packages);
-    the ``bpy`` module from PyPI ships the same module in ``bpy/<version>/python/lib/.../
-    site-packages`` without putting it on ``sys.path``: it is loaded from there by its file,
-    leaving ``sys.path`` alone.  ``HAZY_GLOSS_NO_OIIO=1`` turns it off (the whole-image
-    fallback through Blender's loader; for tests)."""
-    if _OIIO:
-        return _OIIO[0]
-    mod = None
-    if not os.environ.get("HAZY_GLOSS_NO_OIIO"):
-        try:
-            import OpenImageIO as mod  # noqa: N813
-        except ImportError:
-            mod = _bundled_oiio()
-    _OIIO.append(mod)
-    return mod
-
-
-def _bundled_oiio():
-    import importlib.util
-    try:
-        root = bpy.utils.resource_path("LOCAL")
-    except (AttributeError, RuntimeError):
-        return None
-    pattern = os.path.join(root, "python", "lib*", "*", "site-packages", "OpenImageIO")
-    found = glob.glob(pattern) + glob.glob(os.path.join(root, "python", "lib", "site-packages",
-                                                        "OpenImageIO"))
-    for folder in found:
-        init = os.path.join(folder, "__init__.py")
-        if not os.path.isfile(init):
-            continue
-        try:
-            spec = importlib.util.spec_from_file_location("OpenImageIO", init,
-                                                          submodule_search_locations=[folder])
-            mod = importlib.util.module_from_spec(spec)
-            sys.modules["OpenImageIO"] = mod
-            spec.loader.exec_module(mod)
-            return mod
-        except Exception:  # an incompatible build: the whole-image fallback
-            sys.modules.pop("OpenImageIO", None)
-    return None
 
 
 class _Decoded:

@@ -1,28 +1,26 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The outputs of a texture conversion: physical maps written, verified, committed all or nothing.
 
-Float OpenEXR (default, lossless ZIP) or 16-bit PNG is written strip by strip; every map goes
-to a temporary name in the output folder and is proved by its bytes read back
+Float OpenEXR (default, lossless ZIP) or 16-bit PNG is written strip by strip by OpenImageIO;
+every map goes to a temporary name in the output folder and is proved by decoding it once
 (:class:`_MapFile`); :class:`_Transaction` checks the folder, renames every map into place
 (backing up the ones it replaces) and, on any failure, interruption or cancel, removes the
 run's files and restores the maps it replaced (:func:`_undo`).
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import shutil
 import uuid
 
 import bpy
-import numpy as np
 
 from ... import constants as K
 from ... import imagestream as stream
 from ...convert import ConversionError
-from .convert_inputs import (_DeferredSignals, _abspath, _one_line, _reason, _short,
-                             check_readable, openimageio)
+from ...oiio import MISSING, openimageio
+from .convert_inputs import _DeferredSignals, _abspath, _reason, _short
 
 _EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
@@ -58,6 +56,7 @@ def exr_codecs():
 
 
 def _check_codec(file_format, exr_codec):
+    _require_oiio()
     if file_format != "OPEN_EXR":
         return "ZIP"
     codecs = exr_codecs()
@@ -66,91 +65,30 @@ def _check_codec(file_format, exr_codec):
         lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
         raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
                               f"{', '.join(lossless)}); got {_short(exr_codec)}")
-    if codec not in stream.EXR_CODECS and openimageio() is None:
-        raise ConversionError(f"exr_codec {codec} needs Blender's OpenImageIO module, which is "
-                              f"not available here; use {', '.join(stream.EXR_CODECS)}")
     return codec
 
 
-class _OiioExrWriter:
-    """Codecs the add-on does not encode itself (PIZ, RLE, PXR24, DWA, HTJ2K): written by
-    OpenImageIO strip by strip; the proof is then a decoded read-back (lossless codecs: the
-    sha256 of the floats read equals that of the floats written; lossy: every value finite)."""
-
-    def __init__(self, oiio, path, width, height, codec):
-        self.oiio, self.path, self.width, self.height = oiio, path, width, height
-        self.codec, self.row = codec, 0
-        self.exact = codec in K.LOSSLESS_EXR_CODECS
-        self._hash = hashlib.sha256()
-        spec = oiio.ImageSpec(width, height, 3, oiio.FLOAT)
-        spec.attribute("compression", codec.lower())
-        self.out = oiio.ImageOutput.create(path)
-        if self.out is None or not self.out.open(path, spec):
-            why = self.out.geterror() if self.out is not None else oiio.geterror()
-            raise ConversionError(f"could not write {path} with EXR codec {codec}: "
-                                  f"{_one_line(why)}")
-
-    def encode(self, y0, values):
-        v = np.asarray(values, np.float32)
-        if v.ndim == 2:
-            v = np.repeat(v[..., None], 3, axis=-1)
-        return y0, np.ascontiguousarray(v)
-
-    def append(self, encoded):
-        y0, v = encoded
-        if not self.out.write_scanlines(y0, y0 + v.shape[0], 0, v):
-            raise OSError(f"{_one_line(self.out.geterror())}")
-        self._hash.update(v.tobytes())
-        self.row += v.shape[0]
-
-    def close(self):
-        out, self.out = self.out, None
-        if out is not None and not out.close():
-            raise OSError(_one_line(out.geterror()))
-
-    def abort(self):
-        if self.out is not None:
-            self.out.close()
-            self.out = None
-
-    def verify(self, check):
-        check(self.path)
-        reader = stream.OiioStrips(self.oiio, self.path)
-        try:
-            if (reader.width, reader.height) != (self.width, self.height):
-                raise stream.StripError(f"{self.path} reads back as {reader.width}x"
-                                        f"{reader.height}, not {self.width}x{self.height}")
-            h = hashlib.sha256()
-            rows = stream.strip_rows(self.width)
-            for y0 in range(0, self.height, rows):
-                v = reader.rows(y0, min(self.height, y0 + rows), 3)
-                if not self.exact and not np.isfinite(v).all():
-                    raise stream.StripError(f"{self.path} reads back with non-finite values")
-                h.update(np.ascontiguousarray(v, np.float32).tobytes())
-        finally:
-            reader.close()
-        if self.exact and h.hexdigest() != self._hash.hexdigest():
-            raise stream.StripError(f"{self.path} reads back with other values than written "
-                                    "(disk full or a failing device?)")
+def _require_oiio():
+    oiio = openimageio()
+    if oiio is None:
+        raise ConversionError(f"{MISSING}: the maps cannot be written")
+    return oiio
 
 
 class _MapFile:
-    """One output map written to its temporary in strips (hazy_gloss.imagestream) and proved
-    complete at the end: the file read back as bytes hashes to the bytes encoded, and its
-    structure passes the file check.  I/O errors become one-line ConversionErrors naming
-    ``final``."""
+    """One output map written to its temporary in strips (hazy_gloss.imagestream, through
+    OpenImageIO) and proved complete at the end: the file decodes to what was written (lossy
+    codecs: to finite values).  I/O errors become one-line ConversionErrors naming ``final``."""
 
     def __init__(self, file_format, codec, tmp, final, width, height):
         self.tmp, self.final = tmp, final
         try:
-            if file_format == "PNG":
-                self.writer = stream.PngStripWriter(tmp, width, height)
-            elif codec in stream.EXR_CODECS:
-                self.writer = stream.ExrStripWriter(tmp, width, height, codec=codec)
-            else:
-                self.writer = _OiioExrWriter(openimageio(), tmp, width, height, codec)
+            self.writer = stream.OiioStripWriter(_require_oiio(), tmp, width, height,
+                                                 file_format, codec)
         except OSError as exc:
             raise ConversionError(f"could not write {final}: {_reason(exc)}") from None
+        except stream.StripError as exc:
+            raise ConversionError(f"could not write {final}: {exc}") from None
 
     def encode(self, y0, values):
         return self.writer.encode(y0, values)
@@ -171,7 +109,7 @@ class _MapFile:
         except OSError as exc:
             raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
         try:
-            self.writer.verify(lambda p: check_readable(p, "read back"))
+            self.writer.verify()
         except (stream.StripError, ConversionError) as exc:
             raise ConversionError(f"could not write {self.final} (disk full?): {exc}") from None
         except OSError as exc:

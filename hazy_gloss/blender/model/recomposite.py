@@ -20,8 +20,7 @@ from ...core import node_math
 from ...core.graph import Graph
 from ...recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                             LAYERS, PROPERTY, compositor_graph, exr_layers)
-from ...exr import read_exr
-from ...imagecheck import FORMAT_NAMES, check_image_file
+from ...imagecheck import FORMAT_NAMES, check_image_file, read_exr
 from .. import compat
 from . import fallback, material, material_read
 from . import stamp as _stamps
