@@ -53,7 +53,7 @@ def _gauss_sensitivity(g, opd):
     """4.5: its Gaussian fit at shift 0 in RGB, from a table (core.thin_film.gauss_table:
     four Gaussians per order cost 28 nodes, a lookup 9)."""
     table = _tf.gauss_table()
-    return _sensitivity(g, "thin film Gaussian fit Linear Rec.709", table, opd,
+    return _sensitivity(g, "thin film Gaussian fit", table, opd,
                         _tf.GAUSS_OPD_MAX / (table.shape[1] - 1))
 
 

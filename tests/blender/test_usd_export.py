@@ -34,6 +34,8 @@ bpy.ops.wm.open_mainfile(filepath=blend)
 t = time.perf_counter()
 bpy.ops.wm.usd_export(filepath=out, generate_materialx_network=True, export_materials=True)
 print("INFO " + json.dumps({"seconds": time.perf_counter() - t}))
+if addon_dir:  # (bpy 4.5 hangs at exit with a class registered once a file was opened)
+    hazy_gloss.unregister()
 '''
 
 

@@ -161,16 +161,6 @@ def _owner(tree):
 
 
 @persistent
-def parts_before_render(_scene=None, _dummy=None):
-    """A render in the background (a script, a farm with the add-on) renders each layer with
-    the parts its inputs reach at that frame (a key or a driver added since the last update
-    counts): no depsgraph update need have run since.  In the UI the depsgraph handler keeps
-    them up to date, and a render's handlers may run off the main thread: nothing here."""
-    if bpy.app.background:
-        parts_before_save()
-
-
-@persistent
 def on_load(_dummy=None):
     _fingerprints.clear()
     repair_thin_wall_shift()
@@ -258,10 +248,9 @@ def parts_before_save(_dummy=None):
 
 
 def register():
+    # (not on render_pre: a group moved as a render starts crashes 5.x; docs/node-groups.md)
     if parts_before_save not in bpy.app.handlers.save_pre:
         bpy.app.handlers.save_pre.append(parts_before_save)
-    if parts_before_render not in bpy.app.handlers.render_pre:
-        bpy.app.handlers.render_pre.append(parts_before_render)
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
     if on_load not in bpy.app.handlers.load_post:
@@ -274,8 +263,7 @@ def unregister():
     for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
                          (bpy.app.handlers.load_post, on_load),
                          (bpy.app.handlers.save_pre, repack_painted_maps),
-                         (bpy.app.handlers.save_pre, parts_before_save),
-                         (bpy.app.handlers.render_pre, parts_before_render)):
+                         (bpy.app.handlers.save_pre, parts_before_save)):
         while fn in handlers:
             handlers.remove(fn)
     _fingerprints.clear()

@@ -208,7 +208,9 @@ def table_image(name, data):
 
     import bpy
     digest = hashlib.sha1(np.ascontiguousarray(data, np.float32).tobytes()).hexdigest()[:12]
-    full = f"{K.TABLE_IMAGE_PREFIX}{name} {digest}"
+    # (4.5 cuts ID names at 63 bytes: the hash must survive, so the name gives way)
+    room = 63 - len(K.TABLE_IMAGE_PREFIX) - len(digest) - 1
+    full = f"{K.TABLE_IMAGE_PREFIX}{name[:room]} {digest}"
     img = bpy.data.images.get((full, None))  # (a local one: never a linked image)
     if img is not None and img.get("hazy_gloss_table") == digest:
         return img
