@@ -6,6 +6,7 @@ whether it exists: reading a deprecated property warns), versions where behaviou
 without an API change.  docs/blender-versions.md lists what changed and when.
 """
 import os
+import sys
 
 import bpy
 
@@ -139,3 +140,28 @@ def slot_fcurves(action, owner):
         return []
     return [fc for layer in layers for strip in layer.strips
             for bag in [strip.channelbag(slot)] if bag is not None for fc in bag.fcurves]
+
+
+def use_blenders_pxr():
+    """Make Blender's own ``pxr`` (USD) the one Python imports: its USD export and import hand
+    the USDHook their stage in it.  Only the bpy module needs this (a pip usd-core on the path
+    comes first there; the application has its own first).  Only pxr: Blender's bundled
+    MaterialX lacks the shader generators a pip MaterialX has.  Returns None, or one line
+    saying why the hook cannot work in this Python (another pxr was imported first)."""
+    if not bpy.app.module:
+        return None
+    if "pxr" in sys.modules:
+        own = os.path.realpath(bpy.utils.system_resource("PYTHON"))
+        if not os.path.realpath(sys.modules["pxr"].__file__).startswith(own):
+            return ("another pxr (usd-core) was imported before Blender's: Blender's USD export "
+                    "and import cannot carry haze layers in this Python")
+        return None
+    before = list(sys.path)
+    bpy.utils.expose_bundled_modules()
+    try:
+        import pxr.Usd  # noqa: F401
+    except ImportError:
+        pass
+    finally:
+        sys.path[:] = before
+    return None

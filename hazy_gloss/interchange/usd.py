@@ -34,7 +34,7 @@ from . import engines, layered
 from .document import NODEDEFS, Document, Input, Node, valid_name
 from .materialx import build_document, lobes_of, output_problem, recognise
 
-__all__ = ("available", "write", "read", "read_document", "USD_MISSING")
+__all__ = ("available", "write", "author", "is_layered", "read", "read_document", "USD_MISSING")
 
 USD_MISSING = ("USD export and import need the pxr module (pip install usd-core); Blender's "
                "own File > Export > Universal Scene Description works without it")
@@ -262,6 +262,44 @@ def write(sources, path, *, preview=True, bind=None):
         raise RuntimeError(f"{path}: USD could not write it ({pxr_message(exc)})") from None
 
 
+def author(stage, material_path, src, directory):
+    """``src``'s network on a Material another writer made (Blender's USD exporter, through the
+    add-on's USDHook): the network :func:`write` writes, on ``outputs:mtlx:surface``, with the
+    perceptual parameters; the prims no output reaches any more (the MaterialX network
+    Blender translated from the layer's group: its node math, not the haze) removed; the
+    UsdPreviewSurface it wrote stays.  Texture paths relative to ``directory``.  Returns the
+    notes of what the network does not hold."""
+    doc, done = build_document([src], "eq1", directory=directory)
+    _, mxname, notes = done[0]
+    _material(stage, material_path, doc, doc.nodes[mxname], src, False)
+    _drop_unreached(stage, stage.GetPrimAtPath(material_path))
+    return notes
+
+
+def _drop_unreached(stage, prim):
+    """Remove the children of ``prim`` that no connection from its outputs reaches."""
+    reached, todo = set(), [prim]
+    while todo:
+        for attr in todo.pop().GetAttributes():
+            for target in attr.GetConnections():
+                p = target.GetPrimPath()
+                if p not in reached and p.HasPrefix(prim.GetPath()):
+                    reached.add(p)
+                    todo.append(stage.GetPrimAtPath(p))
+    for child in list(prim.GetChildren()):
+        if not any(p.HasPrefix(child.GetPath()) for p in reached):
+            stage.RemovePrim(child.GetPath())
+
+
+def is_layered(usd_material):
+    """True for a Material holding a haze layer's network (written by :func:`write` or
+    :func:`author`)."""
+    prim = usd_material.GetPrim()
+    attr = prim.GetAttribute("userProperties:hazy_gloss:layered")
+    out = usd_material.GetSurfaceOutput("mtlx")
+    return bool(attr and attr.Get()) and bool(out) and out.HasConnectedSource()
+
+
 def _write_stage(path, sources, doc, done, preview, bind):
     from pxr import Usd, UsdGeom, UsdShade
     stage = Usd.Stage.CreateNew(path)
@@ -322,9 +360,9 @@ def _category(shader_id):
     return (shader_id[3:] if shader_id.startswith("ND_") else shader_id), "unknown"
 
 
-def read_document(stage_or_path):
+def read_document(stage_or_path, *, only=None):
     """(Document, {material name: prim path}) of every UsdShade Material with a MaterialX
-    surface network (outputs:mtlx:surface)."""
+    surface network (outputs:mtlx:surface); ``only``: the prim path of the one to read."""
     if not available():
         raise RuntimeError(USD_MISSING)
     from pxr import Tf, Usd, UsdShade
@@ -339,8 +377,9 @@ def read_document(stage_or_path):
             raise ValueError(f"{os.fspath(stage_or_path)}: not a readable USD file")
     doc = Document(source=str(stage.GetRootLayer().realPath))
     paths = {}
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdShade.Material):
+    prims = stage.Traverse() if only is None else [stage.GetPrimAtPath(str(only))]
+    for prim in prims:
+        if not prim or not prim.IsA(UsdShade.Material):
             continue
         mat = UsdShade.Material(prim)
         out = mat.GetSurfaceOutput("mtlx")

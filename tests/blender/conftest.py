@@ -61,6 +61,13 @@ _BPY_ERROR = None
 try:
     import bpy  # noqa: E402
     import addon_utils  # noqa: E402  (ships with bpy)
+    # Blender's own pxr before a test module imports pip's usd-core: Blender's USD export
+    # hands the add-on's USDHook its stage in it (the add-on's register() does the same, too
+    # late for a module that imported pxr already); pip's MaterialX stays first
+    _PATH = list(sys.path)
+    bpy.utils.expose_bundled_modules()
+    import pxr.Usd  # noqa: E402,F401
+    sys.path[:] = _PATH
 except ImportError as exc:  # pure-only environment
     if _REQUIRE_BPY:
         raise RuntimeError(

@@ -126,15 +126,18 @@ def _udim_image(path, name, notes):
     return img
 
 
-def build(im, notes=None, apply_haze=None):
-    """A new material from ``im.surface``; returns it.  Notes (what this Blender cannot hold)
-    go to ``im.notes``.  ``apply_haze(material, bsdf node, keywords)`` makes its haze layer (the
-    public api.make_hazy, passed in by api.import_materialx: this module does not import the
-    API, which imports it)."""
+def build(im, notes=None, apply_haze=None, into=None):
+    """A new material from ``im.surface`` (or the empty material ``into``: Blender's USD
+    importer makes it); returns it.  Notes (what this Blender cannot hold) go to ``im.notes``.
+    ``apply_haze(material, bsdf node, keywords)`` makes its haze layer (the public
+    api.make_hazy, passed in by api.import_materialx: this module does not import the API,
+    which imports it)."""
     spec = im.surface
     notes = im.notes if notes is None else notes
     haze = materialx_import.resolve_haze(spec)  # first: it sets the user's F(0) the layer raises
-    mat = compat.new_material(im.name)
+    mat = compat.new_material(im.name) if into is None else into
+    if mat.node_tree is None:  # (4.5 hands the USD hook a material without one)
+        mat.use_nodes = True
     tree = mat.node_tree
     for n in list(tree.nodes):
         tree.nodes.remove(n)

@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The MaterialX / USD operators: File > Import and Export, the material context menu's export
-fallback (thin: blender/actions/interchange.py and blender/model/fallback.py hold the work)."""
+fallback, and the USDHook that carries haze layers through Blender's own USD export and import
+(thin: blender/actions/interchange.py, usd_hook.py and blender/model/fallback.py hold the
+work)."""
 import os
 
 import bpy
@@ -10,7 +12,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from ... import constants as K
 from ...interchange import usd
 from ..model import fallback, material_read
-from ..actions import interchange, make_hazy
+from ..actions import interchange, make_hazy, usd_hook
 from .context import no_material, target_material
 from ..actions.messages import plain_message
 from .reports import report
@@ -220,6 +222,49 @@ class HAZY_GLOSS_OT_remove_export_fallback(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class HAZY_GLOSS_usd_hook(bpy.types.USDHook):
+    """Haze layers through File > Export / Import > Universal Scene Description: each hazy
+    material's exact network and haze values on the exported Material, and a hazy material
+    back on import.  A failure leaves Blender's own result and says so in one line (an
+    exception here would make Blender's export report an error)."""
+
+    bl_idname = "hazy_gloss"
+    bl_label = "Hazy Gloss"
+    bl_description = "Carry haze layers through USD export and import"
+
+    @staticmethod
+    def on_material_export(export_context, bl_material, usd_material):
+        try:
+            notes = usd_hook.export_material(export_context.get_stage(), bl_material,
+                                             usd_material, export_context.export_texture)
+        except Exception as exc:  # noqa: BLE001 (see the class docstring)
+            print(f"Hazy Gloss: “{bl_material.name}” is in the USD file without its haze: "
+                  f"{plain_message(exc)}")
+            return False
+        if notes:
+            print(f"Hazy Gloss: “{bl_material.name}” in USD: {'; '.join(notes)}")
+        return notes is not None
+
+    @staticmethod
+    def material_import_poll(import_context, usd_material):
+        try:
+            return usd_hook.wants(usd_material)
+        except Exception:  # noqa: BLE001 (Blender's importer reads it then)
+            return False
+
+    @staticmethod
+    def on_material_import(import_context, bl_material, usd_material):
+        try:
+            notes = usd_hook.import_material(import_context.get_stage(), bl_material, usd_material)
+        except Exception as exc:  # noqa: BLE001 (Blender then reads its preview surface)
+            print(f"Hazy Gloss: {usd_material.GetPath()} is read without its haze layer (as "
+                  f"Blender reads its preview surface): {plain_message(exc)}")
+            return False
+        if notes:
+            print(f"Hazy Gloss: “{bl_material.name}” from USD: {'; '.join(notes)}")
+        return True
+
+
 # --------------------------------------------------------------------------------------------
 # Menu entries (appended by menus.add_entries through menus.ENTRIES)
 # --------------------------------------------------------------------------------------------
@@ -247,6 +292,6 @@ def draw_material_menu(self, context):
 
 classes = (HAZY_GLOSS_OT_export_materialx, HAZY_GLOSS_OT_export_usd,
            HAZY_GLOSS_OT_add_export_fallback, HAZY_GLOSS_OT_remove_export_fallback,
-           HAZY_GLOSS_OT_import_materialx)
+           HAZY_GLOSS_OT_import_materialx, HAZY_GLOSS_usd_hook)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

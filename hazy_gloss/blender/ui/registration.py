@@ -3,6 +3,7 @@
 ``register, unregister = bpy.utils.register_classes_factory(classes)``; what is not a class
 (the Material property, the plot previews, menu entries, the asset library) is added here, after
 the classes, and removed first."""
+from .. import compat
 from . import (recomposite_ops, convert_ops, interchange_ops, menus, operators, panels, plots,
                preferences, properties, reports)
 from ..actions import sync
@@ -13,6 +14,9 @@ _MODULES = (preferences, properties, operators, convert_ops, recomposite_ops, in
 
 
 def register():
+    problem = compat.use_blenders_pxr()
+    if problem:
+        print(f"hazy_gloss: {problem}")
     for mod in _MODULES:
         mod.register()
     properties.attach()
