@@ -9,7 +9,8 @@ user's node-editor edits of the add-on's nodes back into the stamp
 uses (no depsgraph update) call ``api.sync_haze(mat)``.  When the file's node groups change in number (an append), the copies of the layer's groups and
 tables an append of hazy materials brought give way to the file's (group_copies.merge_copies);
 a layer node whose inputs now reach another part of the haze mapping moves to the group that
-holds it (``follow_parts``, on every update and before a save); before a save, painted
+holds it (``follow_parts``: on every update, before a save and, in the background, before
+each frame); before a save, painted
 haziness maps are packed again (``save_pre``); after a load, the layer
 nodes' curves Blender 5.2's versioning moved are put back (``repair_thin_wall_shift``).
 """
@@ -161,6 +162,16 @@ def _owner(tree):
 
 
 @persistent
+def parts_on_frame_change(_scene=None, _depsgraph=None):
+    """A script or a farm with the add-on (in the background): before a frame is evaluated,
+    each layer moves to the group of the parts its inputs reach (a key added since the last
+    update counts; no depsgraph update need have run).  Not on render_pre: a group moved as a
+    render starts crashes Cycles in 5.2 and 5.3.  In the UI the depsgraph handler does it."""
+    if bpy.app.background:
+        parts_before_save()
+
+
+@persistent
 def on_load(_dummy=None):
     _fingerprints.clear()
     repair_thin_wall_shift()
@@ -248,7 +259,8 @@ def parts_before_save(_dummy=None):
 
 
 def register():
-    # (not on render_pre: a group moved as a render starts crashes 5.x; docs/node-groups.md)
+    if parts_on_frame_change not in bpy.app.handlers.frame_change_pre:
+        bpy.app.handlers.frame_change_pre.append(parts_on_frame_change)
     if parts_before_save not in bpy.app.handlers.save_pre:
         bpy.app.handlers.save_pre.append(parts_before_save)
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
@@ -263,7 +275,8 @@ def unregister():
     for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
                          (bpy.app.handlers.load_post, on_load),
                          (bpy.app.handlers.save_pre, repack_painted_maps),
-                         (bpy.app.handlers.save_pre, parts_before_save)):
+                         (bpy.app.handlers.save_pre, parts_before_save),
+                         (bpy.app.handlers.frame_change_pre, parts_on_frame_change)):
         while fn in handlers:
             handlers.remove(fn)
     _fingerprints.clear()
