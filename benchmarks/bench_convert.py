@@ -19,7 +19,7 @@ M  peak memory of A: the process's peak RSS above its RSS before the call (VmHWM
    resetting it through /proc/self/clear_refs), and the tracemalloc peak (numpy buffers) of one
    extra A run, against the float32 bytes of the inputs and outputs (texels x channels x 4).
 
-Targets (issue 8): A within 3x of B, A >= 100x faster than D, peak < 3x the input+output bytes.
+Targets: A within 3x of B, A >= 100x faster than D, peak < 3x the input+output bytes.
 With the default ``--doc`` the results replace the "Performance" section of docs/textures.md.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Production sizes: the texture conversion's peak memory and time per size and output format,
-against the I/O floor measured in the same run (issue 22).  A section of the measured report
+against the I/O floor measured in the same run.  A section of the measured report
 (docs/performance.md, "production sizes"); runnable alone:
 
     .venv/bin/python benchmarks/bench_production.py                  # 1K .. 16K (~40 min)

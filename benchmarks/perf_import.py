@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""docs/performance.md section "MaterialX import": reading a 50 MB material library (issue 22
-item 5: "276 s, 711 MB, no progress"), and what the distribution the importer chooses changes
-in the render (issue 21 item 4: OpenPBR's energy-compensated GGX as Multiscatter GGX).
+"""docs/performance.md section "MaterialX import": reading a 50 MB material library
+(the previous reader: 276 s, 711 MB, no progress), and what the distribution the importer
+chooses changes in the render (OpenPBR's energy-compensated GGX as Multiscatter GGX).
 
 1. The pure reader (``interchange.materialx.read``: streaming expat parse, every surface mapped
    to a Principled spec) on a generated library of ~50 MB (tests/pure/mtlx_library.py: the
@@ -179,7 +179,7 @@ def markdown(res):
     ]))
     L.append(f"\n{r['imported']:,} of {r['materials']:,} materials imported (the damaged inputs read "
              f"as MaterialX 1.39.5 reads them and said); the progress callback was called "
-             f"{r['progress_calls']} times. Issue 22 measured the previous reader at 276 s and "
+             f"{r['progress_calls']} times. The previous reader took 276 s and "
              f"711 MB on a 50 MB library (it kept the whole XML tree and fitted a Fresnel per "
              f"metal); the target was 30 s. OpenPBR 1.2 haze is solved when a material is made "
              f"(~0.1 s each under Multiscatter GGX: haze_blend.solve), not while reading.\n")

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""docs/performance.md section 8: how fast the layer node is to make and to edit (issue 20 item 3).
+"""docs/performance.md section 8: how fast the layer node is to make and to edit.
 
 Two materials of the issue: a Principled BSDF with image textures on Base Color, Roughness,
 Metallic, Coat Weight and a Normal Map (8 nodes), and a Principled BSDF with every input linked
@@ -52,7 +52,7 @@ NODE_KINDS = {"Math": "ShaderNodeMath", "Vector Math": "ShaderNodeVectorMath",
 NODE_KIND_COUNT = 600
 if C.QUICK:
     REPEATS, COLD, MANY, ROUNDS, FILE_SIZES, FLOOR_REPEATS = 3, 1, 20, 2, (0, 20), 2
-#: issue 20 item 3
+#: targets (ms): the first Make Hazy of a configuration, a slider change
 TARGET_MAKE_MS, TARGET_SLIDER_MS = 20.0, 2.0
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
 

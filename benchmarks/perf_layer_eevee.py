@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""docs/performance.md section 7: Make Hazy's layer in EEVEE (issue 13 item 7).
+"""docs/performance.md section 7: Make Hazy's layer in EEVEE.
 
 A. Closures (run in every installed Blender: .venv 5.3, .venv52 5.2, .venv45 4.5, each in its own
    process): a flat plane under a delta sun (black world, orthographic camera; halo: light 30°,

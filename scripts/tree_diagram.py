@@ -4,7 +4,7 @@ the layer node's group, drawn from the nodes' own locations, sizes and links (ma
 
     .venv/bin/python scripts/tree_diagram.py [--out docs/img/layer_tree.png]
 
-The material is issue 20's: a Principled BSDF with image textures on Base Color, Roughness,
+The material: a Principled BSDF with image textures on Base Color, Roughness,
 Metallic, Coat Weight and a Normal Map.  Needs matplotlib (requirements-dev.txt).
 """
 import argparse
@@ -63,7 +63,7 @@ def _outs(n):
 def _box(n):
     """(x, top, width, height, {socket: y}) of a node as drawn (collapsed nodes are one row;
     its outputs first, then its inputs; a socket not drawn links at the node's middle)."""
-    x, top = n.location.x, n.location.y
+    x, top = (n.location_absolute if hasattr(n, "location_absolute") else n.location)
     outs = _outs(n)
     ins, more = _rows(n)
     ys = {}
@@ -164,7 +164,7 @@ def draw(ax, tree, title, skip=("NodeFrame", "NodeReroute")):
 
 
 def textured_material(name):
-    """Issue 20's material: image textures on Base Color, Roughness, Metallic, Coat Weight and
+    """The drawn material: image textures on Base Color, Roughness, Metallic, Coat Weight and
     a Normal Map into a Principled BSDF."""
     import numpy as np
     mat = bpy.data.materials.new(name)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Issue 7: edit haziness after the render (paper §4.3, Eq. 10-11).
+"""Edit haziness after the render (paper §4.3, Eq. 10-11).
 
 One scene: a hazy conductor sphere (lean tree), a hazy dielectric sphere with a diffuse base
 (in-shader mapping), a non-hazy diffuse sphere and a non-hazy ground plane, a delta sun.

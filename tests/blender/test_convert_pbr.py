@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """A PBR texture set (base colour, metallic, roughness, normal, coat, alpha) plus haze maps
-converted into a Principled material with a baked haze layer (issue 13 item 6): per texel it
+converted into a Principled material with a baked haze layer: per texel it
 renders what the live layer (node math) renders, and what pure hazy materials give, mixed by
 the metallic map."""
 import importlib

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Production-size textures (issue 22): streaming in bounded memory, cancel, UDIM PBR sets,
+"""Production-size textures: streaming in bounded memory, cancel, UDIM PBR sets,
 library batches, progress.
 
 - an 8192x8192 set converts with the process's peak memory at most 1.5 GiB above its resting

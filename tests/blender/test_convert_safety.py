@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The conversion's guarantees under attack (issue 14, items 1, 3, 7 and the convert part of 8).
+"""The conversion's guarantees under attack.
 
 - no file reaches ``bpy.data.images.load`` unchecked: truncated EXR / PNG and non-images are one
   line (Blender 5.0.1 segfaults on a truncated EXR);
@@ -10,7 +10,7 @@
   after a failure gives the bytes of a clean run;
 - CLI and API errors are one line (rc 2 in the CLI) naming the parameter or file and what
   would be valid; the operator's temp-folder fallback stays inside its folder.
-Every test here failed on the code before issue 14's fixes (the rerun test only because the
+Every test here failed on the code before their fixes (the rerun test only because the
 failed run raised a raw OSError there).
 """
 import importlib
@@ -504,7 +504,7 @@ def _cli_env(tmp_path):
 @pytest.mark.parametrize("fmt", ["PNG", "OPEN_EXR"])
 def test_real_file_size_limit_in_the_cli(api, tmp_path, fmt):
     """Not simulated: the CLI runs under RLIMIT_FSIZE = 64 KiB, which cuts every larger file
-    as a full disk does.  Blender's PNG writer reports success on the cut file (before issue 14
+    as a full disk does.  Blender's PNG writer reports success on the cut file (before the fix
     it was renamed into place: exit 0 with a 61440-byte beta.png); now exit 2, one line, and
     the earlier set is untouched."""
     import resource

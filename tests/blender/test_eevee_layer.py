@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The EEVEE-only simplification of a haze layer (blender.actions.eevee_output, issue 13 item 7).
+"""The EEVEE-only simplification of a haze layer (blender.actions.eevee_output).
 
 What is checked: the EEVEE output leaves the user's nodes and Cycles' image alone and goes away
 cleanly; its one BSDF's lobes have the peak-preserving roughness 1/α_f² = (1-β)/α_n² + β/α_w²

@@ -1,6 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""White furnace for layered dielectrics: the Fresnel the haze mapping accounts for (issue 13
-item 8).
+"""White furnace for layered dielectrics: the Fresnel the haze mapping accounts for.
 
 Cycles' Principled BSDF gives its dielectric specular lobe F_P = F0 + (1 - F0) s with
 s = saturate((F_exact - F0) / (1 - F0)), i.e. F_P = max(F_exact, F0) for a white Specular Tint

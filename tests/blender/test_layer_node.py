@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The layer node computes what the render depends on (issue 20): keyframes and drivers on any
+"""The layer node computes what the render depends on: keyframes and drivers on any
 input render right on every frame, with the add-on and in a fresh process without it; links into
 the haze inputs work; a paintable haziness map; earlier layers render as saved and move on an edit; no
 material exceeds Cycles' closure limit; every entry point answers."""

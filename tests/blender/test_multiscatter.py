@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Multiscatter GGX keeps the peak, rendered (issue 13 item 4).
+"""Multiscatter GGX keeps the peak, rendered.
 
 Exact scene (tests/blender/scenes.py): a flat plane, orthographic camera straight down, a sun
 of angle 0 along the normal, black world, 1 sample, no denoising, the smallest pixel filter,

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Node-editor edits of the add-on's nodes (issue 14 item 9).
+"""Node-editor edits of the add-on's nodes.
 
 The user edits a hazy material in the node editor (a socket value, a label, a frame, a move,
 F2 on the group) and then moves a slider in the panel.  What each group of tests compares:

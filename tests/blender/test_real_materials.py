@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Haze on real materials (issue 21): Principled and Metallic BSDFs built from measured values
+"""Haze on real materials: Principled and Metallic BSDFs built from measured values
 (tests/data/measured_materials.py: metals' n, k and F0, dielectrics' IOR, liquids and glass,
 thin films, ColorChecker bases), made hazy at 0.3, 0.6 and 0.9, in Cycles with a delta sun on a
 flat plane (every pixel the BSDF at one pair of directions).  Per class:

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Scripting mistakes through the API and ``mat.hazy_gloss_settings`` (issue 14 item 8).
+"""Scripting mistakes through the API and ``mat.hazy_gloss_settings``.
 
 Blender prints and swallows an exception raised in a property setter (measured in 4.5, 5.2,
 5.3: the assignment returns normally, sys.excepthook sees the exception), so a refused setting

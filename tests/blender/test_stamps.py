@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Damaged stamps (issue 14 item 6): every reader of ``mat["hazy_gloss"]`` (and of a haze
+"""Damaged stamps: every reader of ``mat["hazy_gloss"]`` (and of a haze
 layer's ``["layer"]``, the recomposite and export-fallback stamps) survives any content with
 one line naming the key and what is valid, and a safe result: the panel shows the message and
 a way out, operators report ERROR, nothing is deleted.

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The docs' Python blocks paste into Blender's Python console (issue 23, docs that run).
+"""The docs' Python blocks paste into Blender's Python console (docs that run).
 
 Blender's console (``console_python.execute``) pushes a pasted text line by line into a
 ``code.InteractiveConsole``, a blank line as ``"\\n"``: a compound statement (``if``, ``for``)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The names the docs give exist (issue 23): every backticked dotted name of the package in
+"""The names the docs give exist: every backticked dotted name of the package in
 README.md and docs/*.md (``hazy_gloss.x.y``, or ``core.x`` / ``api.x`` / ``blender.x.y`` ...
 relative to it) is a module, or a name a module defines, found by file existence and ``ast``
 (nothing is imported, so no bpy); an operator id ``hazy_gloss.x`` is an operator's

@@ -95,7 +95,7 @@ def test_values_read_as_materialx_reads_them():
             if ours is not None and problem is None:
                 assert text.strip(" ,") != "" or typ == "float"
     assert not mismatches, mismatches[:10]
-    assert read_value("0.1, 0.05, 0.025", "float")[0] == 0.1  # issue 21: MaterialX reads 0.1
+    assert read_value("0.1, 0.05, 0.025", "float")[0] == 0.1  # MaterialX reads 0.1
     for typ in ("boolean",):
         for text, want in (("true", True), ("false", False), ("True", None), ("1", None), (" true", None)):
             assert read_value(text, typ)[0] == want

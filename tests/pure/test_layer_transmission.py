@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""A haze layer on transmissive and filmed dielectrics (issue 21 items 1-2), as node math
+"""A haze layer on transmissive and filmed dielectrics, as node math
 (core.layer_graph evaluated in numpy with Blender's node semantics), against derivations written
 here: the peak equation of the closures the group builds, the film's F(0) against
 core.thin_film.  Their energy is rendered (tests/blender/test_real_materials.py: a white furnace,

@@ -331,7 +331,7 @@ def test_coat_tint_factors():
 @pytest.mark.parametrize("values, word", [({"Transmission Weight": 1.0}, "transmission is approximate"),
                                           ({"Thin Film Thickness": 400.0}, "thin film")])
 def test_exports_note_what_they_approximate(tmp_path, values, word):
-    """Issue 21: a layer exported with transmission or a thin film says that MaterialX draws
+    """A layer exported with transmission or a thin film says that MaterialX draws
     those with its own models (the export was silent)."""
     t = tree(principled("Core", core=True, **values), out=output("Core"))
     rep = M.write([M.Source(t.name, layer=t)], tmp_path / "n.mtlx", validate_with_package=False)

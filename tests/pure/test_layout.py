@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The layout shows the architecture (issue 12): bpy only under hazy_gloss/blender/, no import
+"""The layout shows the architecture: bpy only under hazy_gloss/blender/, no import
 cycles between the package's modules (function-level imports included; those only in the entry
 points), no symlinks, the shared constants written once."""
 import ast
@@ -134,7 +134,7 @@ def test_every_blender_module_in_a_layer_folder():
         assert ast.get_docstring(tree) and not body, f"blender/{layer}/__init__.py defines code"
 
 
-#: Modules over 800 lines still waiting to be split (issue 23): each is a known debt, and the
+#: Modules over 800 lines still waiting to be split: each is a known debt, and the
 #: test fails once one of them is back under the limit, so that the list only shrinks.
 #: (none left: the list stays as the place a known debt would go).
 _OVER_800 = set()
@@ -142,7 +142,7 @@ MAX_MODULE_LINES = 800
 
 
 def test_module_size():
-    """No module of code over 800 lines (issue 23): a module that grows past it is split into
+    """No module of code over 800 lines: a module that grows past it is split into
     cohesive modules.  Generated data tables (hazy_gloss/core/tables/) are not code."""
     sizes = {str(path.relative_to(ROOT).as_posix()): len(path.read_text(encoding="utf-8").splitlines())
              for path in layout_graph.modules().values() if DATA_DIR not in path.parents}

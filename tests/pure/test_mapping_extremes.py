@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Extreme and invalid inputs of the haze mapping (issue 14, items 4 and 5).
+"""Extreme and invalid inputs of the haze mapping.
 
 - a Bézier weight w so small that 1/w overflows (float64 w < ~5.6e-309, float32 < ~2.9e-39) is
   the w -> 0 limit (no haze), not NaN;
@@ -42,7 +42,7 @@ def _finite(out):
 
 
 def test_issue_call_tiny_smoothness_is_finite():
-    """The exact call of issue 14 item 4 (was η, κ, k_n = NaN with clamped == {})."""
+    """A call that gave η, κ, k_n = NaN with clamped == {}: finite now."""
     m = haze_mapping((0.9, 0.6, 0.3), 0.5, 0.01, 0.5, 5.0, smoothness=5e-324)
     _finite(m)
     assert m.clamped == {}
@@ -77,7 +77,7 @@ def test_tiny_smoothness_is_continuous_across_the_overflow(dtype):
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_alpha_above_alpha_max_is_counted_and_reported_clamped(dtype):
-    """Was α_w = 1 < α_n = 2 with clamped == {} (issue 14 item 5)."""
+    """Was α_w = 1 < α_n = 2 with clamped == {}."""
     a = np.array([0.2, 2.0, 1.5], dtype=dtype)
     out = haze_mapping(np.full((3, 3), 0.5, dtype), dtype(0.5), (a, np.array([0.2, 0.2, 3.0], dtype)),
                        np.full(3, 0.5, dtype), np.full(3, 2.0, dtype), alpha_max=1.0)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Scripting mistakes get one clear line (issue 14 item 8): core.parameters.normalise names the
+"""Scripting mistakes get one clear line: core.parameters.normalise names the
 parameter, says what would be valid and, where the mistake is a common one, how to write it."""
 import math
 import re
