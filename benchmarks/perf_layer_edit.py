@@ -53,7 +53,7 @@ NODE_KIND_COUNT = 600
 if C.QUICK:
     REPEATS, COLD, MANY, ROUNDS, FILE_SIZES, FLOOR_REPEATS = 3, 1, 20, 2, (0, 20), 2
 #: targets (ms): the first Make Hazy of a configuration, a slider change
-TARGET_MAKE_MS, TARGET_SLIDER_MS = 20.0, 2.0
+TARGET_FIRST_MS, TARGET_MAKE_MS, TARGET_SLIDER_MS = 20.0, 6.0, 2.0
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
 
 
@@ -410,7 +410,8 @@ def main():
     del hg
     C.clean_file()
     res = {"repeats": REPEATS, "many": MANY, "rounds": ROUNDS, "blender": bpy.app.version_string,
-           "targets": {"make_ms": TARGET_MAKE_MS, "slider_ms": TARGET_SLIDER_MS}, "materials": {}}
+           "targets": {"first_ms": TARGET_FIRST_MS, "make_ms": TARGET_MAKE_MS,
+                       "slider_ms": TARGET_SLIDER_MS}, "materials": {}}
     cache_dir = tempfile.mkdtemp(prefix="hg_group_cache_")
     for label, make in (("textured (8 nodes)", textured), ("every input linked", all_linked),
                         ("textured, GGX (a smaller group)", textured_ggx)):
@@ -424,8 +425,7 @@ def main():
         row["top_level_nodes"] = [n0, len(probe.node_tree.nodes)]
         row["issue_material"] = make is not textured_ggx  # (the targets are the issue's two)
         group = layer.layer_node(probe).node_tree
-        row["group_nodes"] = sum(len(t.nodes) for t in layer_group._uses(group, set())
-                                 if isinstance(t, bpy.types.NodeTree))
+        row["group_nodes"] = C.count_nodes(group)
         res["materials"][label] = row
         print(f"[perf_layer_edit] {label}: make hazy "
               f"{row['make_hazy']['group in the file']['median']:.1f} ms, slider first "
@@ -461,8 +461,9 @@ def markdown(res):
              "**A slider change**: the layer node's Haziness set and the depsgraph "
              "updated (what a drag step does; the add-on's depsgraph handler runs in it), next to "
              "the same change of a plain Principled BSDF's Roughness: the difference is the "
-             f"add-on's. Targets: Make Hazy <= {t['make_ms']:.0f} ms, a slider change <= "
-             f"{t['slider_ms']:.0f} ms, the first one included.\n")
+             f"add-on's. Targets: the first Make Hazy of a configuration in a file <= "
+             f"{t.get('first_ms', t['make_ms']):.0f} ms, every later one <= {t['make_ms']:.0f} "
+             f"ms, a slider change <= {t['slider_ms']:.0f} ms (the first included).\n")
     rows = []
 
     def f(d):
@@ -488,17 +489,19 @@ def markdown(res):
     cache = max(r["make_hazy"]["from the cache"]["median"] for r in issue)
     append = max(r["make_hazy"]["append alone"]["median"] for r in issue)
     first = max(r["slider"]["first"]["median"] for r in issue)
+    first_t = t.get("first_ms", t["make_ms"])
     L.append(f"Make Hazy with the group in the file: {warm:.1f} ms at most "
              f"(target <= {t['make_ms']:.0f}: **{'met' if warm <= t['make_ms'] else 'not met'}**); "
              f"the first of a configuration in a file appends its group from the cache in "
-             f"{cache:.0f} ms (**{'met' if cache <= t['make_ms'] else 'not met'}**), of which "
+             f"{cache:.0f} ms (target <= {first_t:.0f}: "
+             f"**{'met' if cache <= first_t else 'not met'}**), of which "
              f"Blender's append of the group (`bpy.data.libraries.load`, nothing of the add-on's "
              f"around it) takes up to {append:.0f} ms: Blender's append, not the add-on's code, "
              "sets that floor (by the group's size and the file's: the next table). A slider "
              f"change, the first included: {first:.2f} ms at most "
              f"(**{'met' if first <= t['slider_ms'] else 'not met'}**): setting a socket of the "
-             "node is all it does; the shader computes the rest. (Targets: the issue's two "
-             "materials, the first two rows.)\n")
+             "node is all it does; the shader computes the rest. (Targets: the first two rows; "
+             "with every input linked, Make Hazy moves 34 links onto the layer node.)\n")
     others = {k: r for k, r in res["materials"].items() if not r.get("issue_material", True)}
     for label, r in others.items():
         mine = next(iter(res["materials"].values()))

@@ -31,6 +31,7 @@ SECTIONS = (  # run order: perf_eevee and the markdown of perf_cycles need perf_
     ("perf_nodes", "perf_nodes.py"),
     ("perf_mapping", "perf_mapping.py"),
     ("perf_layer", "perf_layer.py"),
+    ("perf_layer_choices", "perf_layer_choices.py"),
     ("perf_layer_eevee", "perf_layer_eevee.py"),
     ("perf_layer_edit", "perf_layer_edit.py"),
     ("bench_production", "bench_production.py"),
@@ -190,7 +191,7 @@ def main():
                        frag["perf_mapping"],
                        marked_section("perf_layer", frag["perf_layer"])]
                       + [kept_section(name) if name in KEEP else marked_section(name, frag[name])
-                         for name in ("perf_layer_eevee", "perf_layer_edit", "bench_production",
+                         for name in ("perf_layer_choices", "perf_layer_eevee", "perf_layer_edit", "bench_production",
                                       "perf_import", "bench_real_materials")])
     num = header(
         "Numerics: the haze mapping's hard cases", info, perf_secs, started,
