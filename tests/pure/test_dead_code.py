@@ -13,10 +13,12 @@ from pathlib import Path
 import vulture
 
 ROOT = Path(__file__).resolve().parents[2]
-#: What Blender reads from registered classes (operators, panels, menus, presets, file browsers).
+#: What Blender reads from registered classes (operators, panels, menus, presets, file browsers,
+#: the USD hook).
 BLENDER_NAMES = ["bl_*", "invoke", "modal", "execute", "draw", "poll", "description",
                  "filter_glob", "filename_ext", "preset_menu", "preset_subdir", "preset_defines",
-                 "preset_values", "preset_operator"]
+                 "preset_values", "preset_operator",
+                 "on_material_export", "material_import_poll", "on_material_import"]  # USDHook
 
 
 def test_no_dead_code():
