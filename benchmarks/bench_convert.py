@@ -149,7 +149,7 @@ def run_floor(binputs, boutputs, core, paths, out, outputs):
     oiio = openimageio()
     for name, spec in specs.items():
         if not spec.is_constant:
-            r = binputs._Source(name, spec.role, spec.source).strips(None, warnings, oiio)
+            r = binputs.Source(name, spec.role, spec.source).strips(None, warnings, oiio)
             rows = S.strip_rows(r.width)
             for y0 in range(0, r.height, rows):
                 r.rows(y0, min(r.height, y0 + rows))
@@ -170,7 +170,7 @@ def read_inputs(binputs, core, paths):
     arrays, warnings = {}, []
     for name, spec in specs.items():
         arrays[name] = spec.source if spec.is_constant else \
-            binputs._Source(name, spec.role, spec.source).read(None, warnings)  # whole, via Blender
+            binputs.Source(name, spec.role, spec.source).read(None, warnings)  # whole, via Blender
     return arrays
 
 

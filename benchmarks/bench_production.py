@@ -71,7 +71,7 @@ paths = {"core_reflectivity": folder + "/rc.png", "roughness": folder + "/rough.
          "haziness": folder + "/haze.exr"}
 if mode == "floor":
     specs, _ = core.resolve_inputs(paths)
-    sources = {n: bin_._Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
+    sources = {n: bin_.Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
     report = core.ConversionReport(kind="CONDUCTOR", distribution="GGX", file_format=fmt)
     run = bc._Run(specs, sources, False, False, report, core.Progress(), False, 1 << 18)
     readers, (w, h) = run.open(None)

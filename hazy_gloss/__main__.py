@@ -99,6 +99,8 @@ def build_parser():
     conv.add_argument("--progress", action="store_true",
                       help="show the progress bar on stderr even when it is not a terminal")
     _add_interchange(sub)
+    for command in sub.choices.values():  # (main names a command's own errors by it)
+        command.set_defaults(command_parser=command)
     return parser
 
 
@@ -682,8 +684,7 @@ def main(argv=None):
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra:  # (named by the command they were given to, as argparse's other errors are)
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        sub.choices[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
+        args.command_parser.error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command == "convert":
         return _convert(args)
     if args.command == "export-materialx":

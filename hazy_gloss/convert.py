@@ -38,43 +38,14 @@ from .pbr_sets import PBR_NAME_PARTS, detect_pbr_set, udim_sets
 from .pixels import (linear_to_srgb, resample_axis, resample_block, resample_bilinear,
                      srgb_bytes_to_linear, srgb_to_linear)
 
-__all__ = (
-    "ConversionError",
-    "ConversionOptionError",
-    "InputSpec",
-    "MapSpec",
-    "MappedMaps",
-    "PARAMETERS",
-    "DEFAULTS",
-    "FILE_FORMATS",
-    "resolve_inputs",
-    "output_specs",
-    "map_textures",
-    "encode_png",
-    "decode_png",
-    "srgb_to_linear",
-    "srgb_bytes_to_linear",
-    "linear_to_srgb",
-    "resample_bilinear",
-    "check_sizes",
-    "group_clamped",
-    "ConversionReport",
-    "ConversionResult",
-    "ConversionCancelled",
-    "Progress",
-    "drain",
-    "sanitise_inputs",
-    "is_anisotropic",
-    "describe_maps",
-    "did_you_mean",
-    "format_seconds",
-    "progress_bar",
-    "resample_axis",
-    "resample_block",
-    "PBR_NAME_PARTS",
-    "udim_sets",
-    "detect_pbr_set",
-)
+__all__ = ("ConversionError", "ConversionOptionError", "InputSpec", "MapSpec", "MappedMaps",
+           "PARAMETERS", "DEFAULTS", "FILE_FORMATS", "resolve_inputs", "output_specs",
+           "map_textures", "encode_png", "decode_png", "srgb_to_linear", "srgb_bytes_to_linear",
+           "linear_to_srgb", "resample_bilinear", "check_sizes", "group_clamped", "ConversionReport",
+           "ConversionResult", "ConversionCancelled", "Progress", "drain", "sanitise_inputs",
+           "is_anisotropic", "describe_maps", "did_you_mean", "format_seconds", "progress_bar",
+           "resample_axis", "resample_block", "PBR_NAME_PARTS", "udim_sets", "detect_pbr_set",
+           "add_counts")
 
 FILE_FORMATS = ("OPEN_EXR", "PNG")
 
@@ -349,7 +320,7 @@ class MappedMaps:
     clamped: dict = field(default_factory=dict)  # reason -> texel count
 
 
-def _add_counts(total, new):
+def add_counts(total, new):
     for k, v in new.items():
         total[k] = total.get(k, 0) + int(v)
 
@@ -467,7 +438,7 @@ def map_textures(arrays, *, kind="CONDUCTOR", distribution="GGX", smoothness=Non
         with ThreadPoolExecutor(max_workers=workers) as pool:
             counts = list(pool.map(run_tile, starts))
     for c in counts:  # in tile order: the report does not depend on the thread schedule
-        _add_counts(clamped, c)
+        add_counts(clamped, c)
     return MappedMaps(maps=maps, specs=specs, anisotropic=anisotropic, texels=h * w,
                       clamped=clamped)
 

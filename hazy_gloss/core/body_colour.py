@@ -57,8 +57,9 @@ from .tables import cycles_albedo_tables as _albedo_tables
 from .tables import cycles_ggx_tables as _ggx_tables
 from .multiscatter import cycles_version
 
-__all__ = ("DISTRIBUTIONS", "MAX_ANGLE", "specular_albedo", "albedo_estimate",
-           "kernel_specular", "facing", "body_weights", "factor", "compensation", "BodyColour")
+__all__ = ("DISTRIBUTIONS", "MAX_ANGLE", "specular_albedo", "albedo_estimate", "kernel_specular",
+           "facing", "body_weights", "factor", "compensation", "BodyColour", "generation",
+           "generation_tables")
 
 #: The Principled BSDF's distributions (node enum names).
 DISTRIBUTIONS = ("GGX", "MULTI_GGX")
@@ -71,7 +72,7 @@ _BIG = 1e30
 # --------------------------------------------------------------------------------------------
 
 
-def _generation(version):
+def generation(version):
     return "V53" if cycles_version(version) >= (5, 3) else "V4"
 
 
@@ -81,7 +82,7 @@ def _parse(text, shape):
 
 
 @functools.cache
-def _tables(gen):
+def generation_tables(gen):
     n = 32 if gen == "V53" else 16
     return {"ior_s": _parse(getattr(_albedo_tables, f"IOR_S_{gen}"), (n, n, n)),
             "e": _parse(getattr(_albedo_tables, f"E_{gen}"), (32, 32)),
@@ -204,7 +205,7 @@ def _prepare(alpha_x, alpha_y, mu, ior, tint, level, version):
     shape = ax.shape
     tint_c = np.broadcast_to(tint_c, shape + (tint_c.shape[-1],))
     eta, f0, exists = kernel_specular(ior, level)
-    gen = _generation(version)
+    gen = generation(version)
     rough = np.sqrt(np.sqrt(_saturate(ax) * _saturate(ay)))
     mu = np.where(np.isnan(mu), 0.0, mu)
     y = np.sqrt(np.maximum(mu, 0.0)) if gen == "V53" else mu
@@ -218,7 +219,7 @@ def _estimate(p, version):
     eta = p["eta"]
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
-    s = _read3(_tables(p["gen"])["ior_s"], p["rough"], p["y"], z)
+    s = _read3(generation_tables(p["gen"])["ior_s"], p["rough"], p["y"], z)
     est = p["f0_c"] + (1.0 - p["f0_c"]) * s[..., None]
     if cycles_version(version) < (5, 2):
         # 4.5: no table where microfacet_fresnel(cos_NI) is 0 in every channel: f0 = 0 and the
@@ -234,7 +235,7 @@ def _estimate(p, version):
 
 def _multiscatter(p):
     """The factor microfacet_ggx_preserve_energy puts on the closure weight, per channel."""
-    t = _tables(p["gen"])
+    t = generation_tables(p["gen"])
     eta = p["eta"]
     f0_eta = _f0_from_ior(eta)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -18,21 +18,11 @@ import numpy as np
 from .. import constants as K
 
 # HazeMapping and PerceptualParameters live in mapping_io (split off this module), re-exported.
-from .mapping_io import HazeMapping, PerceptualParameters, _colour, _pair, _Validator, _working_dtype
+from .mapping_io import HazeMapping, PerceptualParameters, colour_array, xy_pair, Validator, working_dtype
 
-__all__ = (
-    "DISTRIBUTIONS",
-    "HazeMapping",
-    "PerceptualParameters",
-    "haze_mapping",
-    "inverse_haze_mapping",
-    "wide_roughness",
-    "peak_ratio",
-    "haze_intensity",
-    "gulbrandsen_ior",
-    "gulbrandsen_inverse",
-    "dielectric_ior",
-)
+__all__ = ("DISTRIBUTIONS", "HazeMapping", "PerceptualParameters", "haze_mapping",
+           "inverse_haze_mapping", "wide_roughness", "peak_ratio", "haze_intensity",
+           "gulbrandsen_ior", "gulbrandsen_inverse", "dielectric_ior", "haze_terms")
 
 #: Lobe distributions the add-on offers, spelled as Blender's node enums (constants'
 #: vocabulary).
@@ -98,11 +88,11 @@ def haze_intensity(core_max, p, q, haziness, smoothness=None):
     Taylor window; this closed form is the same root with no division by b - 1 and no
     cancellation anywhere, and reduces exactly to Eq. 7 at w = ∞.
     """
-    kh, beta, _, _ = _haze_terms(core_max, p, q, haziness, smoothness)
+    kh, beta, _, _ = haze_terms(core_max, p, q, haziness, smoothness)
     return kh, beta
 
 
-def _haze_terms(core_max, p, q, haziness, smoothness=None):
+def haze_terms(core_max, p, q, haziness, smoothness=None):
     """(k̂_h, β, 1 - r̂, 1 - β), the last two without cancellation as r̂ -> 1 or β -> 1
     (see docs/mapping.md §6)."""
     rc = core_max
@@ -166,7 +156,7 @@ def _haze_terms(core_max, p, q, haziness, smoothness=None):
                 omr_hat = np.where(lim0, omr, omr_hat)
                 one_minus_beta = np.where(lim0, dtype.type(1), one_minus_beta)
             if np.any(np.isinf(smoothness)):  # mixed per-texel w with some w = ∞: Eq. 7 there
-                kh7, beta7, omr7, omb7 = _haze_terms(rc, p, q, haziness, None)
+                kh7, beta7, omr7, omb7 = haze_terms(rc, p, q, haziness, None)
                 inf = np.isinf(smoothness)
                 kh = np.where(inf, kh7, kh)
                 beta = np.where(inf, beta7, beta)
@@ -284,13 +274,13 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
                        texel), clamp and count for textures.  True/False forces either.
     """
     distribution = _normalise_distribution(distribution)
-    ax_in, ay_in = _pair(alpha, "alpha")
-    lx_in, ly_in = _pair(haze_extent, "haze_extent")
-    dtype = _working_dtype(core_reflectivity, edge_tint, ax_in, ay_in, haziness, lx_in, ly_in)
+    ax_in, ay_in = xy_pair(alpha, "alpha")
+    lx_in, ly_in = xy_pair(haze_extent, "haze_extent")
+    dtype = working_dtype(core_reflectivity, edge_tint, ax_in, ay_in, haziness, lx_in, ly_in)
     one = dtype.type(1)
 
-    rc = _colour(core_reflectivity, dtype, "core_reflectivity")
-    g = _colour(edge_tint, dtype, "edge_tint")
+    rc = colour_array(core_reflectivity, dtype, "core_reflectivity")
+    g = colour_array(edge_tint, dtype, "edge_tint")
     ax = np.asarray(ax_in, dtype=dtype)
     ay = np.asarray(ay_in, dtype=dtype)
     bh = np.asarray(haziness, dtype=dtype)
@@ -312,7 +302,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
     if scalar:
         shape = (1,)
 
-    v = _Validator(strict)
+    v = Validator(strict)
     big = float(np.finfo(dtype).max)
     rc = v.check(np.broadcast_to(rc, shape + (3,)), "core_reflectivity", 0.0, 1.0, texel_axis=-1)
     g = v.check(np.broadcast_to(g, shape + (3,)), "edge_tint", 0.0, 1.0, texel_axis=-1)
@@ -398,7 +388,7 @@ def haze_mapping(core_reflectivity, edge_tint, alpha, haziness, haze_extent, *,
 
     # -- haze intensity (Eq. 7 / Eqs. 12-15) on the max channel --------------------------------
     rc_max = rc.max(axis=-1)
-    kh, beta, omr_max, one_minus_beta = _haze_terms(rc_max, p, q, bh, w)
+    kh, beta, omr_max, one_minus_beta = haze_terms(rc_max, p, q, bh, w)
 
     # -- Eq. 5 with the core's chroma: r = r_c + (1-p) k̂_h c,  c = r_c / r̂_c ------------------
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -494,13 +484,13 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
     no output is ever NaN or inf.
     """
     distribution = _normalise_distribution(distribution)
-    ax_in, ay_in = _pair(alpha, "alpha")
-    wx_in, wy_in = _pair(alpha_wide, "alpha_wide")
+    ax_in, ay_in = xy_pair(alpha, "alpha")
+    wx_in, wy_in = xy_pair(alpha_wide, "alpha_wide")
     if (reflectivity is None) == (ior is None):
         raise ValueError("give either reflectivity or ior (+ extinction)")
     values = [beta, ax_in, ay_in, wx_in, wy_in, reflectivity, ior, extinction]
-    dtype = _working_dtype(*[x for x in values if x is not None])
-    v = _Validator(strict=False)
+    dtype = working_dtype(*[x for x in values if x is not None])
+    v = Validator(strict=False)
     big = np.finfo(dtype).max
     # invalid inputs (NaN, ±inf, negative where meaningless): counted once per texel and reason,
     # replaced by a neutral value, flagged not exact; the consequences are not counted again
@@ -513,11 +503,11 @@ def inverse_haze_mapping(beta, alpha, alpha_wide, *, reflectivity=None, ior=None
         return bad
 
     if reflectivity is not None:
-        r = _colour(reflectivity, dtype, "reflectivity")
+        r = colour_array(reflectivity, dtype, "reflectivity")
         g = np.zeros_like(r)
     else:
-        eta = _colour(ior, dtype, "ior")
-        kap = _colour(0.0 if extinction is None else extinction, dtype, "extinction")
+        eta = colour_array(ior, dtype, "ior")
+        kap = colour_array(0.0 if extinction is None else extinction, dtype, "extinction")
         with np.errstate(invalid="ignore"):
             bad = screen("ior is NaN, <= 0 or infinite", np.isfinite(eta) & (eta > 0)) \
                 | screen("extinction is NaN, negative or infinite", np.isfinite(kap) & (kap >= 0))

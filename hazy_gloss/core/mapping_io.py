@@ -107,7 +107,7 @@ class PerceptualParameters:
 # --------------------------------------------------------------------------------------------
 
 
-def _working_dtype(*values):
+def working_dtype(*values):
     """float32 if every floating ndarray input is float32 (or float16), else float64."""
     kinds = [np.asarray(v).dtype for v in values
              if isinstance(v, (np.ndarray, np.generic)) and np.asarray(v).dtype.kind == "f"]
@@ -116,7 +116,7 @@ def _working_dtype(*values):
     return np.dtype(np.float64)
 
 
-def _pair(value, name):
+def xy_pair(value, name):
     """``alpha``/``haze_extent``: a tuple or list of two entries is (x, y), else isotropic."""
     if isinstance(value, (tuple, list)):
         if len(value) != 2:
@@ -125,7 +125,7 @@ def _pair(value, name):
     return value, value
 
 
-def _colour(value, dtype, name):
+def colour_array(value, dtype, name):
     arr = np.asarray(value, dtype=dtype)
     if arr.ndim == 0:
         arr = np.broadcast_to(arr, (3,))
@@ -136,7 +136,7 @@ def _colour(value, dtype, name):
     return arr
 
 
-class _Validator:
+class Validator:
     """Clamps invalid entries to the nearest valid value and counts them (texture mode), or
     raises ValueError on the first one (scalar mode)."""
 

@@ -35,12 +35,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .tables import cycles_ggx_tables as _tables
-from .mapping import HazeMapping, _haze_terms, dielectric_ior, gulbrandsen_ior
+from .mapping import HazeMapping, haze_terms, dielectric_ior, gulbrandsen_ior
 
 __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness_index",
            "albedo_normal", "albedo_average", "single_scatter_albedo", "fss_dielectric_exact",
-           "energy_scale",
-           "peak_ratio", "correct_mapping", "peak_factor")
+           "energy_scale", "peak_ratio", "correct_mapping", "peak_factor", "exact_conductor",
+           "generation")
 
 #: Newest Blender whose Cycles this module reproduces; later versions are assumed to match it.
 LATEST = (5, 3)
@@ -76,11 +76,11 @@ def cycles_version(version=None):
     return major, minor
 
 
-def _generation(version):
+def generation(version):
     return "V53" if cycles_version(version) >= (5, 3) else "V4"
 
 
-def _exact_conductor(version):
+def exact_conductor(version):
     """Metallic PHYSICAL_CONDUCTOR evaluates the exact conductor Fresnel from 5.0 on."""
     return cycles_version(version) >= (5, 0)
 
@@ -109,7 +109,7 @@ def albedo_normal(x):
 
 def albedo_average(x, version=None):
     """E_avg(x) = ∫ 2μ E(μ, x) dμ as Cycles reads its table."""
-    return _lookup(_EAVG[_generation(version)], x)
+    return _lookup(_EAVG[generation(version)], x)
 
 
 # --------------------------------------------------------------------------------------------
@@ -159,7 +159,7 @@ def fss_conductor(ior, extinction, version=None, *, exact=None):
     n = np.maximum(np.asarray(ior, np.float64), 0.0)
     k = np.maximum(np.asarray(extinction, np.float64), 0.0)
     if exact is None:
-        exact = _exact_conductor(version)
+        exact = exact_conductor(version)
     f0 = _fresnel_conductor(1.0, n, k, exact)
     f82 = _fresnel_conductor(1.0 / 7.0, n, k, exact)
     b = 7.0 / (_F5 * _F) * (_mix(f0, 1.0, _F5) - f82)  # fresnel_f82_B
@@ -421,7 +421,7 @@ def peak_factor(lobe, alpha, alpha_wide, reflectivity, beta, *, edge_tint=0.0, t
                           for a in (alpha, alpha_wide))
     n, w = _Lobe(roughness_index(nx, ny), version), _Lobe(roughness_index(wx, wy), version)
     tint = np.broadcast_to(np.clip(np.asarray(tint, np.float64), 0.0, 1.0), r.shape)
-    t = _Texels(lobe, _exact_conductor(version), mn=n.missing, en=n.eavg, mw=w.missing,
+    t = _Texels(lobe, exact_conductor(version), mn=n.missing, en=n.eavg, mw=w.missing,
                 ew=w.eavg, p=((nx / wx) * (ny / wy))[..., None],
                 rc=r, g=np.asarray(edge_tint, np.float64), tint=tint,
                 white=np.all(tint == 1.0, axis=-1, keepdims=True))
@@ -558,8 +558,8 @@ def _bezier_share(mapping, flat, rc, p, q, dtype):
     w = flat(mapping.smoothness)
     w = np.where(np.isnan(w) | (w <= 0), np.finfo(dtype).tiny, w)
     rc_max, one = rc.max(axis=-1), np.ones(n)
-    k_w, _, _, _ = _haze_terms(rc_max, p, q, one, w)
-    k_7, _, _, _ = _haze_terms(rc_max, p, q, one, None)
+    k_w, _, _, _ = haze_terms(rc_max, p, q, one, w)
+    k_7, _, _, _ = haze_terms(rc_max, p, q, one, None)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(k_7 > 0, np.clip(k_w / k_7, 0.0, 1.0), 1.0)
 
@@ -571,7 +571,7 @@ def _solve(lobe, version, x_n, x_w, p, rc, g, tint, r0, beta):
     even r = 1 falls short (counted)."""
     narrow, wide = _Lobe(x_n, version), _Lobe(x_w, version)
     white = np.all(tint == 1.0, axis=-1, keepdims=True)
-    t = _Texels(lobe, _exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
+    t = _Texels(lobe, exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
                 mw=wide.missing, ew=wide.eavg, p=p[:, None], rc=rc, g=g, tint=tint, white=white)
     n = len(p)
     rows = np.arange(n)
@@ -631,7 +631,7 @@ def _solve_glossy(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
     β = k̂ / r̂_m; then each channel's r from (*) with that β."""
     narrow, wide = _Lobe(x_n, version), _Lobe(x_w, version)
     white = np.all(tint == 1.0, axis=-1, keepdims=True)
-    t = _Texels(lobe, _exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
+    t = _Texels(lobe, exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
                 mw=wide.missing, ew=wide.eavg, p=p[:, None], rc=rc, g=g, tint=tint, white=white)
     n = len(p)
     rows = np.arange(n)

@@ -27,8 +27,8 @@ _TINY = 1e-12
 
 
 def _tables(version):
-    gen = _bc._generation(version)
-    t = _bc._tables(gen)
+    gen = _bc.generation(version)
+    t = _bc.generation_tables(gen)
     s = t["ior_s"]  # [z][y][x]
     n = s.shape[0]
     return gen, {"ior_s": (s.reshape(n * n, n), n), "e": (t["e"], 32),

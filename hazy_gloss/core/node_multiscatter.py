@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import constants as K
 from .tables import cycles_ggx_tables as _tables
-from .multiscatter import _exact_conductor, _generation
+from .multiscatter import exact_conductor, generation
 from .node_fresnel import TINY, gulbrandsen
 
 __all__ = ("LOBES", "ITERATIONS", "table_stops", "correct", "dielectric_s")
@@ -57,7 +57,7 @@ _DIV_MIN = 1e-30
 def table_stops(version=None):
     """The Color Ramp stops (x = i/31, (E(1, x), E_avg(x), 0)) of Cycles' tables."""
     e = np.asarray(_tables.E_MU1, np.float32)
-    a = np.asarray(_tables.EAVG_V53 if _generation(version) == "V53" else _tables.EAVG_V4, np.float32)
+    a = np.asarray(_tables.EAVG_V53 if generation(version) == "V53" else _tables.EAVG_V4, np.float32)
     return tuple((i / 31.0, (float(e[i]), float(a[i]), 0.0)) for i in range(32))
 
 
@@ -256,7 +256,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
                         g.vmath("MULTIPLY_ADD", om, -_K82 * (1.0 - _F5), 20.0 / 21.0))
         f0 = model(rc)[0]
     elif lobe == "CONDUCTOR":  # the chord from F_ss(r_c) to F_ss(1) = 1, then the exact F_ss
-        exact = _exact_conductor(version)
+        exact = exact_conductor(version)
         f0 = _conductor_fss(g, rc, edge_tint, exact)
         h = g.vmath("DIVIDE", g.vmath("SUBTRACT", f0, rc),
                     g.vmath("MAXIMUM", g.vmath("SUBTRACT", 1.0, rc), TINY))

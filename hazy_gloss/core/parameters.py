@@ -20,7 +20,7 @@ from ..schema import (DEFAULTS, HAZE_DEFAULTS, HAZE_PARAMETERS, PARAMETERS, RANG
 from .lobes import check_kind
 
 __all__ = ("PARAMETERS", "DEFAULTS", "TANGENTS", "HAZE_PARAMETERS", "HAZE_DEFAULTS", "RANGES",
-           "normalise", "normalise_haze", "check_value", "sanitise", "is_anisotropic")
+           "normalise", "normalise_haze", "check_value", "sanitise", "is_anisotropic", "short_repr")
 
 TANGENTS = K.TANGENTS
 
@@ -40,7 +40,7 @@ def _fail(msg):
     raise ValueError(msg)
 
 
-def _short(value, limit=60):
+def short_repr(value, limit=60):
     """repr(value), cut to ``limit`` characters (messages stay one short line)."""
     text = repr(value).replace("\n", " ")
     return text if len(text) <= limit else text[:limit - 3] + "..."
@@ -64,18 +64,18 @@ def _refuse_string(name, text, expected, group=None):
         hint = f" (write the {group[0]} ({', '.join(f'{v:g}' for v in nums)}))"
     elif nums and len(nums) == 1:
         hint = f" (write {nums[0]:g}, a number, not a string)"
-    _fail(f"{name} must be {expected}, got the string {_short(text)}{hint}")
+    _fail(f"{name} must be {expected}, got the string {short_repr(text)}{hint}")
 
 
 def _number(name, value):
     if isinstance(value, str):
         _refuse_string(name, value, "a number")
     if isinstance(value, bool) or value is None:
-        _fail(f"{name} must be a number, got {_short(value)}")
+        _fail(f"{name} must be a number, got {short_repr(value)}")
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):
-        _fail(f"{name} must be a number, got {_short(value)}")
+        _fail(f"{name} must be a number, got {short_repr(value)}")
     if math.isnan(x):
         _fail(f"{name} is NaN")
     return x
@@ -98,19 +98,19 @@ def _colour(name, value):
     if isinstance(value, str):
         _refuse_string(name, value, "a number or an RGB triple of numbers", ("tuple", 3))
     if isinstance(value, dict) or value is None:
-        _fail(f"{name} must be a number or an RGB triple of numbers, got {_short(value)}")
+        _fail(f"{name} must be a number or an RGB triple of numbers, got {short_repr(value)}")
     if np.ndim(value) == 0 and not isinstance(value, (list, tuple)):
         rgb = (_number(name, value),) * 3
     else:
         try:
             items = list(value)
         except TypeError:
-            _fail(f"{name} must be a number or an RGB triple, got {_short(value)}")
+            _fail(f"{name} must be a number or an RGB triple, got {short_repr(value)}")
         if len(items) == 4:  # RGBA from a colour socket or FloatVectorProperty: alpha ignored
             items = items[:3]
         if len(items) != 3:
             _fail(f"{name} must be a number or an RGB triple, got {len(items)} "
-                  f"value{'s' if len(items) != 1 else ''} {_short(tuple(items))}")
+                  f"value{'s' if len(items) != 1 else ''} {short_repr(tuple(items))}")
         rgb = tuple(_number(name, v) for v in items)
     lo, hi = RANGES[name]
     if any(x < lo or x > hi for x in rgb):
@@ -126,10 +126,10 @@ def _extent(value, name="haze_extent"):
         _refuse_string(name, value, "a number or an (x, y) pair of numbers", ("pair", 2))
     if isinstance(value, (tuple, list, np.ndarray)):
         if len(value) != 2:
-            hint = f" (for one extent in both directions write {name}={_short(value[0])})" \
+            hint = f" (for one extent in both directions write {name}={short_repr(value[0])})" \
                 if len(value) == 1 else ""
             _fail(f"{name} must be a number or an (x, y) pair, got {len(value)} "
-                  f"value{'s' if len(value) != 1 else ''} {_short(tuple(value))}{hint}")
+                  f"value{'s' if len(value) != 1 else ''} {short_repr(tuple(value))}{hint}")
         x, y = (_in_range(name, _number(name, v)) for v in value)
         return (x, y)
     x = _in_range(name, _number(name, value))
@@ -143,7 +143,7 @@ _KIND_WORDS = {"METAL": "CONDUCTOR", "METALLIC": "CONDUCTOR", "PLASTIC": "DIELEC
 
 def _choice(name, value, options):
     if not isinstance(value, str):
-        _fail(f"{name} must be one of {', '.join(options)} (a string), got {_short(value)}")
+        _fail(f"{name} must be one of {', '.join(options)} (a string), got {short_repr(value)}")
     v = value.upper().replace(" ", "_").replace("-", "_")
     if v in ("MULTISCATTER_GGX", "MULTI_SCATTER_GGX"):
         v = "MULTI_GGX"
@@ -152,7 +152,7 @@ def _choice(name, value, options):
         if not close and name == "kind" and v in _KIND_WORDS:
             close = [_KIND_WORDS[v]]
         hint = f" (did you mean {close[0]}?)" if close else ""
-        _fail(f"{name} must be one of {', '.join(options)}, got {_short(value)}{hint}")
+        _fail(f"{name} must be one of {', '.join(options)}, got {short_repr(value)}{hint}")
     return v
 
 
@@ -240,7 +240,7 @@ def _flag(name, value):
     if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer))
                                                and value in (0, 1)):
         return bool(value)
-    _fail(f"{name} must be True or False, got {_short(value)}")
+    _fail(f"{name} must be True or False, got {short_repr(value)}")
 
 
 def check_value(name, value):
@@ -260,7 +260,7 @@ def check_value(name, value):
         if isinstance(value, (tuple, list, np.ndarray)) and not isinstance(value, str):
             if len(value) != 1:
                 _fail(f"coat_haze_extent must be a number (the coat's halo is isotropic), got "
-                      f"{len(value)} values {_short(tuple(value))}")
+                      f"{len(value)} values {short_repr(tuple(value))}")
             value = value[0]
         return _in_range(name, _number(name, value))
     if p.type == "bool":

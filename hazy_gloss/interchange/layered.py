@@ -42,9 +42,9 @@ import numpy as np
 from .. import constants as K
 from ..core import gulbrandsen_inverse
 from .document import Input, NodeGraph, valid_name
-from .layered_tree import (_GLOSSY, _METALLIC, _MX_TYPE, _PRINCIPLED, COLORSPACES, LUMA, BNode,
+from .layered_tree import (GLOSSY, METALLIC, MX_TYPE, PRINCIPLED, COLORSPACES, LUMA, BNode,
                            Socket, Tree)
-from .layered_values import V, ValueWriter, _c, _fmt, _tangent_kind
+from .layered_values import V, ValueWriter, mx_constant, format_value, tangent_kind
 from .openpbr_corrections import (coat_eta, coat_ior_inverse, coat_roughening,
                                   coat_roughness_inverse, glossy_alpha, openpbr_alpha,
                                   openpbr_inverse, principled_alpha)
@@ -73,7 +73,7 @@ class Writer(ValueWriter):
         value, residual = inverse(*(v.const for v in values))
         if abs(residual) > 1e-6:
             self.note(note(residual))
-        return _c("float", value)
+        return mx_constant("float", value)
 
     def shader(self, sock):
         """("bsdf" | "edf" | "surface", Node) of a shader socket, or None (no closure)."""
@@ -103,15 +103,15 @@ class Writer(ValueWriter):
         if node.mute:
             self.note(f"muted shader “{node.name}”: not exported")
             return None
-        if t == _PRINCIPLED:
+        if t == PRINCIPLED:
             n = self.principled(node)
             self.surfaces[node.name] = n
             return ("surface", n)
-        if t == _METALLIC:
+        if t == METALLIC:
             n = self.metallic(node)
             self.surfaces[node.name] = n
             return ("bsdf", n)
-        if t in _GLOSSY:
+        if t in GLOSSY:
             n = self.glossy(node)
             self.surfaces[node.name] = n
             return ("bsdf", n)
@@ -216,7 +216,7 @@ class Writer(ValueWriter):
             self.note(f"Glossy BSDF “{node.name}”: textured roughness / anisotropy written with the "
                       f"Metallic convention α = roughness_anisotropy(R, 0.9 a)")
         r = self.clamp(r, base=node.name + "_rough")
-        a = self.mul(self.clamp(a, base=node.name + "_aniso"), _c("float", 0.9), node.name + "_aniso09")
+        a = self.mul(self.clamp(a, base=node.name + "_aniso"), mx_constant("float", 0.9), node.name + "_aniso09")
         return V("vector2", node=self.node("ND_roughness_anisotropy", node.name + "_alpha",
                                            roughness=r, anisotropy=a)), True
 
@@ -231,7 +231,7 @@ class Writer(ValueWriter):
         if not aniso:
             return None
         src, _ = self._follow(node.input("Tangent"))
-        kind = _tangent_kind(src) if src is not None and src.type == "ShaderNodeTangent" else "RADIAL_Z"
+        kind = tangent_kind(src) if src is not None and src.type == "ShaderNodeTangent" else "RADIAL_Z"
         if src is not None and src.type != "ShaderNodeTangent":
             self.note(f"the Tangent of “{node.name}” comes from “{src.name}”: written as a UV tangent")
             kind = "UV_MAP"
@@ -256,7 +256,7 @@ class Writer(ValueWriter):
     def glossy(self, node):
         alpha, aniso = self._alpha(node, glossy_alpha, "Roughness", "Anisotropy")
         tangent = self._tangent(node, "Rotation", aniso)
-        col = self.maximum(self._in(node, "Color", "color3"), _c("color3", 0.0), node.name + "_colour")
+        col = self.maximum(self._in(node, "Color", "color3"), mx_constant("color3", 0.0), node.name + "_colour")
         kw = dict(weight=1.0, roughness=alpha, distribution=self._dist(node), **self.normal_kw(node, "Normal"))
         if tangent is not None:
             kw["tangent"] = tangent
@@ -270,19 +270,19 @@ class Writer(ValueWriter):
         sat = lambda v, nm: self.clamp(v, base=f"{n}_{nm}")  # noqa: E731
         metallic = sat(val("Metallic"), "metallic")
         rough, aniso = sat(val("Roughness"), "rough"), sat(val("Anisotropic"), "aniso")
-        coat_w = self.maximum(val("Coat Weight"), _c("float", 0.0), n + "_coat_w")
+        coat_w = self.maximum(val("Coat Weight"), mx_constant("float", 0.0), n + "_coat_w")
         coat_r = sat(val("Coat Roughness"), "coat_rough")
-        coat_ior = self.maximum(val("Coat IOR"), _c("float", 1.0), n + "_coat_ior")
-        ior = self.maximum(val("IOR"), _c("float", 1e-5), n + "_ior")
-        level = self.maximum(val("Specular IOR Level"), _c("float", 0.0), n + "_level")
+        coat_ior = self.maximum(val("Coat IOR"), mx_constant("float", 1.0), n + "_coat_ior")
+        ior = self.maximum(val("IOR"), mx_constant("float", 1e-5), n + "_ior")
+        level = self.maximum(val("Specular IOR Level"), mx_constant("float", 0.0), n + "_level")
         coated = not (coat_w.is_const and float(coat_w.const) == 0.0)
         # α: OpenPBR keeps α_x = r² √(2/(1+(1-a)²)), α_y = (1-a) α_x; Cycles α_x = R²/s, α_y = R² s
         if rough.is_const and aniso.is_const:
             ax, ay = principled_alpha(rough.const, aniso.const)
             r_e, a_o = openpbr_inverse(ax, ay)
-            r_e, a_o = _c("float", r_e), _c("float", a_o)
+            r_e, a_o = mx_constant("float", r_e), mx_constant("float", a_o)
         elif aniso.is_const and float(aniso.const) == 0.0:
-            r_e, a_o = rough, _c("float", 0.0)
+            r_e, a_o = rough, mx_constant("float", 0.0)
         else:
             r_e, a_o = self._openpbr_inverse_nodes(rough, aniso, n)
         # under a coat: undo OpenPBR's roughening and its coat-relative base IOR
@@ -290,18 +290,18 @@ class Writer(ValueWriter):
             r_e = self.inverse_of_constants(
                 coat_roughness_inverse, (r_e, coat_r, coat_w),
                 lambda res: f"“{n}”: the coat roughens OpenPBR's base beyond its roughness "
-                            f"{_fmt(r_e.const)} (coat roughness {_fmt(coat_r.const)}): written at 0") \
+                            f"{format_value(r_e.const)} (coat roughness {format_value(coat_r.const)}): written at 0") \
                 or self._uncoated_roughness_nodes(r_e, coat_r, coat_w, n)
             ior = self.inverse_of_constants(
                 coat_ior_inverse, (ior, coat_ior, coat_w),
                 lambda res: f"“{n}”: no specular_ior gives OpenPBR's coat-relative IOR "
-                            f"{_fmt(ior.const)}: off by {res:.3g}") \
+                            f"{format_value(ior.const)}: off by {res:.3g}") \
                 or self._uncoated_ior_nodes(ior, coat_ior, coat_w, n)
         # specular_weight: Principled's Specular IOR Level acts on the dielectric only
         if metallic.is_const and float(metallic.const) >= 1.0:
-            spec_w = _c("float", 1.0)
+            spec_w = mx_constant("float", 1.0)
         else:
-            spec_w = self.mul(level, _c("float", 2.0), n + "_spec_w")
+            spec_w = self.mul(level, mx_constant("float", 2.0), n + "_spec_w")
             if not metallic.is_const or float(metallic.const) > 0.0:
                 if not (level.is_const and float(level.const) == 0.5):
                     self.note(f"“{n}”: OpenPBR's specular_weight (2 × Specular IOR Level) also scales "
@@ -311,7 +311,7 @@ class Writer(ValueWriter):
             tint = self.clamp(tint, base=n + "_tint")  # Cycles' F82 tint is min(tint, 1)
         s = self.node("ND_open_pbr_surface_surfaceshader", n)
         put = lambda k, v: self.put(s, k, v)  # noqa: E731
-        put("base_weight", _c("float", 1.0))
+        put("base_weight", mx_constant("float", 1.0))
         put("base_color", val("Base Color", "color3"))
         if node.input("Diffuse Roughness") is not None:
             put("base_diffuse_roughness", sat(val("Diffuse Roughness"), "diffuse_rough"))
@@ -335,14 +335,14 @@ class Writer(ValueWriter):
         put("subsurface_radius_scale", val("Subsurface Radius", "color3"))
         if node.input("Subsurface Anisotropy") is not None:
             put("subsurface_scatter_anisotropy", val("Subsurface Anisotropy"))
-        put("fuzz_weight", self.maximum(val("Sheen Weight"), _c("float", 0.0), n + "_sheen"))
+        put("fuzz_weight", self.maximum(val("Sheen Weight"), mx_constant("float", 0.0), n + "_sheen"))
         put("fuzz_color", val("Sheen Tint", "color3"))
         put("fuzz_roughness", sat(val("Sheen Roughness"), "sheen_rough"))
         put("coat_weight", coat_w)
         put("coat_color", val("Coat Tint", "color3"))
         put("coat_roughness", coat_r)
         put("coat_ior", coat_ior)
-        put("coat_darkening", _c("float", 0.0))
+        put("coat_darkening", mx_constant("float", 0.0))
         put("emission_luminance", val("Emission Strength"))
         put("emission_color", val("Emission Color", "color3"))
         if node.input("Thin Film Thickness") is not None:
@@ -352,11 +352,11 @@ class Writer(ValueWriter):
                           f"specular_ior the layer raised); Cycles' film reflectance differs "
                           f"(docs/thin-film.md)")
             if thick.is_const:
-                put("thin_film_weight", _c("float", 1.0 if float(thick.const) > 0.1 else 0.0))
+                put("thin_film_weight", mx_constant("float", 1.0 if float(thick.const) > 0.1 else 0.0))
             else:
-                put("thin_film_weight", self.select("ifgreater", thick, _c("float", 0.1), _c("float", 1.0),
-                                                    _c("float", 0.0), n + "_film_on"))
-            put("thin_film_thickness", self.mul(thick, _c("float", 0.001), n + "_film_um"))
+                put("thin_film_weight", self.select("ifgreater", thick, mx_constant("float", 0.1), mx_constant("float", 1.0),
+                                                    mx_constant("float", 0.0), n + "_film_on"))
+            put("thin_film_thickness", self.mul(thick, mx_constant("float", 0.001), n + "_film_um"))
             put("thin_film_ior", val("Thin Film IOR"))
         put("geometry_opacity", sat(val("Alpha"), "alpha"))
         for key, inp in (("Normal", "geometry_normal"), ("Coat Normal", "geometry_coat_normal")):
@@ -379,8 +379,8 @@ class Writer(ValueWriter):
         mix(r, (max(r⁴ - 2 c⁴, 0))^¼, w)."""
         r4 = self.mul(self.mul(r_e, r_e, n + "_r2"), self.mul(r_e, r_e, n + "_r2b"), n + "_r4")
         c2 = self.mul(coat_r, coat_r, n + "_c2")
-        c4 = self.mul(self.mul(c2, c2, n + "_c4"), _c("float", 2.0), n + "_2c4")
-        inner = self.maximum(self.sub(r4, c4, n + "_r4c4"), _c("float", 0.0), n + "_pos")
+        c4 = self.mul(self.mul(c2, c2, n + "_c4"), mx_constant("float", 2.0), n + "_2c4")
+        inner = self.maximum(self.sub(r4, c4, n + "_r4c4"), mx_constant("float", 0.0), n + "_pos")
         un = self.sqrt(self.sqrt(inner, n + "_q2"), n + "_q4")
         if not coat_w.is_const:
             self.note(f"“{n}”: textured Coat Weight: OpenPBR's coat roughening and base IOR "
@@ -391,17 +391,17 @@ class Writer(ValueWriter):
         """OpenPBR's coat-relative base IOR undone in nodes, the branch η_o ≥ η_c:
         η / ((1-w) + w/η_c)."""
         w = self.clamp(coat_w, base=n + "_coat_wi")
-        den = self.add(self.sub(_c("float", 1.0), w, n + "_1mw"), self.div(w, coat_ior, n + "_w_c"),
+        den = self.add(self.sub(mx_constant("float", 1.0), w, n + "_1mw"), self.div(w, coat_ior, n + "_w_c"),
                        n + "_den")
         return self.div(ior, den, n + "_ior_coated")
 
     def _openpbr_inverse_nodes(self, rough, aniso, n):
         """Node form of openpbr_inverse(principled_alpha(R, A)) (α clamps at 1 not modelled)."""
-        s2 = self.sub(_c("float", 1.0), self.mul(aniso, _c("float", 0.9), n + "_a09"), n + "_s2")
-        a_o = self.sub(_c("float", 1.0), s2, n + "_aniso_o")
+        s2 = self.sub(mx_constant("float", 1.0), self.mul(aniso, mx_constant("float", 0.9), n + "_a09"), n + "_s2")
+        a_o = self.sub(mx_constant("float", 1.0), s2, n + "_aniso_o")
         # r_e = R ((1 + s⁴) / (2 s²))^¼
         s4 = self.mul(s2, s2, n + "_s4")
-        q = self.div(self.add(s4, _c("float", 1.0), n + "_1ps4"), self.mul(s2, _c("float", 2.0), n + "_2s2"),
+        q = self.div(self.add(s4, mx_constant("float", 1.0), n + "_1ps4"), self.mul(s2, mx_constant("float", 2.0), n + "_2s2"),
                      n + "_q")
         r_e = self.mul(rough, self.sqrt(self.sqrt(q, n + "_q2"), n + "_q4"), n + "_rough_o")
         return r_e, a_o
@@ -469,7 +469,7 @@ def layer_record(tree, writer=None):
                 sock = core.input(name)
                 probe = Socket(sock.identifier if sock else name, name, sock.type if sock else "VALUE",
                                None, tuple(b["link"]), True, False, core.name)
-                v = writer.value(probe, _MX_TYPE.get(probe.type, "float"))
+                v = writer.value(probe, MX_TYPE.get(probe.type, "float"))
                 if v is not None and not v.is_const:
                     base[name] = {"node": v.node.name, "output": v.output}
                 elif v is not None:
@@ -504,13 +504,13 @@ def preview_values(tree):
     rgb = lambda v: tuple(float(x) for x in np.broadcast_to(np.asarray(v, float).reshape(-1)[:3], 3))  # noqa: E731
     out = dict(metallic=1.0, roughness=float(u("Roughness")), ior=1.5, clearcoat=0.0,
                clearcoatRoughness=0.01, opacity=1.0, emissiveColor=(0.0, 0.0, 0.0))
-    if core.type == _PRINCIPLED:
+    if core.type == PRINCIPLED:
         out.update(metallic=min(max(float(u("Metallic")), 0.0), 1.0), diffuseColor=rgb(u("Base Color")),
                    ior=float(u("IOR", 1.5)), clearcoat=min(max(float(u("Coat Weight")), 0.0), 1.0),
                    clearcoatRoughness=float(u("Coat Roughness", 0.03)),
                    opacity=min(max(float(u("Alpha", 1.0)), 0.0), 1.0),
                    emissiveColor=tuple(c * float(u("Emission Strength")) for c in rgb(u("Emission Color", (1, 1, 1)))))
-    elif core.type == _METALLIC:
+    elif core.type == METALLIC:
         if core.props.get("fresnel_type") == "PHYSICAL_CONDUCTOR":
             r, _ = gulbrandsen_inverse(np.maximum(np.asarray(rgb(u("IOR")), float), 0.0),
                                        np.maximum(np.asarray(rgb(u("Extinction")), float), 0.0))

@@ -19,13 +19,13 @@ COLORSPACES = {"sRGB": K.MATERIALX_SRGB_COLORSPACE, "Non-Color": K.MATERIALX_DAT
                "ACES2065-1": "lin_ap0", "Linear Rec.2020": "lin_rec2020",
                "Rec.2020": "lin_rec2020", "Linear DCI-P3 D65": "lin_displayp3",
                "Display P3": "srgb_displayp3", "Linear FilmLight E-Gamut": None}
-_ADDRESS = {"REPEAT": "periodic", "EXTEND": "clamp", "CLIP": "constant", "MIRROR": "mirror"}
-_FILTER = {"Linear": "linear", "Closest": "closest", "Cubic": "cubic", "Smart": "cubic"}
-_MX_TYPE = {"VALUE": "float", "RGBA": "color3", "VECTOR": "vector3", "INT": "float",
+ADDRESS = {"REPEAT": "periodic", "EXTEND": "clamp", "CLIP": "constant", "MIRROR": "mirror"}
+FILTER = {"Linear": "linear", "Closest": "closest", "Cubic": "cubic", "Smart": "cubic"}
+MX_TYPE = {"VALUE": "float", "RGBA": "color3", "VECTOR": "vector3", "INT": "float",
             "BOOLEAN": "float"}
-_PRINCIPLED = "ShaderNodeBsdfPrincipled"
-_METALLIC = "ShaderNodeBsdfMetallic"
-_GLOSSY = ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
+PRINCIPLED = "ShaderNodeBsdfPrincipled"
+METALLIC = "ShaderNodeBsdfMetallic"
+GLOSSY = ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ from .. import constants as K
 from ..core.graph import ramp_table
 from .builder import Builder
 from .document import NODEDEFS, Node, valid_name
-from .layered_tree import _ADDRESS, _FILTER, _MX_TYPE, COLORSPACES, LUMA
+from .layered_tree import ADDRESS, FILTER, MX_TYPE, COLORSPACES, LUMA
 
 
 # --------------------------------------------------------------------------------------------
@@ -48,7 +48,7 @@ class V:
 _WIDTH = {"float": 1, "vector2": 2, "vector3": 3, "color3": 3, "color4": 4}
 
 
-def _c(type_, value):
+def mx_constant(type_, value):
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     n = _WIDTH[type_]
     if arr.size == 1 and n > 1:
@@ -124,7 +124,7 @@ class ValueWriter:
     def _bin(self, cat, a, b, base, fold):
         t = a.type if a.type != "float" else b.type
         if a.is_const and b.is_const:
-            return _c(t, fold(self.convert(a, t).array(), self.convert(b, t).array()))
+            return mx_constant(t, fold(self.convert(a, t).array(), self.convert(b, t).array()))
         calc = t if t == "float" or f"ND_{cat}_{t}" in NODEDEFS else "vector3"
         a2, b2 = self.convert(a, calc), b
         if not (b.type == "float" and calc != "float" and f"ND_{cat}_{calc}FA" in NODEDEFS):
@@ -155,12 +155,12 @@ class ValueWriter:
             bv = np.broadcast_to(b.array(), (_WIDTH[t],) if t != "float" else ())
             if np.all(bv != 0):
                 if a.is_const:
-                    return _c(t, a.array() / bv)
+                    return mx_constant(t, a.array() / bv)
                 return V(t, node=self.node(self._nd("divide", t), base, in1=self.convert(a, t),
-                                           in2=_c(t, bv)))
+                                           in2=mx_constant(t, bv)))
             if a.is_const:
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    return _c(t, np.where(bv != 0, a.array() / np.where(bv != 0, bv, 1.0), 0.0))
+                    return mx_constant(t, np.where(bv != 0, a.array() / np.where(bv != 0, bv, 1.0), 0.0))
         if t == "float":
             q = self.node("ND_divide_float", base, in1=a, in2=b)
             return V("float", node=self.node("ND_ifequal_float", base + "_safe", value1=b,
@@ -176,24 +176,24 @@ class ValueWriter:
 
     def clamp(self, a, lo=0.0, hi=1.0, base="clamp"):
         """Numbers or (Clamp node with linked bounds) float Vs for ``lo``, ``hi``."""
-        bounds = [b if isinstance(b, V) else _c("float", float(b)) for b in (lo, hi)]
+        bounds = [b if isinstance(b, V) else mx_constant("float", float(b)) for b in (lo, hi)]
         if a.is_const and all(b.is_const for b in bounds):
-            return _c(a.type, np.clip(a.array(), float(bounds[0].const), float(bounds[1].const)))
+            return mx_constant(a.type, np.clip(a.array(), float(bounds[0].const), float(bounds[1].const)))
         t = a.type if a.type in ("float", "vector3") else "vector3"
         a2 = self.convert(a, t)
-        low, high = (_c(t, float(b.const)) if b.is_const else self.convert(b, t) for b in bounds)
+        low, high = (mx_constant(t, float(b.const)) if b.is_const else self.convert(b, t) for b in bounds)
         out = V(t, node=self.node(f"ND_clamp_{t}", base, **{"in": a2}, low=low, high=high))
         return self.convert(out, a.type)
 
     def unary(self, cat, a, base, fold):
         if a.is_const:
-            return _c(a.type, fold(a.array()))
+            return mx_constant(a.type, fold(a.array()))
         t = a.type if a.type in ("float", "vector3") else "vector3"
         return self.convert(V(t, node=self.node(f"ND_{cat}_{t}", base, **{"in": self.convert(a, t)})),
                             a.type)
 
     def sqrt(self, a, base="sqrt"):
-        return self.unary("sqrt", self.maximum(a, _c(a.type, 0.0), base + "_nonneg"), base, np.sqrt)
+        return self.unary("sqrt", self.maximum(a, mx_constant(a.type, 0.0), base + "_nonneg"), base, np.sqrt)
 
     def power(self, a, b, base="power"):
         """Cycles' safe_powf: 0 for a negative base with a non-integer exponent."""
@@ -203,7 +203,7 @@ class ValueWriter:
             av, bv = a.array(), np.broadcast_to(self.convert(b, t).array(), a.array().shape)
             with np.errstate(all="ignore"):
                 bad = (av < 0) & (bv != np.trunc(bv))
-                return _c(t, np.where(bad, 0.0, np.power(np.where(bad, 1.0, av), bv)))
+                return mx_constant(t, np.where(bad, 0.0, np.power(np.where(bad, 1.0, av), bv)))
         if b.is_const and np.all(b.array() == np.ravel(b.array())[0]):
             e = float(np.ravel(b.array())[0])
             if e == 1.0:
@@ -214,17 +214,17 @@ class ValueWriter:
                 return self.sqrt(a, base)
             if e == int(e):  # an integer power of any base: |a|^e, negated for odd e and a < 0
                 p = V(t, node=self.node(f"ND_power_{t}", base, in1=self.unary("absval", a, base + "_abs", np.abs),
-                                        in2=_c(t, e)))
+                                        in2=mx_constant(t, e)))
                 if int(e) % 2:
                     if t != "float":
                         lanes = [self.power(self.lane(a, i), b, f"{base}_{'xyz'[i]}") for i in range(3)]
                         return self.combine(lanes, base)
-                    neg = self.mul(p, _c("float", -1.0), base + "_neg")
-                    p = self.select("ifgreatereq", a, _c("float", 0.0), p, neg, base + "_signed")
+                    neg = self.mul(p, mx_constant("float", -1.0), base + "_neg")
+                    p = self.select("ifgreatereq", a, mx_constant("float", 0.0), p, neg, base + "_signed")
                 return p
             if e > 0:  # a negative base gives 0: power(max(a, 0), e)
-                return V(t, node=self.node(f"ND_power_{t}", base, in1=self.maximum(a, _c(t, 0.0), base + "_nonneg"),
-                                           in2=_c(t, e)))
+                return V(t, node=self.node(f"ND_power_{t}", base, in1=self.maximum(a, mx_constant(t, 0.0), base + "_nonneg"),
+                                           in2=mx_constant(t, e)))
         if t != "float":
             lanes = [self.power(self.lane(a, i), self.lane(b, i), f"{base}_{'xyz'[i]}") for i in range(3)]
             return self.combine(lanes, base)
@@ -233,11 +233,11 @@ class ValueWriter:
                                       in2=b))
         odd = self.node("ND_modulo_float", base + "_odd", in1=self.unary("absval", b, base + "_babs", np.abs),
                         in2=2.0)
-        sign = self.sub(_c("float", 1.0), self.mul(V("float", node=odd), _c("float", 2.0), base + "_2odd"),
+        sign = self.sub(mx_constant("float", 1.0), self.mul(V("float", node=odd), mx_constant("float", 2.0), base + "_2odd"),
                         base + "_parity")
         neg = self.select("ifequal", self.unary("floor", b, base + "_floor", np.floor), b,
-                          self.mul(p, sign, base + "_negbase"), _c("float", 0.0), base + "_int")
-        return self.select("ifgreatereq", a, _c("float", 0.0), p, neg, base + "_safe")
+                          self.mul(p, sign, base + "_negbase"), mx_constant("float", 0.0), base + "_int")
+        return self.select("ifgreatereq", a, mx_constant("float", 0.0), p, neg, base + "_safe")
 
     def select(self, cat, v1, v2, a, b, base):
         """ifgreater / ifgreatereq / ifequal(value1, value2): a when true, else b."""
@@ -266,7 +266,7 @@ class ValueWriter:
             if tv == 1.0:
                 return self.convert(b, typ)
             if a.is_const and b.is_const:
-                return _c(typ, (1.0 - tv) * self.convert(a, typ).array() + tv * self.convert(b, typ).array())
+                return mx_constant(typ, (1.0 - tv) * self.convert(a, typ).array() + tv * self.convert(b, typ).array())
         nt = typ if typ in ("float", "vector3", "color3") else "vector3"
         nd = f"ND_mix_{nt}" if t.type == "float" else "ND_mix_vector3_vector3"  # (per lane)
         if t.type != "float":
@@ -308,9 +308,9 @@ class ValueWriter:
                     return V("float", float(np.dot(arr[:3], LUMA)))
                 return V("float", float(np.mean(arr[:3])))
             if arr.size == 1:
-                return _c(to, arr[0])
+                return mx_constant(to, arr[0])
             out = list(arr[:3]) + ([1.0] if to == "color4" else [])
-            return _c(to, out[:_WIDTH[to]])
+            return mx_constant(to, out[:_WIDTH[to]])
         if to == "float":
             weights = LUMA if v.type in ("color3", "color4") else (1 / 3, 1 / 3, 1 / 3)
             return self.dot(v, V("vector3", weights), f"{v.node.name}_to_float")
@@ -351,8 +351,8 @@ class ValueWriter:
             v = sock.value
             if v is None:
                 v = 0.0
-            t = _MX_TYPE.get(sock.type, "float")
-            return self.convert(_c(t, v), to)
+            t = MX_TYPE.get(sock.type, "float")
+            return self.convert(mx_constant(t, v), to)
         key = (node.name, out.identifier if out is not None else "", to)
         if key not in self._values:
             self.stack.append(node.name)
@@ -367,8 +367,8 @@ class ValueWriter:
                 owner = f"“{sock.node}”" if sock.node else "a node"
                 self.note(f"“{sock.name}” of {owner} is linked from “{node.name}” "
                           f"({node.type.replace('ShaderNode', '')}), which is not exported: "
-                          f"written at the socket's own value {_fmt(v)}")
-                got = _c(_MX_TYPE.get(sock.type, "float"), v)
+                          f"written at the socket's own value {format_value(v)}")
+                got = mx_constant(MX_TYPE.get(sock.type, "float"), v)
             self._values[key] = self.convert(got, to)
         return self._values[key]
 
@@ -382,10 +382,10 @@ class ValueWriter:
             self.note(f"muted node “{node.name}”: exported at the linked socket's value")
             return None
         if t == "ShaderNodeValue":
-            return _c("float", node.outputs[0].value if node.outputs and node.outputs[0].value is not None
+            return mx_constant("float", node.outputs[0].value if node.outputs and node.outputs[0].value is not None
                       else node.props.get("value", 0.0))
         if t == "ShaderNodeRGB":
-            return _c("color3", node.outputs[0].value if node.outputs[0].value is not None else (0, 0, 0))
+            return mx_constant("color3", node.outputs[0].value if node.outputs[0].value is not None else (0, 0, 0))
         if t == "ShaderNodeTexImage":
             return self.image(node, oid)
         if t == "ShaderNodeTexEnvironment":
@@ -419,7 +419,7 @@ class ValueWriter:
         if t == "ShaderNodeNormalMap":
             return self.normal_map(node)
         if t == "ShaderNodeTangent":
-            return V("vector3", node=self.tangent_node(_tangent_kind(node)))
+            return V("vector3", node=self.tangent_node(tangent_kind(node)))
         if t == "ShaderNodeClamp":
             lo, hi = self._in(node, "Min"), self._in(node, "Max")
             if node.props.get("clamp_type", "MINMAX") != "MINMAX":
@@ -433,11 +433,11 @@ class ValueWriter:
     def math(self, node):
         op = node.props.get("operation", "ADD")
         ins = [s for s in node.inputs if s.enabled]
-        a = self.value(ins[0]) if ins else _c("float", 0.0)
-        b = self.value(ins[1]) if len(ins) > 1 else _c("float", 0.0)
-        c = self.value(ins[2]) if len(ins) > 2 else _c("float", 0.0)
+        a = self.value(ins[0]) if ins else mx_constant("float", 0.0)
+        b = self.value(ins[1]) if len(ins) > 1 else mx_constant("float", 0.0)
+        c = self.value(ins[2]) if len(ins) > 2 else mx_constant("float", 0.0)
         n = node.name
-        one, zero = _c("float", 1.0), _c("float", 0.0)
+        one, zero = mx_constant("float", 1.0), mx_constant("float", 0.0)
         r = {"ADD": lambda: self.add(a, b, n), "SUBTRACT": lambda: self.sub(a, b, n),
              "MULTIPLY": lambda: self.mul(a, b, n), "DIVIDE": lambda: self.div(a, b, n),
              "MULTIPLY_ADD": lambda: self.add(self.mul(a, b, n + "_mul"), c, n),
@@ -446,7 +446,7 @@ class ValueWriter:
              "LESS_THAN": lambda: self.select("ifgreater", b, a, one, zero, n),
              "GREATER_THAN": lambda: self.select("ifgreater", a, b, one, zero, n),
              "COMPARE": lambda: self.select("ifgreatereq",
-                                            self.maximum(c, _c("float", float(np.finfo(np.float32).eps)), n + "_eps"),
+                                            self.maximum(c, mx_constant("float", float(np.finfo(np.float32).eps)), n + "_eps"),
                                             self.unary("absval", self.sub(a, b, n + "_diff"), n + "_abs", np.abs),
                                             one, zero, n),
              "ABSOLUTE": lambda: self.unary("absval", a, n, np.abs),
@@ -465,13 +465,13 @@ class ValueWriter:
         op = node.props.get("operation", "ADD")
         ins = [s for s in node.inputs if s.enabled]
         vec = [s for s in ins if s.type == "VECTOR"]
-        a = self.value(vec[0], "vector3") if vec else _c("vector3", 0.0)
-        b = self.value(vec[1], "vector3") if len(vec) > 1 else _c("vector3", 0.0)
-        c = self.value(vec[2], "vector3") if len(vec) > 2 else _c("vector3", 0.0)
+        a = self.value(vec[0], "vector3") if vec else mx_constant("vector3", 0.0)
+        b = self.value(vec[1], "vector3") if len(vec) > 1 else mx_constant("vector3", 0.0)
+        c = self.value(vec[2], "vector3") if len(vec) > 2 else mx_constant("vector3", 0.0)
         n = node.name
         if op == "SCALE":
             s = next((x for x in ins if x.type == "VALUE"), None)
-            return self.mul(a, self.value(s) if s is not None else _c("float", 1.0), n)
+            return self.mul(a, self.value(s) if s is not None else mx_constant("float", 1.0), n)
         if op == "DOT_PRODUCT":
             return self.dot(a, b, n)
         if op == "LENGTH":
@@ -525,7 +525,7 @@ class ValueWriter:
             i = min(int(f), len(table) - 1)
             t = f - i
             j = min(i + 1, len(table) - 1)
-            return _c("color3", (1.0 - t) * table[i] + t * table[j])
+            return mx_constant("color3", (1.0 - t) * table[i] + t * table[j])
         # the table's linear interpolant as a sum of clamped ramps over its kinks
         xs = np.arange(len(table)) / (len(table) - 1.0)
         slopes = np.diff(table, axis=0) / np.diff(xs)[:, None]
@@ -541,17 +541,17 @@ class ValueWriter:
             s = slopes[keep[k]]
             y0 = table[keep[k]]
             if not np.any(s):
-                return _c("vector3", y0)
+                return mx_constant("vector3", y0)
             # anchored at x0 as a float32 (what MaterialX reads): a steep segment (slope up to
             # 255 per unit step) would move by s · (x0 - fl(x0)) otherwise
             x0 = float(np.float32(knots[k]))
             y0 = y0 + s * (x0 - knots[k])
-            d = self.sub(x, _c("float", x0), f"{node.name}_from{k}")
-            return self.add(_c("vector3", y0), self.mul(_c("vector3", s), d, f"{node.name}_slope{k}"),
+            d = self.sub(x, mx_constant("float", x0), f"{node.name}_from{k}")
+            return self.add(mx_constant("vector3", y0), self.mul(mx_constant("vector3", s), d, f"{node.name}_slope{k}"),
                             f"{node.name}_line{k}")
         v = line(len(keep) - 1)
         for k in range(len(keep) - 2, -1, -1):
-            v = self.select("ifgreater", _c("float", knots[k + 1]), x, line(k), v, f"{node.name}_seg{k}")
+            v = self.select("ifgreater", mx_constant("float", knots[k + 1]), x, line(k), v, f"{node.name}_seg{k}")
         return self.convert(v, "color3")  # (a colour: into a float socket by luma, not the mean)
 
     def layer_weight(self, node, oid):
@@ -568,8 +568,8 @@ class ValueWriter:
         b = float(blend.const)
         if b != 0.5:
             b = min(max(b, 0.0), 1.0 - 1e-5)
-            c = self.power(c, _c("float", 2.0 * b if b < 0.5 else 0.5 / (1.0 - b)), node.name + "_blend")
-        return self.sub(_c("float", 1.0), c, node.name)
+            c = self.power(c, mx_constant("float", 2.0 * b if b < 0.5 else 0.5 / (1.0 - b)), node.name + "_blend")
+        return self.sub(mx_constant("float", 1.0), c, node.name)
 
     def world(self, what, nodedef):
         name = f"{what}_world"
@@ -614,14 +614,14 @@ class ValueWriter:
         x, y, z = (self.lane(d, i) for i in range(3))
         length = self.sqrt(self.dot(d, d, n + "_dd"), n + "_len")
         if all(c.is_const for c in (x, y, z)):
-            yx = _c("float", float(np.arctan2(y.const, x.const)))
+            yx = mx_constant("float", float(np.arctan2(y.const, x.const)))
         else:
             yx = V("float", node=self.node("ND_atan2_float", n + "_atan2", iny=y, inx=x))
         c = self.div(z, length, n + "_cos")
         ac = self.unary("acos", c, n + "_acos", np.arccos)
-        u = self.div(self.sub(yx, _c("float", math.pi), n + "_u0"), _c("float", -2.0 * math.pi), n + "_u")
-        v = self.div(self.sub(ac, _c("float", math.pi), n + "_v0"), _c("float", -math.pi), n + "_v")
-        return self.image(node, oid, self.convert(self.combine((u, v, _c("float", 0.0)), n + "_uv"),
+        u = self.div(self.sub(yx, mx_constant("float", math.pi), n + "_u0"), mx_constant("float", -2.0 * math.pi), n + "_u")
+        v = self.div(self.sub(ac, mx_constant("float", math.pi), n + "_v0"), mx_constant("float", -math.pi), n + "_v")
+        return self.image(node, oid, self.convert(self.combine((u, v, mx_constant("float", 0.0)), n + "_uv"),
                                                   "vector2"))
 
     def image(self, node, oid, texcoord=None):
@@ -651,8 +651,8 @@ class ValueWriter:
             n = self.node(nd, node.name)
             n.set("file", "filename", file,
                   colorspace=self.colorspace(img, node))
-            n.set("filtertype", "string", _FILTER.get(node.props.get("interpolation", "Linear"), "linear"))
-            mode = _ADDRESS.get(node.props.get("extension", "REPEAT"), "periodic")
+            n.set("filtertype", "string", FILTER.get(node.props.get("interpolation", "Linear"), "linear"))
+            mode = ADDRESS.get(node.props.get("extension", "REPEAT"), "periodic")
             if mode != "periodic":
                 n.set("uaddressmode", "string", mode)
                 n.set("vaddressmode", "string", mode)
@@ -705,13 +705,13 @@ class ValueWriter:
 _COMPUTED_UV = {"ShaderNodeVectorMath", "ShaderNodeCombineXYZ", "ShaderNodeMath", "ShaderNodeMix"}
 
 
-def _tangent_kind(node):
+def tangent_kind(node):
     """The tangent a Tangent node gives, in builder.Builder.tangent's terms."""
     if node is None or node.props.get("direction_type", "RADIAL") == "UV_MAP":
         return "UV_MAP"
     return f"RADIAL_{node.props.get('axis', 'Z')}"
 
 
-def _fmt(v):
+def format_value(v):
     arr = np.atleast_1d(np.asarray(v, dtype=np.float64))
     return ", ".join(f"{x:.4g}" for x in arr) if arr.size > 1 else f"{arr[0]:.4g}"

@@ -57,7 +57,7 @@ from .builder import Builder
 from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, Document, Input, Node,
                        NodeGraph, format_value, valid_name, write_xml)
 # the reading side (re-exported: materialx.read is the reader's entry point)
-from .materialx_import import LOBES as _LOBES, ImportedMaterial, _f, _t, lobes_of, read, recognise
+from .materialx_import import LOBES as _LOBES, ImportedMaterial, as_float, as_tuple, lobes_of, read, recognise
 
 __all__ = ("FLAVOURS", "Source", "ImportedMaterial", "ExportReport", "lobes_of", "build_document",
            "write", "read", "recognise", "validate", "materialx_available", "output_problem",
@@ -226,18 +226,18 @@ def _graph_constant(name, p, notes):
         notes.append(_DIST_NOTE[p["distribution"]])
     dist = _DIST[p["distribution"]]
     tangent = b.tangent(p["tangent"], p["rotation"]) if d.anisotropic else None
-    ax, ay = (_f(a) for a in m.alpha)
-    wx, wy = (_f(a) for a in m.alpha_wide)
+    ax, ay = (as_float(a) for a in m.alpha)
+    wx, wy = (as_float(a) for a in m.alpha_wide)
     if d.kind == "CONDUCTOR":
-        fres = dict(ior=_t(m.ior), extinction=_t(m.extinction))
+        fres = dict(ior=as_tuple(m.ior), extinction=as_tuple(m.extinction))
     elif d.kind == "DIELECTRIC":
-        fres = dict(ior=_f(m.dielectric_ior), tint=_t(d.fresnel["specular_tint"]))
+        fres = dict(ior=as_float(m.dielectric_ior), tint=as_tuple(d.fresnel["specular_tint"]))
     else:
-        fres = dict(colour=_t(m.reflectivity))
+        fres = dict(colour=as_tuple(m.reflectivity))
     narrow = _lobe(b, d.kind, "lobe_narrow", (ax, ay), fres, dist, tangent)
     wide = _lobe(b, d.kind, "lobe_wide", (wx, wy), fres, dist, tangent)
     lobe_args = {"narrow": ((ax, ay), fres, dist, tangent), "wide": ((wx, wy), fres, dist, tangent)}
-    top = _finish_specular(b, d.kind, narrow, wide, _f(d.beta), p["base_color"],
+    top = _finish_specular(b, d.kind, narrow, wide, as_float(d.beta), p["base_color"],
                            p["transmission"], lobe_args)
     g.outputs["out"] = Input("out", "BSDF", nodename=top.name)
     for reason, n in m.clamped.items():

@@ -41,7 +41,8 @@ from .document import (NODEDEFS, OPENPBR_12_INPUTS, OPENPBR_INPUTS, OPENPBR_UNSU
 from .surface_inputs import tangent_of
 from .surface_nodes import Notes as _Notes
 
-__all__ = ("ImportedMaterial", "lobes_of", "recognise", "read", "resolve_haze", "LOBES")
+__all__ = ("ImportedMaterial", "lobes_of", "recognise", "read", "resolve_haze", "LOBES", "as_float",
+           "as_tuple")
 
 _ATTR = K.MATERIALX_ATTR
 #: MaterialX BSDF node categories of Eq. 1's lobes, with the kind of hazy material they make.
@@ -65,11 +66,11 @@ def lobes_of(p):
                     anisotropic=is_anisotropic(p))
 
 
-def _f(x):
+def as_float(x):
     return float(np.asarray(x))
 
 
-def _t(x):
+def as_tuple(x):
     return tuple(float(v) for v in np.asarray(x, dtype=np.float64).reshape(-1))
 
 
@@ -130,7 +131,7 @@ class _Eval:
             r = np.clip(np.asarray(self.value(v, g, "reflectivity", textured), float), 0.0, 0.99)
             e = np.asarray(self.value(v, g, "edge_color", textured), float)
             eta, kap = gulbrandsen_ior(r, e)
-            return _t(kap if inp.output == "extinction" else eta)
+            return as_tuple(kap if inp.output == "extinction" else eta)
         return self.node_value(v, g, textured, f"{node.name}.{name}")
 
     def node_value(self, n, g, textured, where):
@@ -295,14 +296,14 @@ def _alpha_to_roughness(ax, ay, rotation, extent, notes):
 
 def _physical(d):
     m = d.mapping
-    out = dict(beta=_f(d.beta), alpha=tuple(_f(a) for a in m.alpha),
-               alpha_wide=tuple(_f(a) for a in m.alpha_wide))
+    out = dict(beta=as_float(d.beta), alpha=tuple(as_float(a) for a in m.alpha),
+               alpha_wide=tuple(as_float(a) for a in m.alpha_wide))
     if d.kind == "CONDUCTOR":
-        out.update(ior=_t(m.ior), extinction=_t(m.extinction))
+        out.update(ior=as_tuple(m.ior), extinction=as_tuple(m.extinction))
     elif d.kind == "DIELECTRIC":
-        out.update(ior=_f(m.dielectric_ior), tint=_t(d.fresnel["specular_tint"]))
+        out.update(ior=as_float(m.dielectric_ior), tint=as_tuple(d.fresnel["specular_tint"]))
     else:
-        out.update(colour=_t(m.reflectivity))
+        out.update(colour=as_tuple(m.reflectivity))
     return out
 
 
@@ -342,13 +343,13 @@ def _from_physical(kind, dist, phys, rotation, tangent, base, smoothness, notes)
         inv = inverse_haze_mapping(beta, (ax, ay), (wx, wy), reflectivity=r, distribution=dist,
                                    smoothness=smoothness, alpha_max=K.ALPHA_MAX)
     notes.extend(inv.warnings)
-    rc = _t(np.clip(inv.core_reflectivity, 0.0, 1.0))
-    g = _t(np.clip(inv.edge_tint, 0.0, 1.0))
-    lam = tuple(_f(v) for v in inv.haze_extent)
+    rc = as_tuple(np.clip(inv.core_reflectivity, 0.0, 1.0))
+    g = as_tuple(np.clip(inv.edge_tint, 0.0, 1.0))
+    lam = tuple(as_float(v) for v in inv.haze_extent)
     rough, aniso, rot, lam = _alpha_to_roughness(ax, ay, rotation, lam, notes)
     p = dict(kind=kind, distribution=dist, core_reflectivity=rc,
              edge_tint=g if kind == "CONDUCTOR" else (0.0, 0.0, 0.0), roughness=min(rough, 1.0),
-             anisotropy=aniso, rotation=rot, haziness=min(_f(inv.haziness), K.MAX_HAZINESS),
+             anisotropy=aniso, rotation=rot, haziness=min(as_float(inv.haziness), K.MAX_HAZINESS),
              haze_extent=lam, smoothness=smoothness, tangent=tangent)
     if kind == "DIELECTRIC":
         p["base_color"] = tuple(float(np.clip(c, 0, 1)) for c in base["base_color"])

@@ -10,7 +10,7 @@ import os
 
 from .document import NODEDEFS, OPENPBR_12_INPUTS
 from .layered_tree import LUMA
-from .surface_nodes import C, _map, _t3, Link, Val
+from .surface_nodes import C, map_values, triple, Link, Val
 
 #: MaterialX colour spaces -> Blender's (the default OCIO config's names).
 COLORSPACES = {"srgb_texture": "sRGB", "lin_rec709": "Linear Rec.709", "raw": "Non-Color",
@@ -28,9 +28,9 @@ _FILTER = {"closest": "Closest", "linear": "Linear", "cubic": "Cubic"}
 # --------------------------------------------------------------------------------------------
 
 #: (category, output type) -> {input: (type, default)} of every nodedef in the table.
-_DEFAULTS = {}
+DEFAULTS = {}
 for _nd, (_cat, _typ, _spec) in NODEDEFS.items():
-    _DEFAULTS.setdefault((_cat, _typ), _spec)
+    DEFAULTS.setdefault((_cat, _typ), _spec)
 _BY_CATEGORY = {}
 for _nd, (_cat, _typ, _spec) in NODEDEFS.items():
     _BY_CATEGORY.setdefault(_cat, _spec)
@@ -68,7 +68,7 @@ def _as_val(dflt):
 _DEFAULT_VALS = {}
 
 
-def _defaults_of(spec):
+def defaults_of(spec):
     """{input: its nodedef default as a constant Val} of a spec (shared: constants are not
     changed)."""
     table = _DEFAULT_VALS.get(id(spec))
@@ -77,9 +77,9 @@ def _defaults_of(spec):
     return table
 
 
-def _default_val(spec, name):
+def default_val(spec, name):
     """The nodedef default of an input as a constant Val."""
-    table = _defaults_of(spec)
+    table = defaults_of(spec)
     return table[name] if name in table else _as_val(0.0)
 
 
@@ -106,7 +106,7 @@ class Upstream:
         """The Val of input ``name`` of ``node`` (``spec``: {input: (type, default)})."""
         inp = node.inputs.get(name)
         if inp is None:
-            return _default_val(spec, name)
+            return default_val(spec, name)
         typ, dflt = spec.get(name, ("float", 0.0))
         if inp is not None and inp.problem:
             self.notes.lose(f"{node.name}.{name}: {inp.problem}")
@@ -215,7 +215,7 @@ class Upstream:
         if c == "place2d":
             off = self._in(n, g, "offset", "vector2", (0, 0))
             piv = self._in(n, g, "pivot", "vector2", (0, 0))
-            if not (piv.is_const and _t3(piv.const)[:2] == (0.0, 0.0)):
+            if not (piv.is_const and triple(piv.const)[:2] == (0.0, 0.0)):
                 self.notes.lose(f"{n.name}: place2d pivot is not imported (the Mapping turns about the origin)")
             return self.mapping(self._in(n, g, "texcoord", "vector2", None), self._in(n, g, "scale", "vector2", (1, 1)),
                                 self._in(n, g, "rotate", "float", 0.0),
@@ -236,13 +236,13 @@ class Upstream:
             return b.sqrt(self._in(n, g, "in", typ, z))
         if c == "absval":
             a = self._in(n, g, "in", typ, z)
-            return Val(a.n, _map(abs, a.const)) if a.is_const else b._node_op("ABSOLUTE", a)
+            return Val(a.n, map_values(abs, a.const)) if a.is_const else b._node_op("ABSOLUTE", a)
         if c == "clamp":
             lo = self._in(n, g, "low", "float", 0.0)
             hi = self._in(n, g, "high", "float", 1.0)
             a = self._in(n, g, "in", typ, z)
             if lo.is_const and hi.is_const:
-                return b.clamp(a, _t3(lo.const)[0], _t3(hi.const)[0])
+                return b.clamp(a, triple(lo.const)[0], triple(hi.const)[0])
             return b.minimum(b.maximum(a, lo), hi)
         if c == "mix":
             return b.mix(self._in(n, g, "mix", "float", 0.0), self._in(n, g, "bg", typ, z),
@@ -258,7 +258,7 @@ class Upstream:
         if c in _UNARY and (n3 == 1 or c != "exp"):
             a = self._in(n, g, "in", typ, z)
             op, f = _UNARY[c]
-            return Val(a.n, _map(f, a.const)) if a.is_const else b._node_op(op, a)
+            return Val(a.n, map_values(f, a.const)) if a.is_const else b._node_op(op, a)
         if c in ("dot", "convert"):
             src = self._in(n, g, "in", typ, None)
             if src is None:
@@ -267,7 +267,7 @@ class Upstream:
         if c == "extract":
             idx = self._in(n, g, "index", "integer", 0)
             v = self._in(n, g, "in", "color4", (0, 0, 0))
-            return b.channel(v, int(_t3(idx.const)[0]) if idx.is_const else 0)
+            return b.channel(v, int(triple(idx.const)[0]) if idx.is_const else 0)
         if c in ("separate2", "separate3", "separate4"):
             v = self._in(n, g, "in", "vector3", (0, 0, 0))
             return b.channel(v, _ORDER.get((output or "outx")[-1], 0))
@@ -293,11 +293,11 @@ class Upstream:
         is a constant axis (the export's colour -> float is a dot with constant weights)."""
         b = self.b
         if a.is_const and w.is_const:
-            return C(sum(x * y for x, y in zip(_t3(a.const), _t3(w.const))))
+            return C(sum(x * y for x, y in zip(triple(a.const), triple(w.const))))
         if a.is_const:
             a, w = w, a
         if w.is_const:
-            wt = _t3(w.const)
+            wt = triple(w.const)
             used = [i for i, x in enumerate(wt) if x != 0.0]
             if not used:
                 return C(0.0)
@@ -382,8 +382,8 @@ class Upstream:
         sc = self._in(n, g, "scale", "vector2", (1.0, 1.0))
         off = self._in(n, g, "offset", "vector2", (0.0, 0.0))
         rot = self._in(n, g, "rotate", "float", 0.0)
-        if not (sc.is_const and off.is_const and rot.is_const and _t3(sc.const)[:2] == (1.0, 1.0)
-                and _t3(off.const)[:2] == (0.0, 0.0) and rot.const == 0.0):
+        if not (sc.is_const and off.is_const and rot.is_const and triple(sc.const)[:2] == (1.0, 1.0)
+                and triple(off.const)[:2] == (0.0, 0.0) and rot.const == 0.0):
             self.notes.lose(f"{n.name}: the glTF texture transform is imported as a Mapping of scale "
                             f"and offset about the origin (glTF turns about (0, 1))")
             uv = self.mapping(uv, sc, C(0.0), off, n.name)
@@ -429,11 +429,11 @@ class Upstream:
             self.notes.lose(f"{n.name}: a linked scale / bias is not imported")
             scale, bias = C((1.0, 1.0, 1.0)), C((0.0, 0.0, 0.0))
         if out in ("rgb", "rgba"):
-            return self.b.affine(col, _t3(scale.const), _t3(bias.const))
+            return self.b.affine(col, triple(scale.const), triple(bias.const))
         i = _ORDER.get(out, 0)
         ch = self.b.channel(col, i)
-        s = _t3(scale.const)[min(i, 2)] if i < 3 else 1.0
-        o = _t3(bias.const)[min(i, 2)] if i < 3 else 0.0
+        s = triple(scale.const)[min(i, 2)] if i < 3 else 1.0
+        o = triple(bias.const)[min(i, 2)] if i < 3 else 0.0
         return self.b.affine(ch, s, o)
 
     def uv(self, n, g):
@@ -447,9 +447,9 @@ class Upstream:
     def mapping(self, uv, scale, rotate, location, name):
         """A Mapping (Point) of ``uv`` (None: the first UV map): scale, rotation about Z (degrees,
         counter-clockwise), then location."""
-        s = _t3(scale.const) if scale is not None and scale.is_const else (1.0, 1.0, 1.0)
-        rot = float(_t3(rotate.const)[0]) if rotate is not None and rotate.is_const else 0.0
-        loc = _t3(location.const) if location is not None and location.is_const else (0.0, 0.0, 0.0)
+        s = triple(scale.const) if scale is not None and scale.is_const else (1.0, 1.0, 1.0)
+        rot = float(triple(rotate.const)[0]) if rotate is not None and rotate.is_const else 0.0
+        loc = triple(location.const) if location is not None and location.is_const else (0.0, 0.0, 0.0)
         if any(x is not None and not x.is_const for x in (scale, rotate, location)):
             self.notes.lose(f"{name}: a linked texture transform is not imported")
         if s[:2] == (1.0, 1.0) and rot == 0.0 and loc[:2] == (0.0, 0.0):
@@ -467,11 +467,11 @@ class Upstream:
         if v.is_const:
             return None  # a constant normal map is the geometric normal when it is (0.5, 0.5, 1)
         st = scale.const if scale.is_const else 1.0
-        if not scale.is_const or _t3(st)[0] != 1.0:
+        if not scale.is_const or triple(st)[0] != 1.0:
             self.notes.lose(f"{name}: normal map scale {st} read as the Normal Map's Strength "
                             f"(MaterialX scales the tangent-space xy, Blender blends the normal)")
         key = self.b.node("ShaderNodeNormalMap", {"space": "TANGENT"},
-                          {"Color": self.b.socket(v, 3), "Strength": _t3(st)[0]})
+                          {"Color": self.b.socket(v, 3), "Strength": triple(st)[0]})
         return Val(3, link=Link(key, "Normal"))
 
     # -- the tangent ---------------------------------------------------------------------------

@@ -115,11 +115,11 @@ class Val:
         return f"Val({self.const})" if self.is_const else f"Val({self.link}*{self.scale}+{self.bias})"
 
 
-def _t3(x):
+def triple(x):
     return x if isinstance(x, tuple) else (x, x, x)
 
 
-def _map(f, *xs):
+def map_values(f, *xs):
     if len(xs) == 2:  # the common case, without the general machinery
         a, b = xs
         ta, tb = type(a) is tuple, type(b) is tuple
@@ -129,7 +129,7 @@ def _map(f, *xs):
         b = b if tb else (b, b, b)
         return (f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]))
     if any(isinstance(x, tuple) for x in xs):
-        cols = [_t3(x) for x in xs]
+        cols = [triple(x) for x in xs]
         return tuple(f(*c) for c in zip(*cols))
     return f(*xs)
 
@@ -157,7 +157,7 @@ def C(x):
         t = tuple(float(v) for v in x[:3])
         if len(t) == 2:  # a vector2 (uv): z = 0
             t = t + (0.0,)
-        return Val(3, t if len(t) == 3 else _t3(t[0] if t else 0.0))
+        return Val(3, t if len(t) == 3 else triple(t[0] if t else 0.0))
     return Val(1, float(x))
 
 
@@ -181,7 +181,7 @@ class Builder:
         n = v.n if n is None else n
         if v.is_const:
             if n == 3:
-                return _t3(v.const)
+                return triple(v.const)
             return v.const if not isinstance(v.const, tuple) else sum(v.const) / 3.0
         link = v.link
         s, b = v.scale, v.bias
@@ -194,7 +194,7 @@ class Builder:
                 link = Link(key, "Value")
             else:
                 key = self.node("ShaderNodeVectorMath", {"operation": "MULTIPLY_ADD"},
-                                {"Vector": link, "Vector_001": _t3(s), "Vector_002": _t3(b)})
+                                {"Vector": link, "Vector_001": triple(s), "Vector_002": triple(b)})
                 link = Link(key, "Vector")
             v.link, v.scale, v.bias = link, None, None  # made once, shared by every use
         if n == 1 and v.n == 3:  # a colour into a float: the average (Vector Math Dot / 3)
@@ -223,21 +223,21 @@ class Builder:
         """v · s + b with constant s, b (floats or tuples)."""
         if v.is_const:
             return Val(max(v.n, 3 if isinstance(s, tuple) or isinstance(b, tuple) else 1),
-                       _map(lambda x, y, z: x * y + z, v.const, s, b))
+                       map_values(lambda x, y, z: x * y + z, v.const, s, b))
         n = 3 if v.n == 3 or isinstance(s, tuple) or isinstance(b, tuple) else 1
         s0 = 1.0 if v.scale is None else v.scale
         b0 = 0.0 if v.bias is None else v.bias
-        scale = _map(lambda x, y: x * y, s0, s)
-        bias = _map(lambda x, y, z: x * y + z, b0, s, b)
-        if _t3(scale) == (1.0, 1.0, 1.0):
+        scale = map_values(lambda x, y: x * y, s0, s)
+        bias = map_values(lambda x, y, z: x * y + z, b0, s, b)
+        if triple(scale) == (1.0, 1.0, 1.0):
             scale = None
-        if _t3(bias) == (0.0, 0.0, 0.0):
+        if triple(bias) == (0.0, 0.0, 0.0):
             bias = None
         return Val(n, link=v.link, scale=scale, bias=bias, alpha=v.alpha)
 
     def add(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(lambda x, y: x + y, a.const, b.const))
+            return Val(self._n(a, b), map_values(lambda x, y: x + y, a.const, b.const))
         if b.is_const:
             return self.affine(a, 1.0, b.const)
         if a.is_const:
@@ -246,16 +246,16 @@ class Builder:
 
     def sub(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(lambda x, y: x - y, a.const, b.const))
+            return Val(self._n(a, b), map_values(lambda x, y: x - y, a.const, b.const))
         if b.is_const:
-            return self.affine(a, 1.0, _map(lambda x: -x, b.const))
+            return self.affine(a, 1.0, map_values(lambda x: -x, b.const))
         if a.is_const:
             return self.affine(b, -1.0, a.const)
         return self._node_op("SUBTRACT", a, b)
 
     def mul(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(lambda x, y: x * y, a.const, b.const))
+            return Val(self._n(a, b), map_values(lambda x, y: x * y, a.const, b.const))
         if b.is_const:
             return self.affine(a, b.const, 0.0)
         if a.is_const:
@@ -270,49 +270,49 @@ class Builder:
     def div(self, a, b):
         """Blender's safe division (x / 0 = 0)."""
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(_safe_div, a.const, b.const))
+            return Val(self._n(a, b), map_values(_safe_div, a.const, b.const))
         if b.is_const:
-            return self.affine(a, _map(lambda y: _safe_div(1.0, y), b.const), 0.0)
+            return self.affine(a, map_values(lambda y: _safe_div(1.0, y), b.const), 0.0)
         return self._node_op("DIVIDE", a, b)
 
     def pow(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(_safe_pow, a.const, b.const))
+            return Val(self._n(a, b), map_values(_safe_pow, a.const, b.const))
         if b.is_const and not isinstance(b.const, tuple) and b.const == 1.0:
             return a
         return self._node_op("POWER", a, b)
 
     def sqrt(self, a):
         if a.is_const:
-            return Val(a.n, _map(lambda x: math.sqrt(x) if x > 0 else 0.0, a.const))
+            return Val(a.n, map_values(lambda x: math.sqrt(x) if x > 0 else 0.0, a.const))
         if a.n == 3:
             return self._node_op("POWER", a, C((0.5, 0.5, 0.5)))
         return self._node_op("SQRT", a)
 
     def minimum(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(min, a.const, b.const))
+            return Val(self._n(a, b), map_values(min, a.const, b.const))
         return self._node_op("MINIMUM", a, b)
 
     def maximum(self, a, b):
         if a.is_const and b.is_const:
-            return Val(self._n(a, b), _map(max, a.const, b.const))
+            return Val(self._n(a, b), map_values(max, a.const, b.const))
         return self._node_op("MAXIMUM", a, b)
 
     def clamp(self, a, lo=0.0, hi=1.0):
         if a.is_const:
-            return Val(a.n, _map(lambda x: min(max(x, lo), hi), a.const))
+            return Val(a.n, map_values(lambda x: min(max(x, lo), hi), a.const))
         if a.n == 1:
             key = self.node("ShaderNodeClamp", {"clamp_type": "MINMAX"},
                             {"Value": self.socket(a, 1), "Min": lo, "Max": hi})
             return Val(1, link=Link(key, "Result"))
-        return self.minimum(self.maximum(a, C(_t3(lo))), C(_t3(hi)))
+        return self.minimum(self.maximum(a, C(triple(lo))), C(triple(hi)))
 
     def mix(self, t, a, b):
         """a + t (b - a): a for t = 0, b for t = 1 (exactly, also when a = b)."""
         if t.is_const and a.is_const and b.is_const:
             tc = t.const if not isinstance(t.const, tuple) else t.const[0]
-            return Val(self._n(a, b), _map(lambda x, y: x + tc * (y - x) if x != y else x, a.const, b.const))
+            return Val(self._n(a, b), map_values(lambda x, y: x + tc * (y - x) if x != y else x, a.const, b.const))
         if t.is_const:
             tc = t.const if not isinstance(t.const, tuple) else t.const[0]
             if tc == 0.0:
@@ -346,9 +346,9 @@ class Builder:
         if v.n == 1:
             return v
         if v.is_const:
-            return C(_t3(v.const)[i])
-        s = None if v.scale is None else _t3(v.scale)[i]
-        b = None if v.bias is None else _t3(v.bias)[i]
+            return C(triple(v.const)[i])
+        s = None if v.scale is None else triple(v.scale)[i]
+        b = None if v.bias is None else triple(v.bias)[i]
         key = self.node("ShaderNodeSeparateXYZ", {}, {"Vector": v.link})
         out = Val(1, link=Link(key, "XYZ"[i]))
         if s is None and b is None:
@@ -366,8 +366,8 @@ class Builder:
         if v.n == 1:
             return v
         if v.is_const:
-            return C(sum(_t3(v.const)) / 3.0)
+            return C(sum(triple(v.const)) / 3.0)
         return Val(1, link=self.socket(v, 1))
 
     def as3(self, v):
-        return v if v.n == 3 else (C(_t3(v.const)) if v.is_const else self.combine(v, v, v))
+        return v if v.n == 3 else (C(triple(v.const)) if v.is_const else self.combine(v, v, v))

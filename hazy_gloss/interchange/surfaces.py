@@ -38,9 +38,9 @@ import math
 from .. import constants as K
 from ..core.mapping import gulbrandsen_ior
 from .brdf import fresnel_conductor_at
-from .surface_inputs import (_DEFAULTS, COLORSPACES, Upstream, _default_val, _defaults_of,
+from .surface_inputs import (DEFAULTS, COLORSPACES, Upstream, default_val, defaults_of,
                              surface_defaults, tangent_of)
-from .surface_nodes import PRINCIPLED, Builder, C, Link, Notes, SurfaceSpec, TexNode, Val, _t3
+from .surface_nodes import PRINCIPLED, Builder, C, Link, Notes, SurfaceSpec, TexNode, Val, triple
 
 #: Link, TexNode, SurfaceSpec, Upstream and the others named here from surface_nodes and
 #: surface_inputs (split off this module) are re-exported: ``interchange.surfaces`` still names them.
@@ -144,7 +144,7 @@ class _Surface:
         self._memo = {}
         self.out = {}
         self._inputs = node.inputs
-        self._defaults = _defaults_of(self.spec_in)
+        self._defaults = defaults_of(self.spec_in)
         spec_in = self.spec_in
         for k in node.inputs:
             if k not in spec_in and not (node.category == "open_pbr_surface" and k == "specular_rotation"):
@@ -155,7 +155,7 @@ class _Surface:
         if got is None:
             inp = self._inputs.get(name)
             if inp is None:  # the common case: the nodedef's default
-                got = self._defaults[name] if name in self._defaults else _default_val(self.spec_in, name)
+                got = self._defaults[name] if name in self._defaults else default_val(self.spec_in, name)
             elif (inp.value is not None and inp.problem is None and inp.nodename is None
                   and inp.nodegraph is None and inp.interfacename is None and inp.channels is None
                   and inp.type == self.spec_in.get(name, ("",))[0]):  # a plain authored value
@@ -193,7 +193,7 @@ class _Surface:
         if v is None:
             return True
         d = self.spec_in.get(name, ("", dflt))[1] if dflt is None else dflt
-        return v.is_const and (_t3(v.const) == _t3(d) if isinstance(d, (tuple, float, int)) else True)
+        return v.is_const and (triple(v.const) == triple(d) if isinstance(d, (tuple, float, int)) else True)
 
     def unsupported(self, names, what):
         for name in names:
@@ -245,7 +245,7 @@ def _base_colour(s, base, mixes):
         w, col = s.v(wname), s.v(cname)
         if w.is_const and w.const == 0.0:
             continue
-        if not (col.is_const and out.is_const and _t3(col.const) == _t3(out.const)):
+        if not (col.is_const and out.is_const and triple(col.const) == triple(out.const)):
             if not (w.is_const and w.const in (1.0,)):
                 s.notes.lose(f"{cname} differs from the base colour: the Principled has one colour for "
                              f"its diffuse and its {what} (mixed by {wname}; exact at 0 and 1)")
@@ -414,13 +414,13 @@ def standard_surface(doc, node, graph, name, notes):
     s.set("Specular IOR Level", b.mul(v("specular"), C(0.5)), 1)
     spec_c = v("specular_color")
     if metal.is_const and metal.const >= 1.0 and base.is_const and spec_c.is_const:
-        tint, err = f82_tint_of_conductor(_t3(base.const), _t3(spec_c.const))
+        tint, err = f82_tint_of_conductor(triple(base.const), triple(spec_c.const))
         s.set("Specular Tint", C(tint))
         notes.lose(f"the Gulbrandsen metal (edge colour specular_color) is Principled's F82 metal with "
                    f"Specular Tint {', '.join(f'{t:.3f}' for t in tint)} (max |ΔF| {err:.3f})")
     else:
         s.set("Specular Tint", spec_c, 3)
-        if not (metal.is_const and metal.const == 0.0) and not (spec_c.is_const and _t3(spec_c.const) == (1.0, 1.0, 1.0)):
+        if not (metal.is_const and metal.const == 0.0) and not (spec_c.is_const and triple(spec_c.const) == (1.0, 1.0, 1.0)):
             notes.lose("specular_color is the metal's edge colour in standard_surface and its F82 tint "
                        "in the Principled: read as the tint")
     # roughness: MaterialX's graph, coat_affect_roughness first, then roughness_anisotropy
@@ -453,7 +453,7 @@ def standard_surface(doc, node, graph, name, notes):
     s.unsupported(("coat_anisotropy", "coat_rotation", "coat_affect_color"),
                   "the Principled coat is isotropic and does not saturate the base")
     op = v("opacity")
-    if op.is_const and len(set(_t3(op.const))) > 1:
+    if op.is_const and len(set(triple(op.const))) > 1:
         notes.lose("a coloured opacity is imported as its average (Alpha)")
     s.set("Alpha", b.mean(op), 1)
     if not s.is_default("thin_walled", False):
@@ -502,7 +502,7 @@ def gltf_pbr(doc, node, graph, name, notes):
         notes.lose("specular ≠ 1: glTF scales F(90°) too, the Principled only F(0)")
     spec_c = v("specular_color")
     s.set("Specular Tint", spec_c, 3)
-    if not (metal.is_const and metal.const == 0.0) and not (spec_c.is_const and _t3(spec_c.const) == (1.0, 1.0, 1.0)):
+    if not (metal.is_const and metal.const == 0.0) and not (spec_c.is_const and triple(spec_c.const) == (1.0, 1.0, 1.0)):
         notes.lose("specular_color tints glTF's dielectric only; the Principled's Specular Tint also "
                    "tints its metal (F82)")
     s.set("Transmission Weight", v("transmission"), 1)
@@ -522,7 +522,7 @@ def gltf_pbr(doc, node, graph, name, notes):
     s.set("Coat Roughness", v("clearcoat_roughness"), 1)
     s.set("Coat IOR", C(1.5), 1)  # KHR_materials_clearcoat: a fixed IOR of 1.5
     sheen = v("sheen_color")
-    if not (sheen.is_const and _t3(sheen.const) == (0.0, 0.0, 0.0)):
+    if not (sheen.is_const and triple(sheen.const) == (0.0, 0.0, 0.0)):
         s.set("Sheen Weight", C(1.0))
         s.set("Sheen Tint", sheen, 3)
         s.set("Sheen Roughness", v("sheen_roughness"), 1)
@@ -562,14 +562,14 @@ def usd_preview_surface(doc, node, graph, name, notes):
         s.set("Metallic", C(0.0))
         sc = v("specularColor")
         if sc.is_const and ior.is_const:
-            m = max(_t3(sc.const))
+            m = max(triple(sc.const))
             f0 = ((ior.const - 1.0) / (ior.const + 1.0)) ** 2 if ior.const > 0 else 0.04
             level = m / (2.0 * f0) if f0 > 0 else 0.5
             if level > 1.0:
                 notes.lose(f"specularColor {m:.3g} is beyond the Principled's F(0) range at IOR "
                            f"{ior.const:g} (Specular IOR Level at most 1 = 2 F0): capped")
             s.set("Specular IOR Level", C(min(level, 1.0)))
-            s.set("Specular Tint", C(tuple(c / m for c in _t3(sc.const)) if m > 0 else (1.0, 1.0, 1.0)))
+            s.set("Specular Tint", C(tuple(c / m for c in triple(sc.const)) if m > 0 else (1.0, 1.0, 1.0)))
         else:
             s.set("Specular Tint", sc, 3)
             notes.lose("a linked specularColor is read as the Specular Tint (Blender's USD importer)")
@@ -612,11 +612,11 @@ def bsdf_core(doc, node, graph, name, notes, core_type, owned=None):
     with color0 = color90 (Glossy), as interchange/layered.py writes them; roughness is the α
     Cycles renders."""
     s = _Surface(doc, node, graph, name, notes)
-    s.spec_in = _DEFAULTS.get((node.category, "BSDF"), {})
-    s._defaults = _defaults_of(s.spec_in)
+    s.spec_in = DEFAULTS.get((node.category, "BSDF"), {})
+    s._defaults = defaults_of(s.spec_in)
     v = s.v
     alpha = v("roughness")
-    ax, ay = (_t3(alpha.const)[:2] if alpha is not None and alpha.is_const else (0.01, 0.01))
+    ax, ay = (triple(alpha.const)[:2] if alpha is not None and alpha.is_const else (0.01, 0.01))
     if alpha is not None and not alpha.is_const:
         notes.lose("a linked roughness of the core is imported at its default")
     rough = math.sqrt(math.sqrt(max(ax, 0.0)) * math.sqrt(max(ay, 0.0)))

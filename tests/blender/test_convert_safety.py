@@ -471,7 +471,7 @@ _DRIVER = r"""
 import os, signal, sys, time
 from hazy_gloss.blender.model import convert_outputs as bc
 mode, signum, k = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-real_write, real_replace, count = bc._MapFile.finish, os.replace, []
+real_write, real_replace, count = bc.MapFile.finish, os.replace, []
 
 def write(self, *a, **kw):
     real_write(self, *a, **kw)
@@ -487,9 +487,9 @@ def replace(src, dst):
         if len(count) == k:
             os.kill(os.getpid(), signum)
 
-bc._MapFile.finish = write
+bc.MapFile.finish = write
 if mode == "commit":
-    bc._MapFile.finish = real_write
+    bc.MapFile.finish = real_write
     os.replace = replace
 from hazy_gloss.__main__ import main
 sys.exit(main(sys.argv[4:]))

@@ -42,7 +42,7 @@ def test_table_nodes_match_quadrature(gen):
     """Sampled nodes (the η = 1 slice aside, below) within the Monte Carlo accuracy of the
     generator: measured max 1.6e-5 (V4, all 4096 nodes), 2.2e-5 (V53, 1500 random nodes)."""
     n, sqrt_mu = GENERATIONS[gen]
-    table = bc._tables(gen)["ior_s"]
+    table = bc.generation_tables(gen)["ior_s"]
     rng = np.random.default_rng(7)
     nodes = [(i, j, k) for i in range(n) for j in range(n) for k in range(1, n)]
     pick = rng.choice(len(nodes), 700, replace=False)
@@ -56,8 +56,8 @@ def test_table_eta_one_slice():
     """z = 0 is η = 1 (F = F0 = 0): 4.5/5.2's float32 generator gives exactly 0 there; 5.3's
     is 0 to 1e-5 except at the grazing node μ = 1e-8 (s = 1 for a mirror, falling with
     roughness: η a hair above 1 there).  Cycles reads this slice for IOR within ~1e-2 of 1."""
-    assert np.all(bc._tables("V4")["ior_s"][0] == 0.0)
-    z0 = bc._tables("V53")["ior_s"][0]
+    assert np.all(bc.generation_tables("V4")["ior_s"][0] == 0.0)
+    z0 = bc.generation_tables("V53")["ior_s"][0]
     assert z0[0, 0] == 1.0 and np.all(np.diff(z0[0]) <= 1e-6)
     assert np.abs(z0[1:]).max() <= 1e-5
 
@@ -66,7 +66,7 @@ def test_table_orientation_and_shape():
     """The tables as the kernel indexes them, [z][y][x] with x the roughness: for a smooth
     lobe s rises towards grazing (y -> 0), in both generations; E is 1 for a mirror at every μ."""
     for gen, (n, _) in GENERATIONS.items():
-        t = bc._tables(gen)
+        t = bc.generation_tables(gen)
         assert t["ior_s"].shape == (n, n, n) and t["e"].shape == (32, 32) and t["eavg"].shape == (32,)
         k = n // 2
         smooth = t["ior_s"][k, :, 1]  # s falls from ~1 at grazing to ~0 face-on
@@ -79,7 +79,7 @@ def test_lookup_hits_the_nodes(version):
     """At a node (roughness, view and IOR exactly on it) the estimate is f0 + (1 - f0) s_node."""
     gen = "V53" if version == "5.3" else "V4"
     n, sqrt_mu = GENERATIONS[gen]
-    table = bc._tables(gen)["ior_s"]
+    table = bc.generation_tables(gen)["ior_s"]
     for i, j, k in [(3, 5, 7), (n - 1, n - 1, 2), (1, n // 2, n - 2), (n // 3, 1, 1)]:
         r, y, z = i / (n - 1), j / (n - 1), k / (n - 1)
         mu = y * y if sqrt_mu else y
@@ -201,7 +201,7 @@ def test_versions():
     assert np.array_equal(a45, a52)
     d = np.abs(a53 - a45)
     assert 1e-3 < d.max() < 2e-2
-    assert bc._generation(None) == "V53" and bc._generation((4, 5, 15)) == "V4"
+    assert bc.generation(None) == "V53" and bc.generation((4, 5, 15)) == "V4"
 
 
 def test_45_skips_the_table_where_the_fresnel_is_zero():

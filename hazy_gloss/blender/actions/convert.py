@@ -33,9 +33,9 @@ from ... import convert as conversion
 from ... import imagestream as stream
 from ...convert import ConversionError
 from ...oiio import openimageio
-from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, _short, _tile_paths, udim_tiles
-from ..model.convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
-                                     _out_path, _undo)
+from ..model.convert_inputs import UDIM_TOKEN, Source, os_reason, short_repr, tile_paths, udim_tiles
+from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_codec, final_path,
+                                     out_path, undo_run)
 from ..model.convert_wiring import wire_material
 
 
@@ -44,11 +44,11 @@ from ..model.convert_wiring import wire_material
 # --------------------------------------------------------------------------------------------
 
 
-def _check_prefix(prefix):
+def check_prefix(prefix):
     if prefix is None:
         return ""
     if not isinstance(prefix, str):
-        raise ConversionError(f"prefix must be a string, got {type(prefix).__name__} {_short(prefix)}")
+        raise ConversionError(f"prefix must be a string, got {type(prefix).__name__} {short_repr(prefix)}")
     if any(c in "/\\" or ord(c) < 32 or ord(c) == 127 for c in prefix) or \
             prefix.startswith(".") or ".." in prefix:
         raise ConversionError(f"prefix must be a plain file-name prefix (no path separator, control "
@@ -62,7 +62,7 @@ def _check_options(material, interpolation, progress, tile_texels, resample):
         if not isinstance(material, bpy.types.Material):
             hint = (f" (use bpy.data.materials[{material!r}])" if isinstance(material, str) else "")
             raise ConversionError(f"material must be a bpy.types.Material or None, got "
-                                  f"{type(material).__name__} {_short(material)}{hint}")
+                                  f"{type(material).__name__} {short_repr(material)}{hint}")
         if material.library is not None:
             raise ConversionError(f"material {material.name!r} is linked from a library and "
                                   "cannot be edited")
@@ -70,15 +70,15 @@ def _check_options(material, interpolation, progress, tile_texels, resample):
              bpy.types.ShaderNodeTexImage.bl_rna.properties["interpolation"].enum_items]
     if interpolation not in items:
         raise ConversionError(f"interpolation must be one of {', '.join(items)}; got "
-                              f"{_short(interpolation)}")
+                              f"{short_repr(interpolation)}")
     if progress is not None and not callable(progress) and not isinstance(progress, conversion.Progress):
         raise ConversionError(f"progress must be None or a callable(done, total, message), got "
                               f"{type(progress).__name__}")
     if isinstance(tile_texels, bool) or not isinstance(tile_texels, (int, np.integer)) or \
             tile_texels < 1:
-        raise ConversionError(f"tile_texels must be a positive integer, got {_short(tile_texels)}")
+        raise ConversionError(f"tile_texels must be a positive integer, got {short_repr(tile_texels)}")
     if not isinstance(resample, (bool, np.bool_)):
-        raise ConversionError(f"resample must be True or False, got {_short(resample)}")
+        raise ConversionError(f"resample must be True or False, got {short_repr(resample)}")
 
 
 def _materials_reading(targets, material=None):
@@ -103,7 +103,7 @@ def _materials_reading(targets, material=None):
                       and n.image.name in images for n in m.node_tree.nodes))
 
 
-def _check_targets(targets, input_files, txn, material=None):
+def check_targets(targets, input_files, txn, material=None):
     """Before anything is written: no target is an input (same path or same file), a folder, a
     name too long for the file system, or a map a material of this file reads (other than
     ``material``, the one this conversion updates: the other would render the new maps while
@@ -132,7 +132,7 @@ def _check_targets(targets, input_files, txn, material=None):
         except FileNotFoundError:
             st = None
         except OSError as exc:
-            raise ConversionError(f"output {t}: {_reason(exc)}") from None
+            raise ConversionError(f"output {t}: {os_reason(exc)}") from None
         if os.path.realpath(t) in input_files or (st is not None and (st.st_dev, st.st_ino) in input_ids):
             raise ConversionError(f"output {t} would overwrite an input; choose another folder "
                                   "or prefix")
@@ -165,11 +165,11 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
     specs, notes = conversion.resolve_inputs(inputs, kind=kind, distribution=distribution,
                                        smoothness=smoothness, file_format=file_format)
     kind, distribution = str(kind).upper(), str(distribution).upper()
-    prefix = _check_prefix(prefix)
+    prefix = check_prefix(prefix)
     _check_options(material, interpolation, progress, tile_texels, resample)
-    codec = _check_codec(file_format, exr_codec)
+    codec = check_codec(file_format, exr_codec)
     prog = progress if isinstance(progress, conversion.Progress) else conversion.Progress(progress)
-    sources = {n: _Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
+    sources = {n: Source(n, s.role, s.source) for n, s in specs.items() if not s.is_constant}
     # a haze extent shared by both axes is read once
     shared_extent = (specs["haze_extent_x"].given_as == "haze_extent"
                      and not specs["haze_extent_x"].is_constant)
@@ -179,15 +179,15 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
     tiles = udim_tiles(sources)
     for src in sources.values():  # every input file, before anything is written
         src.check()
-    out_dir = _out_path(out_dir)
+    out_dir = out_path(out_dir)
     input_files = {os.path.realpath(p) for s in sources.values() for p in s.files()}
 
     report = conversion.ConversionReport(kind=kind, distribution=distribution, file_format=file_format,
                                    tiles=list(tiles), warnings=list(notes))
-    ext = _EXT[file_format]
+    ext = EXTENSIONS[file_format]
     jobs = tiles or [None]
-    txn = _Transaction(out_dir, started)
-    _check_targets([_final_path(out_dir, prefix, s.name, tile, ext)
+    txn = Transaction(out_dir, started)
+    check_targets([final_path(out_dir, prefix, s.name, tile, ext)
                     for tile in jobs for s in conversion.output_specs(kind, True)], input_files, txn,
                    material)
     alpha_given = specs["roughness"].transform == "sqrt"
@@ -201,18 +201,18 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
         anisotropic = yield from run.anisotropy(jobs)
         out_specs = conversion.output_specs(kind, anisotropic)
         report.anisotropic = anisotropic
-        paths = {s.name: _final_path(out_dir, prefix, s.name, UDIM_TOKEN if tiles else None, ext)
+        paths = {s.name: final_path(out_dir, prefix, s.name, UDIM_TOKEN if tiles else None, ext)
                  for s in out_specs}
         for tile in jobs:
             if tile:
                 prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
-            finals = {s.name: _final_path(out_dir, prefix, s.name, tile, ext) for s in out_specs}
+            finals = {s.name: final_path(out_dir, prefix, s.name, tile, ext) for s in out_specs}
             yield from run.tile(tile, finals, txn, out_specs, kind, distribution, smoothness,
                                 anisotropic, file_format, codec, threads)
         retire = []
         if tiles:  # tiles of an earlier, larger set would join this one in a tiled image
             for s in out_specs:
-                on_disk = _tile_paths(_final_path(out_dir, prefix, s.name, UDIM_TOKEN, ext))
+                on_disk = tile_paths(final_path(out_dir, prefix, s.name, UDIM_TOKEN, ext))
                 retire += [p for t, p in sorted(on_disk.items()) if t not in tiles]
             if retire:
                 report.warnings.append("removed UDIM tiles of an earlier conversion that are not "
@@ -220,7 +220,7 @@ def convert_maps_steps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, di
         prog.check()  # the last point where a cancel undoes the run
         txn.commit(retire)
     except BaseException as exc:
-        _undo(txn, exc)
+        undo_run(txn, exc)
         raise
     report.warnings = list(dict.fromkeys(report.warnings))
     report.seconds = time.perf_counter() - t0
@@ -319,7 +319,7 @@ class _Run:
         files = {}
         try:
             for s in out_specs:
-                files[s.name] = _MapFile(file_format, codec, txn.temp(finals[s.name]),
+                files[s.name] = MapFile(file_format, codec, txn.temp(finals[s.name]),
                                          finals[s.name], w, h)
             yield from self.strips(readers, files, out_specs, (w, h), kind, distribution,
                                    smoothness, anisotropic, file_format, threads)
@@ -350,7 +350,7 @@ class _Run:
             maps, limits = conversion.describe_maps(clean, kind=kind, distribution=distribution,
                                               smoothness=smoothness, anisotropic=anisotropic,
                                               shape=(y1 - y0, w))
-            conversion._add_counts(clamped, limits)
+            conversion.add_counts(clamped, limits)
             encoded = {}
             for s in out_specs:
                 values = maps[s.name]
@@ -371,7 +371,7 @@ class _Run:
             done = y1
             yield
         for c in counts:  # in strip order: the report does not depend on the thread schedule
-            conversion._add_counts(self.report.clamped, c)
+            conversion.add_counts(self.report.clamped, c)
 
 
 class _Resampled:

@@ -29,12 +29,12 @@ from ...core.parameters import HAZE_DEFAULTS, RANGES
 from ...schema import HAZE_MAP_INPUTS, HAZE_SOCKETS, LAYER_MAP_INPUTS
 from .. import compat
 from ..model import layer, layer_group, layer_values
-from .convert import _check_prefix, _check_targets
+from .convert import check_prefix, check_targets
 from ...oiio import openimageio
-from ..model.convert_inputs import UDIM_TOKEN, _Source, _reason, udim_tiles
-from ..model.convert_outputs import (_EXT, _MapFile, _Transaction, _check_codec, _final_path,
-                                     _out_path)
-from ..model.convert_wiring import _image_for, _load_image
+from ..model.convert_inputs import UDIM_TOKEN, Source, os_reason, udim_tiles
+from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_codec, final_path,
+                                     out_path)
+from ..model.convert_wiring import image_for, load_image
 from .make_hazy import find_core_bsdf
 
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).
@@ -150,7 +150,7 @@ def _datablock(src, label):
         img.pixels.foreach_set(px.ravel())
         img.pack()
         return img
-    return _load_image(os.path.abspath(os.fsdecode(os.fspath(src))), label)
+    return load_image(os.path.abspath(os.fsdecode(os.fspath(src))), label)
 
 
 def convert_pbr(inputs, out_dir, **options):
@@ -181,7 +181,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
     if interpolation not in ("Linear", "Closest", "Cubic", "Smart"):
         raise ConversionError(f"interpolation must be Linear, Closest, Cubic or Smart, got "
                               f"{interpolation!r}")
-    prefix = _check_prefix(prefix)
+    prefix = check_prefix(prefix)
     warnings = []
     constants, maps = {}, {}
     for k, v in inputs.items():
@@ -217,7 +217,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         if k == "normal":
             continue  # linked, not evaluated
         role = "colour" if k == "base_color" else "data"
-        sources[k] = _Source(k, role, v)
+        sources[k] = Source(k, role, v)
     if not sources:
         raise ConversionError("a PBR set needs at least one map (all inputs are constants: use "
                               "Make Hazy on a material instead)")
@@ -237,7 +237,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         conversion.check_sizes(named)
         sizes[tile] = named[0][1]
     w, h = sizes[jobs[0]]
-    out_dir = _out_path(out_dir)
+    out_dir = out_path(out_dir)
     created = mat is None
     if created:
         mat = compat.new_material(name or (prefix.rstrip("_") or "Hazy PBR"))
@@ -245,7 +245,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
         bsdf.distribution = distribution
     tree = mat.node_tree
     images, nodes = {}, {}
-    txn = _Transaction(out_dir, started)
+    txn = Transaction(out_dir, started)
     files = {}
     try:
         for k, v in constants.items():
@@ -311,7 +311,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
                     raise ConversionError(f"“{node.name}” ({node.image.name}, linked into {n[3:]}) "
                                           f"is a UDIM image: give {n[3:]} as a map of the set")
                 colour = g.inputs[n].vector
-                a = _Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
+                a = Source(n[3:], "colour" if colour and not node.image.colorspace_settings.is_data
                             else "data", node.image)
                 a.check()
                 v = a.read(None, warnings)
@@ -334,18 +334,18 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
                 a = a[0]
             consts[k] = a
         live = lay.baked  # every Converted Maps input of the baked group reads a map
-        ext_ = _EXT["OPEN_EXR"]
+        ext_ = EXTENSIONS["OPEN_EXR"]
         first = {}  # one map per distinct value
         for k, e in live.items():
             first.setdefault(id(e), k)
-        finals = {k: {t: _final_path(out_dir, prefix, _slug(k), t, ext_) for t in jobs}
+        finals = {k: {t: final_path(out_dir, prefix, _slug(k), t, ext_) for t in jobs}
                   for k in first.values()}
-        paths = {k: _final_path(out_dir, prefix, _slug(k), UDIM_TOKEN if tiles else None, ext_)
+        paths = {k: final_path(out_dir, prefix, _slug(k), UDIM_TOKEN if tiles else None, ext_)
                  for k in first.values()}
-        _check_targets([p for per in finals.values() for p in per.values()],
+        check_targets([p for per in finals.values() for p in per.values()],
                        {os.path.realpath(p) for s in sources.values() for p in s.files()}, txn,
                        material)
-        codec = _check_codec("OPEN_EXR", exr_codec)
+        codec = check_codec("OPEN_EXR", exr_codec)
         txn.make_folder()
         bad = {}
         for tile in jobs:
@@ -353,7 +353,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
             if tile:
                 prog.next_item(jobs.index(tile), len(jobs), tile, key="tile")
             readers = {k: s.strips(tile, warnings, oiio) for k, s in sources.items()}
-            files = {k: _MapFile("OPEN_EXR", codec, txn.temp(finals[k][tile]), finals[k][tile],
+            files = {k: MapFile("OPEN_EXR", codec, txn.temp(finals[k][tile]), finals[k][tile],
                                  tw, th) for k in first.values()}
             try:
                 yield from _bake_strips(readers, own, feeds, consts, g, live, first, files,
@@ -370,7 +370,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
             warnings.append(f"{sources[k].label}: {n} texel(s) not finite, read as 0")
         prog.check()  # the last point where a cancel undoes the run
         txn.commit()
-        images_out = {k: _image_for(p) for k, p in paths.items()}
+        images_out = {k: image_for(p) for k, p in paths.items()}
         baked = {k: images_out[first[id(e)]] for k, e in live.items()}
         attach_baked_layer(mat, bsdf, baked, vector=vector, interpolation=interpolation,
                            sources=sorted(n[3:] for n in needed if n.startswith("in:")),
@@ -388,7 +388,7 @@ def convert_pbr_steps(inputs, out_dir, *, material=None, name=None, prefix="",
                                 tree.nodes.remove(l.to_node)
                     tree.nodes.remove(n)
         if isinstance(exc, OSError):
-            raise ConversionError(f"could not write the maps ({_reason(exc)}); the output "
+            raise ConversionError(f"could not write the maps ({os_reason(exc)}); the output "
                                   f"folder is unchanged") from None
         if problems and isinstance(exc, ConversionError):
             raise ConversionError(f"{exc}; " + "; ".join(problems)) from None

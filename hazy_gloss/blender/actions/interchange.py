@@ -21,7 +21,7 @@ from ...convert import ConversionReport, ConversionResult, output_specs
 from ...interchange import layered_tree, materialx, usd
 from .. import compat
 from ..model import fallback, layer, layer_group, material, material_read, stamp, surface_build
-from ..model.convert_outputs import _MapFile
+from ..model.convert_outputs import MapFile
 from ..model.convert_wiring import wire_material
 from .messages import plain_message
 from ..nodes.builder import default_value_of
@@ -383,11 +383,11 @@ def _pixels(image):
 def _write_table(image, file, px=None):
     """``image`` (its pixels ``px`` when read already) as the float OpenEXR ``file``, in the
     values it holds (its colour space stays the snapshot's): written to a temporary, read back
-    (convert_outputs._MapFile) and only then moved into place."""
+    (convert_outputs.MapFile) and only then moved into place."""
     w, h = image.size
     px = _pixels(image) if px is None else px
     tmp = file + ".partial"
-    out = _MapFile("OPEN_EXR", "ZIP", tmp, file, w, h)
+    out = MapFile("OPEN_EXR", "ZIP", tmp, file, w, h)
     try:
         out.append(out.encode(0, px.reshape(h, w, 4)[::-1, :, :3]))  # (a file's top row first)
         out.finish()

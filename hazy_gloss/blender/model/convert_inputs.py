@@ -11,7 +11,7 @@ off; one decode through OpenImageIO) before anything is written or Blender reads
 
 Also here, shared with the writing side (blender/model/convert_outputs.py): Blender's messages while
 it reads or writes a file (:class:`_BlenderMessages`), signals held during renames
-(:class:`_DeferredSignals`) and the one-line error texts.
+(:class:`DeferredSignals`) and the one-line error texts.
 """
 from __future__ import annotations
 
@@ -54,11 +54,11 @@ def check_readable(path, label):
     except FileNotFoundError:
         raise ConversionError(f"{label}: file not found: {path}") from None
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
-        raise ConversionError(f"{label}: cannot read {path}: {_reason(exc)}") from None
+        raise ConversionError(f"{label}: cannot read {path}: {os_reason(exc)}") from None
     return FORMAT_NAMES[info.format]
 
 
-class _DeferredSignals:
+class DeferredSignals:
     """Hold SIGINT and SIGTERM while files are renamed or restored.
 
     Only signals with a Python handler are held (KeyboardInterrupt's, the CLI's SIGTERM
@@ -108,7 +108,7 @@ class _BlenderMessages:
     def __enter__(self):
         self.raw, self._keep, self._saved = b"", False, []
         try:
-            with _DeferredSignals():  # an interruption must not leave stdout/stderr redirected
+            with DeferredSignals():  # an interruption must not leave stdout/stderr redirected
                 for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
                     try:
                         if stream is not None:
@@ -130,7 +130,7 @@ class _BlenderMessages:
 
     def __exit__(self, exc_type, exc, tb):
         texts = []
-        with _DeferredSignals():
+        with DeferredSignals():
             while self._saved:
                 fd, stream, saved, tmp = self._saved.pop(0)
                 try:
@@ -161,16 +161,16 @@ class _BlenderMessages:
         return f" (Blender: {text})" if text else ""
 
 
-def _one_line(text):
+def one_line(text):
     """A Blender exception's message (sometimes several lines) as one line."""
     return "; ".join(p.strip() for p in str(text).splitlines() if p.strip())
 
 
-def _reason(exc):
+def os_reason(exc):
     """An OSError (or the ValueError of a NUL in a path) as a short reason."""
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
-    return _one_line(exc) or type(exc).__name__
+    return one_line(exc) or type(exc).__name__
 
 
 # --------------------------------------------------------------------------------------------
@@ -178,7 +178,7 @@ def _reason(exc):
 # --------------------------------------------------------------------------------------------
 
 
-def _abspath(path, library=None, what="path"):
+def absolute_path(path, library=None, what="path"):
     path = os.fspath(path)
     if isinstance(path, bytes):
         path = os.fsdecode(path)
@@ -192,7 +192,7 @@ def _abspath(path, library=None, what="path"):
         return os.path.normpath(os.path.abspath(path))
     except OSError as exc:  # a relative path and the current folder was deleted
         raise ConversionError(f"{what} {path!r} is relative and the current folder cannot be "
-                              f"read ({_reason(exc)}); give an absolute path") from None
+                              f"read ({os_reason(exc)}); give an absolute path") from None
 
 
 def _label(name, source):
@@ -208,10 +208,10 @@ def _label(name, source):
             hint = " (a constant is a number, or (r, g, b) for a colour)"
         raise ConversionError(f"{name}: expected an image path, an image datablock, a numpy "
                               f"array or a constant, got {type(source).__name__} "
-                              f"{_short(source)}{hint}") from None
+                              f"{short_repr(source)}{hint}") from None
 
 
-def _short(value, n=40):
+def short_repr(value, n=40):
     text = repr(value)
     return text if len(text) <= n else text[:n - 3] + "..."
 
@@ -224,7 +224,7 @@ def _looks_like_constant(text):
         return None
 
 
-def _tile_paths(pattern):
+def tile_paths(pattern):
     """{tile number: path} of the files matching a path with the <UDIM> token."""
     head, tail = pattern.split(UDIM_TOKEN, 1)
     rx = re.compile(re.escape(head) + r"(\d{4})" + re.escape(tail) + r"\Z")
@@ -236,7 +236,7 @@ def _tile_paths(pattern):
     return tiles
 
 
-class _Source:
+class Source:
     """One image input: a file, a datablock, or a UDIM set of files."""
 
     def __init__(self, name, role, source):
@@ -274,10 +274,10 @@ class _Source:
                 if img.packed_file is not None or getattr(img, "packed_files", None):
                     raise ConversionError(f"{self.label}: packed UDIM images are not supported; "
                                           "unpack them (File > External Data > Unpack Resources)")
-                pattern = _abspath(img.filepath, img.library)
+                pattern = absolute_path(img.filepath, img.library)
                 if UDIM_TOKEN not in pattern:
                     raise ConversionError(f"{self.label}: tiled image without {UDIM_TOKEN} in its path")
-                on_disk = _tile_paths(pattern)
+                on_disk = tile_paths(pattern)
                 numbers = [t.number for t in img.tiles]
                 missing = [n for n in numbers if n not in on_disk]
                 if missing:
@@ -289,7 +289,7 @@ class _Source:
                 self.image = img
         else:
             text = os.fsdecode(os.fspath(source))
-            path = _abspath(source, what=f"{name}:")
+            path = absolute_path(source, what=f"{name}:")
             if not os.path.exists(path) and UDIM_TOKEN not in path and \
                     _looks_like_constant(text) is not None:
                 nums = _looks_like_constant(text)
@@ -297,7 +297,7 @@ class _Source:
                 raise ConversionError(f"{name}: {text!r} is a string and no such file exists; give "
                                       f"a constant as a number or a tuple, e.g. {name}={const!r}")
             if UDIM_TOKEN in path:
-                self.tiles = _tile_paths(path)
+                self.tiles = tile_paths(path)
                 if not self.tiles:
                     raise ConversionError(f"{self.label}: no UDIM tile matches {path}")
                 self.colourspace = None
@@ -323,7 +323,7 @@ class _Source:
             return list(self.tiles.values())
         img = self.image
         if img.packed_file is None and img.source == "FILE" and img.filepath:
-            return [_abspath(img.filepath, img.library)]
+            return [absolute_path(img.filepath, img.library)]
         return []
 
     def read(self, tile, warnings):
@@ -402,7 +402,7 @@ class _Source:
 
 
 def udim_tiles(sources):
-    """The UDIM tiles of a set of _Source inputs ([] when none is tiled); every tiled input
+    """The UDIM tiles of a set of Source inputs ([] when none is tiled); every tiled input
     must have the same tiles (else one line listing each one's)."""
     tiled = {n: s for n, s in sources.items() if s.tiles is not None}
     if not tiled:
@@ -422,7 +422,7 @@ _UNIT_RANGE = ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "haz
 def _check_datablock_file(img, label):
     """A datablock Blender has not loaded yet (or will reload) reads its file: check it first."""
     if img.packed_file is None and img.source == "FILE" and img.filepath and not img.has_data:
-        check_readable(_abspath(img.filepath, img.library), label)
+        check_readable(absolute_path(img.filepath, img.library), label)
 
 
 def _pixels(img, label):
@@ -470,7 +470,7 @@ def _load(path, label):
     try:
         return bpy.data.images.load(path, check_existing=False)
     except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {path}: {_one_line(exc)}") from None
+        raise ConversionError(f"{label}: cannot read {path}: {one_line(exc)}") from None
 
 
 def _read_file(path, role, label, warnings, colourspace=None):
@@ -516,10 +516,10 @@ def _read_datablock(img, role, label, warnings):
     # Blender decoded the file from cs.name; re-read a private Non-Color copy of the file or
     # packed data (exact raw values) unless the image was edited since it was loaded
     reloadable = not img.is_dirty and (img.packed_file is not None or (
-        img.filepath and os.path.isfile(_abspath(img.filepath, img.library))))
+        img.filepath and os.path.isfile(absolute_path(img.filepath, img.library))))
     if reloadable:
         if img.packed_file is None:
-            check_readable(_abspath(img.filepath, img.library), label)
+            check_readable(absolute_path(img.filepath, img.library), label)
         tmp = img.copy()
         try:
             tmp.colorspace_settings.name = "Non-Color"

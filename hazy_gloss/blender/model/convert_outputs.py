@@ -3,9 +3,9 @@
 
 Float OpenEXR (default, lossless ZIP) or 16-bit PNG is written strip by strip by OpenImageIO;
 every map goes to a temporary name in the output folder and is proved by decoding it once
-(:class:`_MapFile`); :class:`_Transaction` checks the folder, renames every map into place
+(:class:`MapFile`); :class:`Transaction` checks the folder, renames every map into place
 (backing up the ones it replaces) and, on any failure, interruption or cancel, removes the
-run's files and restores the maps it replaced (:func:`_undo`).
+run's files and restores the maps it replaced (:func:`undo_run`).
 """
 from __future__ import annotations
 
@@ -20,9 +20,9 @@ from ... import constants as K
 from ... import imagestream as stream
 from ...convert import ConversionError
 from ...oiio import MISSING, openimageio
-from .convert_inputs import _DeferredSignals, _abspath, _reason, _short
+from .convert_inputs import DeferredSignals, absolute_path, os_reason, short_repr
 
-_EXT = {"OPEN_EXR": ".exr", "PNG": ".png"}
+EXTENSIONS = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
 # --------------------------------------------------------------------------------------------
 # Writing
@@ -55,7 +55,7 @@ def exr_codecs():
     return _CODECS[0]
 
 
-def _check_codec(file_format, exr_codec):
+def check_codec(file_format, exr_codec):
     _require_oiio()
     if file_format != "OPEN_EXR":
         return "ZIP"
@@ -64,7 +64,7 @@ def _check_codec(file_format, exr_codec):
     if codec not in codecs:
         lossless = [c for c in codecs if c in K.LOSSLESS_EXR_CODECS]
         raise ConversionError(f"exr_codec must be one of {', '.join(codecs)} (lossless: "
-                              f"{', '.join(lossless)}); got {_short(exr_codec)}")
+                              f"{', '.join(lossless)}); got {short_repr(exr_codec)}")
     return codec
 
 
@@ -75,7 +75,7 @@ def _require_oiio():
     return oiio
 
 
-class _MapFile:
+class MapFile:
     """One output map written to its temporary in strips (hazy_gloss.imagestream, through
     OpenImageIO) and proved complete at the end: the file decodes to what was written (lossy
     codecs: to finite values).  I/O errors become one-line ConversionErrors naming ``final``."""
@@ -86,7 +86,7 @@ class _MapFile:
             self.writer = stream.OiioStripWriter(_require_oiio(), tmp, width, height,
                                                  file_format, codec)
         except OSError as exc:
-            raise ConversionError(f"could not write {final}: {_reason(exc)}") from None
+            raise ConversionError(f"could not write {final}: {os_reason(exc)}") from None
         except stream.StripError as exc:
             raise ConversionError(f"could not write {final}: {exc}") from None
 
@@ -97,7 +97,7 @@ class _MapFile:
         try:
             self.writer.append(encoded)
         except OSError as exc:
-            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+            raise ConversionError(f"could not write {self.final}: {os_reason(exc)}") from None
 
     def close_file(self):
         """The one call that completes a file (a seam for the tests' full-disk simulation)."""
@@ -107,14 +107,14 @@ class _MapFile:
         try:
             self.close_file()
         except OSError as exc:
-            raise ConversionError(f"could not write {self.final}: {_reason(exc)}") from None
+            raise ConversionError(f"could not write {self.final}: {os_reason(exc)}") from None
         try:
             self.writer.verify()
         except (stream.StripError, ConversionError) as exc:
             raise ConversionError(f"could not write {self.final} (disk full?): {exc}") from None
         except OSError as exc:
             raise ConversionError(f"could not write {self.final}: it does not read back "
-                                  f"({_reason(exc)})") from None
+                                  f"({os_reason(exc)})") from None
 
     def abort(self):
         try:
@@ -138,7 +138,7 @@ def _remove(path):
     return True
 
 
-class _Transaction:
+class Transaction:
     """The files of one conversion, all or nothing.
 
     Maps are written to temporaries ``.<name>.<run>.tmp<ext>`` in the output folder (same file
@@ -193,14 +193,14 @@ class _Transaction:
                 continue
             except OSError as exc:
                 raise ConversionError(f"cannot create the output folder {self.out_dir}: "
-                                      f"{_reason(exc)}") from None
+                                      f"{os_reason(exc)}") from None
             self.created.append(d)
         probe = self.side(os.path.join(self.out_dir, "hazy_gloss_probe.png"), "tmp")
         try:
             fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         except OSError as exc:
             raise ConversionError(f"the output folder {self.out_dir} is not writable: "
-                                  f"{_reason(exc)}") from None
+                                  f"{os_reason(exc)}") from None
         os.close(fd)
         _remove(probe)
 
@@ -208,7 +208,7 @@ class _Transaction:
         """Delete temporaries and backups of earlier runs: ``.<prefix><map>[.<tile>].<hex>.(tmp|
         bak).<ext>`` for a map name in ``names``, last modified before this run started."""
         rx = re.compile(r"\.(?P<stem>.+)\.(?P<run>[0-9a-f]{%d})\.(?:tmp|bak)(?:%s)\Z" % (
-            K.CONVERT_RUN_ID_HEX, "|".join(re.escape(e) for e in _EXT.values())))
+            K.CONVERT_RUN_ID_HEX, "|".join(re.escape(e) for e in EXTENSIONS.values())))
         removed = []
         try:
             entries = list(os.scandir(self.out_dir))
@@ -234,7 +234,7 @@ class _Transaction:
     def commit(self, retire=()):
         """Move ``retire`` (stale files of an earlier set) aside, rename every temporary into
         place, then delete the backups.  Interruptions are handled between renames (undone)."""
-        with _DeferredSignals() as sig:
+        with DeferredSignals() as sig:
             try:
                 for path in retire:
                     bak = self.side(path, "bak")
@@ -254,7 +254,7 @@ class _Transaction:
                     sig.poll()
                 sig.poll()  # the last point where the whole set can still be undone
             except BaseException:
-                self._undo()
+                self.undo_run()
                 raise
             self.committed = True
             for bak in [*self.backups.values(), *self.retired.values()]:
@@ -262,11 +262,11 @@ class _Transaction:
 
     def rollback(self):
         """Undo everything this run did to the folder; returns what could not be undone."""
-        with _DeferredSignals():
-            self._undo()
+        with DeferredSignals():
+            self.undo_run()
         return self.problems
 
-    def _undo(self):
+    def undo_run(self):
         for final in reversed(self.renamed):
             bak = self.backups.pop(final, None)
             try:
@@ -275,7 +275,7 @@ class _Transaction:
                 else:
                     os.remove(final)
             except OSError as exc:
-                self.problems.append(f"could not restore {final} ({_reason(exc)})"
+                self.problems.append(f"could not restore {final} ({os_reason(exc)})"
                                      + (f"; its previous version is {bak}" if bak else ""))
         self.renamed.clear()
         for path, bak in list(self.retired.items()):
@@ -283,7 +283,7 @@ class _Transaction:
                 os.replace(bak, path)
                 del self.retired[path]
             except OSError as exc:
-                self.problems.append(f"could not restore {path} ({_reason(exc)}); it is {bak}")
+                self.problems.append(f"could not restore {path} ({os_reason(exc)}); it is {bak}")
         for tmp in self.temps.values():
             _remove(tmp)
         self.temps.clear()
@@ -298,18 +298,18 @@ class _Transaction:
         self.created.clear()
 
 
-def _out_path(out_dir):
+def out_path(out_dir):
     """Absolute output folder ('//' is relative to the saved .blend); not created here."""
     if out_dir is None:
         raise ConversionError("out_dir: no output folder given")
     if not isinstance(out_dir, (str, bytes, os.PathLike)):
         raise ConversionError(f"out_dir must be a folder path, got {type(out_dir).__name__} "
-                              f"{_short(out_dir)}")
+                              f"{short_repr(out_dir)}")
     text = os.fspath(out_dir)
     text = os.fsdecode(text) if isinstance(text, bytes) else text
     if not text.strip():
         raise ConversionError(f"out_dir must name a folder, got {text!r}")
-    path = _abspath(text, what="out_dir")
+    path = absolute_path(text, what="out_dir")
     p = path
     while not os.path.isdir(p):  # the first existing ancestor must be a folder
         if os.path.lexists(p):
@@ -322,7 +322,7 @@ def _out_path(out_dir):
     return path
 
 
-def _undo(txn, exc):
+def undo_run(txn, exc):
     """After a failure or an interruption: undo the run's files; OSErrors and failed undos become
     the one-line ConversionError (raised from here), anything else is re-raised by the caller."""
     if txn.committed:  # a signal held during the last clean-up: the set is complete
@@ -333,7 +333,7 @@ def _undo(txn, exc):
     if isinstance(exc, OSError):
         where = getattr(exc, "filename2", None) or exc.filename
         where = f"{where}: " if where else ""
-        raise ConversionError(f"could not write the maps ({where}{_reason(exc)}); "
+        raise ConversionError(f"could not write the maps ({where}{os_reason(exc)}); "
                               + (extra[2:] if extra else "the output folder is unchanged")) from None
     if isinstance(exc, ConversionError) and extra:
         raise ConversionError(f"{exc}{extra}") from None
@@ -341,5 +341,5 @@ def _undo(txn, exc):
         exc.add_note(extra[2:])
 
 
-def _final_path(out_dir, prefix, name, tile, ext):
+def final_path(out_dir, prefix, name, tile, ext):
     return os.path.join(out_dir, f"{prefix}{name}{'.' + str(tile) if tile else ''}{ext}")

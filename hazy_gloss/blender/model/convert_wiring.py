@@ -15,7 +15,7 @@ from ...convert import ConversionError
 from ...core.graph import Graph
 from .. import compat
 from . import material
-from .convert_inputs import UDIM_TOKEN, _one_line, _tile_paths, check_readable
+from .convert_inputs import UDIM_TOKEN, one_line, tile_paths, check_readable
 from ..nodes.builder import TreeBuilder
 from ..nodes.emit import emit
 from ..nodes.lobes import build_lobes, tangent as tangent_node
@@ -27,12 +27,12 @@ STAMP = K.MAPS_STAMP
 # --------------------------------------------------------------------------------------------
 
 
-def _load_image(path, label, check_existing=True):
+def load_image(path, label, check_existing=True):
     """A datablock of a file, or of a UDIM set (a ``<UDIM>`` path: its first tile loaded,
     then tiled), after the file check of every file."""
     first = path
     if UDIM_TOKEN in path:
-        tiles = _tile_paths(path)
+        tiles = tile_paths(path)
         if not tiles:
             raise ConversionError(f"{label}: no UDIM tile matches {path}")
         for n, p in sorted(tiles.items()):
@@ -43,13 +43,13 @@ def _load_image(path, label, check_existing=True):
     try:
         img = bpy.data.images.load(first, check_existing=check_existing)
     except RuntimeError as exc:
-        raise ConversionError(f"{label}: cannot read {first}: {_one_line(exc)}") from None
+        raise ConversionError(f"{label}: cannot read {first}: {one_line(exc)}") from None
     if UDIM_TOKEN in path:
         img.source = "TILED"
     return img
 
 
-def _image_for(path):
+def image_for(path):
     """An image datablock for a written map (reused and reloaded when it exists), Non-Color."""
     want = os.path.normpath(path)
     img = None
@@ -59,7 +59,7 @@ def _image_for(path):
             img = im
             break
     if img is None:
-        img = _load_image(path, os.path.basename(path), check_existing=False)
+        img = load_image(path, os.path.basename(path), check_existing=False)
     else:
         img.reload()
     img.colorspace_settings.name = "Non-Color"
@@ -93,7 +93,7 @@ def wire_material(mat, result, *, interpolation="Linear", base_color=(0.0, 0.0, 
         spec = result.specs[name]
         tex = tb.node("ShaderNodeTexImage", name=f"Map {name}", label=name.replace("_", " "),
                       depth=0)
-        tex.image = _image_for(path)
+        tex.image = image_for(path)
         tex.interpolation = interpolation
         tex.extension = "REPEAT"
         sources[name] = tex.outputs["Color"]

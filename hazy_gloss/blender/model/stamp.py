@@ -21,7 +21,7 @@ import math
 
 from ... import constants as K
 from ...core.lobes import check_kind
-from ...core.parameters import HAZE_PARAMETERS, PARAMETERS, _short, check_value
+from ...core.parameters import HAZE_PARAMETERS, PARAMETERS, short_repr, check_value
 
 __all__ = ("StampError", "plain", "group", "read_material", "check_layer_node",
            "material_problem")
@@ -55,9 +55,9 @@ def _kind_of(value):
     if isinstance(value, bool):
         return "a boolean"
     if isinstance(value, (int, float)):
-        return f"the number {_short(value)}"
+        return f"the number {short_repr(value)}"
     if isinstance(value, str):
-        return f"the string {_short(value)}"
+        return f"the string {short_repr(value)}"
     if isinstance(value, list):
         return f"a list of {len(value)}"
     return f"a {type(value).__name__}"
@@ -115,7 +115,7 @@ def read_material(mat):
         if key == "smoothness":
             use = d.get("use_smoothness", False)
             if not isinstance(use, (bool, int)) or isinstance(use, int) and use not in (0, 1):
-                problems[key] = f"use_smoothness must be True or False, got {_short(use)}"
+                problems[key] = f"use_smoothness must be True or False, got {short_repr(use)}"
                 continue
             if not use:
                 values[key] = None
