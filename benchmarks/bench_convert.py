@@ -156,7 +156,7 @@ def run_floor(binputs, boutputs, core, paths, out, outputs):
             r.close()
     for name, values in outputs.items():
         h, w = values.shape[:2]
-        f = boutputs._MapFile("OPEN_EXR", "ZIP", str(out / f"{name}.exr"), str(out / f"{name}.exr"), w, h)
+        f = boutputs.MapFile("OPEN_EXR", "ZIP", str(out / f"{name}.exr"), str(out / f"{name}.exr"), w, h)
         rows = S.strip_rows(w)
         flipped = values[::-1]  # file order
         for y0 in range(0, h, rows):

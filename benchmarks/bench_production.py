@@ -94,7 +94,7 @@ if mode == "floor":
     readers, _ = run.open(None)
     codec = "ZIP"
     ext = ".png" if fmt == "PNG" else ".exr"
-    files = {s.name: bout._MapFile(fmt, codec, os.path.join(out, s.name + ext),
+    files = {s.name: bout.MapFile(fmt, codec, os.path.join(out, s.name + ext),
                                    os.path.join(out, s.name + ext), w, h) for s in out_specs}
 
     def read(y0, y1):

@@ -264,7 +264,7 @@ def test_damaged_files_are_one_line(mods, tmp_path):
             data[at] = int(rng.integers(256))
         p = tmp_path / f"fuzz{i}.{('exr', 'png')[i % 2]}"
         p.write_bytes(bytes(data))
-        src = mods.binputs._Source("haziness", "data", str(p))
+        src = mods.binputs.Source("haziness", "data", str(p))
         try:
             src.check()
             r = src.strips(None, [], oiio)

@@ -243,7 +243,7 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_pa
     off by a full disk): simulated by cutting the third file once it is complete.  The
     decode that proves each map catches it; nothing changes."""
     paths, out, before = old_set(api, tmp_path, fmt="PNG")
-    real = boutputs._MapFile.close_file
+    real = boutputs.MapFile.close_file
     calls = []
 
     def full_disk(self):
@@ -253,7 +253,7 @@ def test_write_cut_off_by_a_full_disk_is_caught_and_undone(api, boutputs, tmp_pa
             data = Path(self.tmp).read_bytes()
             Path(self.tmp).write_bytes(data[:len(data) // 2])
 
-    monkeypatch.setattr(boutputs._MapFile, "close_file", full_disk)
+    monkeypatch.setattr(boutputs.MapFile, "close_file", full_disk)
     with pytest.raises(boutputs.ConversionError, match=r"could not write .*roughness_wide.png "
                                                     r"\(disk full\?\): .*roughness_wide.*png: .*"
                                                     r"cannot be read") as info:
@@ -267,7 +267,7 @@ def test_write_that_reads_back_different_is_caught(api, boutputs, tmp_path, monk
     """A complete file with one other byte (a failing device; in the pixels, or in the EXR
     header): the decode that proves each map catches it (other values, or no file at all)."""
     paths, out, before = old_set(api, tmp_path, fmt=fmt)
-    real = boutputs._MapFile.close_file
+    real = boutputs.MapFile.close_file
 
     def flip(self):
         real(self)
@@ -275,7 +275,7 @@ def test_write_that_reads_back_different_is_caught(api, boutputs, tmp_path, monk
         data[int(len(data) * where)] ^= 0x10
         Path(self.tmp).write_bytes(bytes(data))
 
-    monkeypatch.setattr(boutputs._MapFile, "close_file", flip)
+    monkeypatch.setattr(boutputs.MapFile, "close_file", flip)
     with pytest.raises(boutputs.ConversionError, match=r"could not write .*beta.(exr|png) \(disk "
                                                     r"full\?\): .*(cannot be read|reads back)"):
         api.convert_maps(paths, str(out), file_format=fmt)
@@ -380,7 +380,7 @@ def test_output_folder_that_cannot_be_created(api, core, tmp_path, monkeypatch):
         api.convert_maps(paths, "/proc/hazy_gloss_test_out")
     # a failed run removes the folders it created (here: the write of the first map fails)
     boutputs = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.model.convert_outputs")
-    monkeypatch.setattr(boutputs._MapFile, "close_file", lambda self: (_ for _ in ()).throw(
+    monkeypatch.setattr(boutputs.MapFile, "close_file", lambda self: (_ for _ in ()).throw(
         OSError(5, "simulated")))
     with pytest.raises(core.ConversionError, match="could not write .*beta.exr: simulated"):
         api.convert_maps(paths, str(tmp_path / "new" / "deeper"))
