@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""docs/img/layer_tree.png: a material's node tree before and after Make Hazy, and the inside of
-the layer node's group, drawn from the nodes' own locations, sizes and links (matplotlib).
+"""docs/img/layer_tree.png: a material's node tree before and after Make Hazy, drawn from the
+nodes' own locations, sizes and links, and the inside of the layer node's group as its labelled
+frames in order, each with its node count (matplotlib).
 
     .venv/bin/python scripts/tree_diagram.py [--out docs/img/layer_tree.png]
 
@@ -163,6 +164,42 @@ def draw(ax, tree, title, skip=("NodeFrame", "NodeReroute")):
     ax.set_title(title, fontsize=9)
 
 
+#: A frame's colour by the part its label names (the text before the colon).
+PART_COLOURS = {"Coat": "#d9e7f2", "Dielectric part": "#e6f0dc", "Metal part": "#f2e4d4",
+                "EEVEE": "#ece4f2"}
+
+
+def draw_frames(ax, tree, title, columns=4):
+    """The group as an artist reads it: its labelled frames in the editor's left-to-right order,
+    wrapped into rows, each with its node count (450 nodes drawn one by one do not read)."""
+    import textwrap
+    from matplotlib.patches import FancyBboxPatch
+
+    def x_of(n):
+        return (n.location_absolute if hasattr(n, "location_absolute") else n.location)[0]
+    frames = sorted((n for n in tree.nodes if n.bl_idname == "NodeFrame"), key=x_of)
+    w, h, gap = 10.0, 3.2, 1.0
+    rows = (len(frames) + columns - 1) // columns
+    for i, f in enumerate(frames):
+        r, c = divmod(i, columns)
+        x, y = c * (w + gap), -r * (h + gap)
+        label = f.label or f.name
+        part = label.split(":")[0]
+        kids = sum(1 for n in tree.nodes if n.parent == f)
+        ax.add_patch(FancyBboxPatch((x, y - h), w, h, boxstyle="round,pad=0,rounding_size=0.3",
+                                    facecolor=PART_COLOURS.get(part, "#f2f2ea"),
+                                    edgecolor="#888877", linewidth=0.8))
+        ax.text(x + 0.3, y - 0.35, f"{i + 1}. " + "\n".join(textwrap.wrap(label, 34)),
+                fontsize=7.5, va="top", color="#222222")
+        ax.text(x + w - 0.3, y - h + 0.3, f"{kids} nodes", fontsize=7, ha="right",
+                va="bottom", color="#555555")
+    ax.set_xlim(-gap, columns * (w + gap))
+    ax.set_ylim(-rows * (h + gap), gap)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    ax.set_title(title, fontsize=9)
+
+
 def textured_material(name):
     """The drawn material: image textures on Base Color, Roughness, Metallic, Coat Weight and
     a Normal Map into a Principled BSDF."""
@@ -215,9 +252,11 @@ def main(argv=None):
     draw(fig.add_subplot(grid[0, 1]), after.node_tree,
          f"After Make Hazy: {len(after.node_tree.nodes)} nodes (the layer node in the BSDF's "
          "place; the BSDF kept, muted)")
-    draw(fig.add_subplot(grid[1, :]), group,
-         f"Inside the layer node: group “{group.name}” (shared by every material of its "
-         "configuration)")
+    total = sum(1 for n in group.nodes if n.bl_idname != "NodeFrame")
+    draw_frames(fig.add_subplot(grid[1, :]), group,
+                f"Inside the layer node: group “{group.name}”, {total} nodes in its frames, "
+                "left to right in the node editor\n(shared by every material of its "
+                "configuration; Tab into the node to see each frame's nodes)")
     fig.tight_layout()
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     fig.savefig(args.out)
