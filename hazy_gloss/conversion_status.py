@@ -8,6 +8,9 @@ from __future__ import annotations
 import difflib
 import time
 
+__all__ = ("ConversionError", "ConversionOptionError", "did_you_mean", "ConversionCancelled",
+           "Progress", "format_seconds", "progress_bar", "drain")
+
 
 class ConversionError(ValueError):
     """Bad input to a conversion (missing file, mismatched sizes, bad kind...): the message is

@@ -10,6 +10,8 @@ import re
 
 from .conversion_status import ConversionError
 
+__all__ = ("PBR_NAME_PARTS", "udim_sets", "detect_pbr_set")
+
 
 # --------------------------------------------------------------------------------------------
 # PBR texture sets: which file is which map

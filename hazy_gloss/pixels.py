@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ("srgb_to_linear", "srgb_bytes_to_linear", "linear_to_srgb", "resample_axis",
+           "resample_block", "resample_bilinear")
+
 
 # --------------------------------------------------------------------------------------------
 # Colour

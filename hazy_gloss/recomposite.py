@@ -31,6 +31,10 @@ from .core import node_math
 from .core.graph import Graph, evaluate
 from .imagecheck import ImageFileError, read_exr
 
+__all__ = ("PROPERTY", "LAYERS", "BUFFER_KEYS", "HOLDOUT_COLLECTION", "AOVS", "MAX_HAZINESS",
+           "GROUP_NAME", "GROUP_VERSION", "exr_layers", "passes_from_exr", "GRAPH_INPUTS",
+           "compositor_graph", "recomposite")
+
 #: View layer custom property read by the hazy materials (Attribute node, type VIEW_LAYER).
 PROPERTY = "hg_recomposite"
 #: View layer per mode (order = c1..c4 above).

@@ -21,8 +21,7 @@ from . import constants as K
 __all__ = ("Parameter", "SCHEMA", "SCHEMA_BY_NAME", "PARAMETERS", "DEFAULTS", "HAZE_PARAMETERS",
            "HAZE_DEFAULTS", "RANGES", "HAZE_SOCKETS", "HAZE_MAP_INPUTS", "LAYER_MAP_INPUTS",
            "map_inputs", "property_names", "preset_properties", "property_specs",
-           "operator_property", "socket_keys",
-           "layer_sockets")
+           "operator_property", "socket_keys", "layer_sockets", "LAYER", "MATERIAL")
 
 MATERIAL, LAYER, BOTH = "material", "layer", "both"
 _SAME = object()  # Parameter.layer_default: as ``default``

@@ -10,6 +10,10 @@ import sys
 
 import bpy
 
+__all__ = ("VERSION", "ADDON_PACKAGE", "PACKAGE_DIR", "new_material", "shader_add_menu",
+           "COMPOSITOR_EFFECT", "compositor_uses_groups", "compositor_math_node", "compositor_tree",
+           "compositor_output", "animated_paths", "slot_fcurves", "use_blenders_pxr")
+
 VERSION = bpy.app.version
 
 #: The add-on's package (``bl_ext.<repo>.hazy_gloss`` as an extension; preferences are stored

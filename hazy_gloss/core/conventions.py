@@ -10,6 +10,9 @@ import numpy as np
 
 from ..constants import ALPHA_MAX
 
+__all__ = ("alpha_from_roughness", "lobe_alphas", "lobe_from_alpha", "metallic_anisotropy",
+           "glossy_anisotropy", "metallic_to_glossy_anisotropy")
+
 
 def alpha_from_roughness(roughness, anisotropy=0.0):
     """(α_x, α_y) the renderer uses for a Metallic/Principled lobe with (R, A)."""

@@ -9,6 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+__all__ = ("HazeMapping", "PerceptualParameters", "working_dtype", "xy_pair", "colour_array",
+           "Validator")
+
 
 # --------------------------------------------------------------------------------------------
 # Results

@@ -40,7 +40,7 @@ from .mapping import HazeMapping, haze_terms, dielectric_ior, gulbrandsen_ior
 __all__ = ("FRESNELS", "LOBES", "MultiscatterPeak", "cycles_version", "roughness_index",
            "albedo_normal", "albedo_average", "single_scatter_albedo", "fss_dielectric_exact",
            "energy_scale", "peak_ratio", "correct_mapping", "peak_factor", "exact_conductor",
-           "generation")
+           "generation", "LATEST")
 
 #: Newest Blender whose Cycles this module reproduces; later versions are assumed to match it.
 LATEST = (5, 3)

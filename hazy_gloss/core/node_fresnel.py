@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from .. import constants as K
 
+__all__ = ("TINY", "gulbrandsen", "gulbrandsen_inverse")
+
 #: 2^-23: 1 - r is kept >= this (r <= 1 - ε) where it divides.
 TINY = 1.0 - K.ONE_MINUS_ULP32
 

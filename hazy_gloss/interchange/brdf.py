@@ -24,7 +24,8 @@ import numpy as np
 from .. import constants as K
 
 __all__ = ("microfacet", "fresnel_conductor", "fresnel_dielectric", "schlick", "f82_tint",
-           "principled_dielectric", "Lobe", "Lobes", "half_vector_quadrature")
+           "principled_dielectric", "Lobe", "Lobes", "half_vector_quadrature", "compare",
+           "fresnel_conductor_at")
 
 
 # --------------------------------------------------------------------------------------------

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from .document import NODEDEFS, Node
 
+__all__ = ("Builder",)
+
 
 class Builder:
     """Nodes of one graph: :meth:`node` adds a node of a nodedef with its inputs (values or

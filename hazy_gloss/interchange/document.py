@@ -22,8 +22,9 @@ from xml.parsers import expat  # reading
 
 from .. import constants as K
 
-__all__ = ("Input", "Node", "NodeGraph", "Document", "NODEDEFS", "format_value",
-           "parse_value", "valid_name", "read_xml", "write_xml", "to_xml_string")
+__all__ = ("Input", "Node", "NodeGraph", "Document", "NODEDEFS", "format_value", "parse_value",
+           "valid_name", "read_xml", "write_xml", "to_xml_string", "OPENPBR_12_INPUTS",
+           "OPENPBR_INPUTS", "OPENPBR_UNSUPPORTED")
 
 # --------------------------------------------------------------------------------------------
 # The nodedefs used (name -> category, output type, {input: (type, default)})

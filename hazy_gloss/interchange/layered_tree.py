@@ -9,6 +9,9 @@ from dataclasses import dataclass, field
 
 from .. import constants as K
 
+__all__ = ("LUMA", "COLORSPACES", "ADDRESS", "FILTER", "MX_TYPE", "PRINCIPLED", "METALLIC",
+           "GLOSSY", "Socket", "BNode", "Tree")
+
 #: Blender's colour -> float conversion (Cycles linear_rgb_to_gray with the default OCIO
 #: config's Rec.709 luma coefficients).
 LUMA = (0.2126, 0.7152, 0.0722)

@@ -18,6 +18,8 @@ from .builder import Builder
 from .document import NODEDEFS, Node, valid_name
 from .layered_tree import ADDRESS, FILTER, MX_TYPE, COLORSPACES, LUMA
 
+__all__ = ("V", "mx_constant", "ValueWriter", "tangent_kind", "format_value")
+
 
 # --------------------------------------------------------------------------------------------
 # Typed values: a constant or a node output

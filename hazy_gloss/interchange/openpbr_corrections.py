@@ -10,6 +10,9 @@ import math
 
 from .. import constants as K
 
+__all__ = ("principled_alpha", "glossy_alpha", "openpbr_alpha", "openpbr_inverse",
+           "coat_roughening", "coat_roughness_inverse", "coat_eta", "coat_ior_inverse")
+
 
 # --------------------------------------------------------------------------------------------
 # OpenPBR against Cycles' Principled: the corrections (constants; node forms in the Writer)

@@ -12,6 +12,9 @@ from .document import NODEDEFS, OPENPBR_12_INPUTS
 from .layered_tree import LUMA
 from .surface_nodes import C, map_values, triple, Link, Val
 
+__all__ = ("COLORSPACES", "DEFAULTS", "surface_defaults", "defaults_of", "default_val", "Upstream",
+           "tangent_of")
+
 #: MaterialX colour spaces -> Blender's (the default OCIO config's names).
 COLORSPACES = {"srgb_texture": "sRGB", "lin_rec709": "Linear Rec.709", "raw": "Non-Color",
                "acescg": "ACEScg", "lin_ap1": "ACEScg", "lin_ap0": "ACES2065-1",

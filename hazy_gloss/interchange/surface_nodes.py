@@ -10,6 +10,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+__all__ = ("PRINCIPLED", "Link", "TexNode", "SurfaceSpec", "Notes", "Val", "triple", "map_values",
+           "C", "Builder")
+
 
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
 

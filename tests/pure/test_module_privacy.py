@@ -67,3 +67,56 @@ def test_no_private_name_crosses_a_module(path):
                          ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_module_only_reexports(path):
     assert not only_reexports(path.read_text(encoding="utf-8"))
+
+
+def _all_of(source):
+    """A module's ``__all__`` (None when it has none)."""
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] == ["__all__"]:
+            return tuple(ast.literal_eval(node.value))
+    return None
+
+
+def _module_path(importer, node):
+    """The file ``from ... import`` in ``importer`` reads names from (None outside the package)."""
+    if node.level:
+        base = importer.parent
+        for _ in range(node.level - 1):
+            base = base.parent
+    elif (node.module or "").split(".")[0] == "hazy_gloss":
+        base, node = PACKAGE.parent, ast.ImportFrom(module=node.module, level=0)
+    else:
+        return None
+    target = base.joinpath(*(node.module.split(".") if node.module else []))
+    for cand in (target.with_suffix(".py"), target / "__init__.py"):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def test_public_names_are_the_modules_all():
+    """Every module but the package entry points declares ``__all__``; what another module
+    imports from it by name is in it (a submodule is not a name)."""
+    missing, outside = [], []
+    alls = {}
+    for path in _modules():
+        if path.name in ("__init__.py", "__main__.py"):
+            continue
+        names = _all_of(path.read_text(encoding="utf-8"))
+        if names is None:
+            missing.append(str(path.relative_to(PACKAGE)))
+        alls[path] = names or ()
+    for path in _modules():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            src = _module_path(path, node)
+            if src is None or src not in alls:
+                continue
+            for a in node.names:
+                if a.name not in alls[src] and not (src.parent / a.name).exists() and \
+                        not (src.parent / f"{a.name}.py").exists():
+                    outside.append(f"{path.relative_to(PACKAGE)}: {a.name} from "
+                                   f"{src.relative_to(PACKAGE)}")
+    assert not missing, missing
+    assert not outside, outside

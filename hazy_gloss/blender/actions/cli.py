@@ -8,6 +8,8 @@ import bpy
 
 from ..model import material_read
 
+__all__ = ("open_blend", "empty_file", "save_blend", "hazy_parameters")
+
 
 def open_blend(path):
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))

@@ -38,6 +38,8 @@ from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_cod
                                      out_path, undo_run)
 from ..model.convert_wiring import wire_material
 
+__all__ = ("check_prefix", "check_targets", "convert_maps", "convert_maps_steps")
+
 
 # --------------------------------------------------------------------------------------------
 # Conversion

@@ -37,6 +37,10 @@ from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_cod
 from ..model.convert_wiring import image_for, load_image
 from .make_hazy import find_core_bsdf
 
+__all__ = ("PBR_MAPS", "HAZE_MAPS", "PBR_KEYS", "is_pbr", "convert_pbr", "convert_pbr_steps",
+           "attach_baked_layer", "convert_set_steps", "LibraryReport", "library_sets",
+           "convert_library_steps")
+
 #: PBR maps: name -> (Principled input, role of the values, colour space of the image node).
 PBR_MAPS = {
     "base_color": ("Base Color", "colour", "sRGB"),

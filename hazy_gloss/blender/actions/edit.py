@@ -13,6 +13,8 @@ from . import messages, sync
 from ..model.material_read import edit_problem
 from .messages import plain_message
 
+__all__ = ("REPLACED", "update_material", "edit_material", "forget_busy")
+
 #: material session_uid -> the node-editor edits (as "node: input") the last update_material
 #: could not read back and replaced (edit_material tells the user).
 REPLACED = {}

@@ -42,6 +42,11 @@ from ..model import fallback, layer
 from ..model.material_read import edit_problem
 from ..nodes import ownership
 
+__all__ = ("ROLE", "OUTPUT_ROLE", "MODE_KEY", "STAMP_KEY", "MODES", "eevee_nodes",
+           "has_eevee_output", "remove_nodes", "requested_mode", "follows_the_user",
+           "remove_eevee_output", "needs_eevee_output", "add_eevee_output", "build_eevee_output",
+           "sync_eevee_output")
+
 ROLE = K.EEVEE_ROLE
 OUTPUT_ROLE = K.EEVEE_OUTPUT_ROLE
 MODE_KEY = "hazy_gloss_eevee_mode"

@@ -26,6 +26,9 @@ from ..model.convert_wiring import wire_material
 from .messages import plain_message
 from ..nodes.builder import default_value_of
 
+__all__ = ("IMPORT_STAMP", "tree_snapshot", "source_of", "sources", "tables_folder", "write_tables",
+           "export_materialx", "export_usd", "ImportResult", "import_materialx")
+
 IMPORT_STAMP = "hazy_gloss_import"
 _OUTPUT = "ShaderNodeOutputMaterial"
 

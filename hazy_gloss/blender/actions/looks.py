@@ -5,6 +5,8 @@ from ...utils.looks import LOOKS
 from .. import compat
 from . import make_hazy
 
+__all__ = ("TEXTURES", "create_look")
+
 
 def _principled(mat):
     return next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")

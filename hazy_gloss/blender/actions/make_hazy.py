@@ -24,6 +24,10 @@ from ..model.material_read import baked_problem, edit_problem, maps_problem, sho
 from ..nodes import ownership
 from .messages import plain_message
 
+__all__ = ("GLOSSY", "CORE_NODES", "surface_bsdfs", "find_core_bsdf", "replace_with_hazy",
+           "tree_problem", "make_hazy", "apply_imported_haze", "remove_haze", "find_two_lobe_mix",
+           "import_two_lobe_mix", "materials_or_all", "upgrade_layers", "add_haziness_map")
+
 
 def _is_live(mat):
     return material_read.is_hazy(mat) and bool(material.ours(mat.node_tree))

@@ -6,6 +6,8 @@ depsgraph handler (blender/actions/sync.py); imports no other module of blender/
 here."""
 from ...core.parameters import HAZE_PARAMETERS, PARAMETERS
 
+__all__ = ("last_error", "error_for", "set_error", "clear_error", "plain_message")
+
 #: material session_uid -> plain-language message of the last refused change (the panel shows
 #: it).  session_uid, not the name: a file loaded later may reuse the name.
 last_error = {}

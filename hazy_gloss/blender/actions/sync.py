@@ -23,6 +23,10 @@ from ..model import (fallback, group_copies, layer, layer_animation, layer_group
                      material_edits, material_read)
 from .messages import plain_message
 
+__all__ = ("sync", "follow_parts", "refresh_derived", "refresh_fallback", "on_depsgraph_update",
+           "parts_on_frame_change", "on_load", "THIN_WALL_SHIFT", "repair_thin_wall_shift",
+           "repack_painted_maps", "parts_before_save", "register", "unregister")
+
 _fingerprints = {}  # ("fallback", material session_uid) -> fingerprint of the layer node's inputs
 _busy = False
 _group_count = -1  # node groups in the file at the last update (merge_copies when it changes)

@@ -31,6 +31,9 @@ from ... import imagestream as stream
 from ...convert import ConversionError
 from ...imagecheck import FORMAT_NAMES, ImageFileError, check_image_file
 
+__all__ = ("UDIM_TOKEN", "check_readable", "DeferredSignals", "one_line", "os_reason",
+           "absolute_path", "short_repr", "tile_paths", "Source", "udim_tiles")
+
 UDIM_TOKEN = "<UDIM>"
 _LINEAR_NAMES = ("Linear Rec.709", "Linear", "Linear BT.709")
 _DATA_NAMES = ("Non-Color", "Raw", "Generic Data")

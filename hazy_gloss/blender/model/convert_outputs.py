@@ -22,6 +22,9 @@ from ...convert import ConversionError
 from ...oiio import MISSING, openimageio
 from .convert_inputs import DeferredSignals, absolute_path, os_reason, short_repr
 
+__all__ = ("EXTENSIONS", "exr_codecs", "check_codec", "MapFile", "Transaction", "out_path",
+           "undo_run", "final_path")
+
 EXTENSIONS = {"OPEN_EXR": ".exr", "PNG": ".png"}
 
 # --------------------------------------------------------------------------------------------

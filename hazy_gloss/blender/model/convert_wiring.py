@@ -20,6 +20,8 @@ from ..nodes.builder import TreeBuilder
 from ..nodes.emit import emit
 from ..nodes.lobes import build_lobes, tangent as tangent_node
 
+__all__ = ("STAMP", "load_image", "image_for", "wire_material")
+
 STAMP = K.MAPS_STAMP
 
 # --------------------------------------------------------------------------------------------

@@ -36,6 +36,9 @@ from ...interchange.brdf import fresnel_conductor
 from . import layer, layer_group, material, material_read, stamp
 from ..nodes.builder import default_value_of, socket_value
 
+__all__ = ("FALLBACK_STAMP", "engine_output", "has_export_fallback", "add_export_fallback",
+           "remove_export_fallback", "refresh_export_fallback", "refresh_stamped_fallback")
+
 FALLBACK_STAMP = "hazy_gloss_export_fallback"
 _PRINCIPLED = "ShaderNodeBsdfPrincipled"
 _OUTPUT = "ShaderNodeOutputMaterial"

@@ -6,6 +6,8 @@ import bpy
 from ... import constants as K
 from . import layer_group as lg, stamp
 
+__all__ = ("merge_copies",)
+
 
 def merge_copies():
     """Copies of the file's layer groups and tables that an append of hazy materials from

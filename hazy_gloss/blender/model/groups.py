@@ -16,6 +16,9 @@ from ..nodes.builder import TreeBuilder
 from ..nodes.emit import emit
 from ..nodes.lobes import build_lobes
 
+__all__ = ("GROUP_VERSION", "group_label", "group_name", "group_users", "restore_group_users",
+           "rebuild_interface", "build_group", "fits", "ensure_group", "all_configurations")
+
 GROUP_VERSION = 5  # 5: cheaper node kinds (docs/performance.md, "What a node costs")
 
 

@@ -36,6 +36,13 @@ from . import (layer_animation, layer_group, layer_notes, layer_parts, layer_val
 from ..nodes import ownership
 from ..nodes.builder import set_if_changed, socket_value
 
+__all__ = ("LAYER_VERSION", "STAMP_VERSION", "PRINCIPLED", "HAZE", "TEXTURE", "PARKED_SUFFIX",
+           "LAYER_ROLE", "core_type", "layer_state", "is_layered", "is_baked", "layer_node",
+           "tagged_layer_node", "layer_copies", "original_node", "connection_problems", "wrap",
+           "animated_inputs", "remove", "set_haze", "held_haze", "haze_of", "apply", "wanted_group",
+           "outdated_group", "refresh_group", "swap_group", "read", "record_baked_sources", "notes",
+           "summary")
+
 LAYER_VERSION = 2
 STAMP_VERSION = 3  # 3: the layer as one node
 PRINCIPLED = "ShaderNodeBsdfPrincipled"

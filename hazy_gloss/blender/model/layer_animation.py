@@ -7,6 +7,8 @@ import bpy
 
 from .. import compat
 
+__all__ = ("own_animation", "move_animation", "input_curves", "follow_names", "unshift_inputs")
+
 
 _INPUT_PATH = re.compile(r'^nodes\["((?:[^"\\]|\\.)*)"\]\.inputs\[(\d+)\](.*)$')
 

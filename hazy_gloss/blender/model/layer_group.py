@@ -35,6 +35,12 @@ from ..nodes.builder import TreeBuilder, socket_value
 from ..nodes.emit import emit
 from .groups import rebuild_interface
 
+__all__ = ("LAYER_GROUP_VERSION", "BSDF_NODES", "NODE_SETTINGS", "version_tag", "settings_of",
+           "kind_of", "all_parts", "config_for", "PART_LETTERS", "group_name", "fits", "parts_of",
+           "is_layer_group", "ensure_group", "SHIPPED_DIR", "SHIPPED", "COPY_SUFFIX", "share_tables",
+           "same_table", "write_shipped", "bsdf_inputs", "haze_params", "LOBES_FRAME", "build",
+           "forget_edits", "edited_parts")
+
 #: Bumped when what a layer group holds changes: older groups are rebuilt in place on first
 #: use (4: one flat group of the parts a material uses, each in a frame).
 LAYER_GROUP_VERSION = 4

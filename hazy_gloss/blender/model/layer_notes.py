@@ -15,6 +15,9 @@ from ...core.parameters import RANGES
 from ...schema import HAZE_SOCKETS
 from . import layer_values
 
+__all__ = ("out_of_range_notes", "mirror_core_notes", "outputs_for_notes", "SUGGESTED_CAP",
+           "FAINT_HALO", "FAINT_CAP", "room_notes", "coat_note", "film_peak_change", "body_note")
+
 
 def out_of_range_notes(node, animated=()):
     """A line for each unlinked haze input whose value is out of its parameter's range: what it

@@ -15,6 +15,10 @@ from ...schema import HAZE_SOCKETS
 from . import layer_group, stamp
 from ..nodes import ownership
 
+__all__ = ("group_config", "inputs_of", "graph_input_name", "graph_of", "evaluate",
+           "cycles_closures", "varying_math", "values", "input_fingerprint", "plain", "input_record",
+           "baked_changes", "converted_map_nodes")
+
 
 def group_config(node):
     """What the layer node's group is built for (its stamp): bsdf, settings, smooth, baked."""

@@ -11,6 +11,9 @@ from ...core import layer_graph
 from . import layer_group, layer_values, stamp
 from ..nodes import ownership
 
+__all__ = ("upstream", "copies_of", "misplaced_layer", "wiring_problems", "CLOSURES",
+           "MAX_CLOSURES", "closure_count")
+
 
 def upstream(sock):
     """Names of the nodes whose closures reach ``sock`` (through shader links; a muted node is

@@ -451,4 +451,5 @@ def create_material(name, **params):
 
 
 __all__ = ("create_material", "map_parameters", "lobes_for", "apply", "is_ours", "ours", "role",
-           "output_node", "GROUP_NODE")
+           "output_node", "GROUP_NODE", "WRITTEN", "current_value", "record_writes", "write_stamp",
+           "writes", "GROUP_ROLE")

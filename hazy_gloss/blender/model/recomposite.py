@@ -28,6 +28,9 @@ from ..nodes.builder import TreeBuilder
 from ..nodes.emit import combine_compositor, emit
 from ..nodes.lobes import build_lobes, tangent
 
+__all__ = ("STAMP", "RC_PREFIX", "Unsupported", "convert_material", "restore_material",
+           "setup_recomposite", "clear_recomposite", "ensure_compositor_group", "build_compositor")
+
 STAMP = K.RECOMPOSITE_STAMP  # on materials and on the scene
 RC_PREFIX = "HG RC"  # names of the nodes this module adds to material and compositor trees
 

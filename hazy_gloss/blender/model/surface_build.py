@@ -11,6 +11,8 @@ from ...imagecheck import ImageFileError, check_image_file
 from ...interchange import materialx_import, surfaces
 from .. import compat
 
+__all__ = ("build",)
+
 _OUTPUT = "ShaderNodeOutputMaterial"
 #: sockets a Blender version may lack; a non-default value there is noted
 _DEFAULT_OF_OPTIONAL = {"Thin Wall": 0.0, "Transmission Dispersion Scale": 0.0,

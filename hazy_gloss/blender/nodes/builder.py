@@ -9,6 +9,8 @@ import bpy
 
 from ... import constants as K
 
+__all__ = ("NodeSocket", "TreeBuilder", "set_if_changed", "socket_value", "default_value_of")
+
 NodeSocket = bpy.types.NodeSocket
 
 

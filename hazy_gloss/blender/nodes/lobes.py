@@ -12,6 +12,8 @@ from Python) and the in-shader group (sockets from the mapping graph) share this
 
 from ...core.lobes import check_kind
 
+__all__ = ("LOBE_NODES", "ANISO_INPUTS", "tangent", "build_lobes")
+
 _NODE = {"CONDUCTOR": "ShaderNodeBsdfMetallic", "DIELECTRIC": "ShaderNodeBsdfPrincipled",
          "LEGACY": "ShaderNodeBsdfGlossy"}
 #: bl_idnames a lobe of each kind reports (the Glossy BSDF reports the old Anisotropic id).

@@ -3,6 +3,8 @@
 survives renaming) or, in files written before roles existed, a name starting with "HG "."""
 from ... import constants as K
 
+__all__ = ("role", "is_ours", "ours", "remove_roles", "engine_output", "output_node")
+
 
 def role(node):
     """The role of one of the add-on's nodes, or None for the user's nodes."""

@@ -3,6 +3,8 @@
 imports another); why a material cannot be edited is material_read.edit_problem."""
 import bpy
 
+__all__ = ("PRESET_SUBDIR", "foreign_tree", "target_material", "no_material")
+
 
 #: Where user presets live (AddPresetBase and the presets menu).
 PRESET_SUBDIR = "hazy_gloss/material"

@@ -18,6 +18,9 @@ from ..actions.convert_pbr import convert_library_steps, convert_set_steps
 from ..model.convert_wiring import wire_material
 from .properties import operator_property
 
+__all__ = ("ConversionJob", "HAZY_GLOSS_OT_convert_maps", "HAZY_GLOSS_OT_convert_pbr_set",
+           "register", "unregister", "classes")
+
 # --------------------------------------------------------------------------------------------
 # Operator
 # --------------------------------------------------------------------------------------------

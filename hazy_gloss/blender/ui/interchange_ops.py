@@ -17,6 +17,11 @@ from .context import no_material, target_material
 from ..actions.messages import plain_message
 from .reports import report
 
+__all__ = ("HAZY_GLOSS_OT_import_materialx", "HAZY_GLOSS_OT_export_materialx",
+           "HAZY_GLOSS_OT_export_usd", "HAZY_GLOSS_OT_add_export_fallback",
+           "HAZY_GLOSS_OT_remove_export_fallback", "HAZY_GLOSS_usd_hook", "draw_export_menu",
+           "draw_import_menu", "draw_material_menu", "register", "unregister", "classes")
+
 
 class HAZY_GLOSS_OT_import_materialx(bpy.types.Operator, ImportHelper):
     """Read materials from MaterialX (.mtlx) or USD: OpenPBR, Standard Surface, glTF PBR and

@@ -26,6 +26,15 @@ from . import interchange_ops, properties
 from .context import PRESET_SUBDIR, foreign_tree, no_material
 from ..model.groups import all_configurations, ensure_group, group_label
 
+__all__ = ("KINDS", "ASSET_LIBRARY_NAME", "ASSET_DIRNAME", "ASSET_BLEND", "CATALOG_FILE",
+           "CATALOG_ROOT", "KIND_LABELS", "describe", "item_label", "catalog_path", "catalog_id",
+           "catalog_definitions", "package_dir", "asset_directory", "register_asset_library",
+           "unregister_asset_library", "HAZY_GLOSS_OT_add_node", "configurations", "KIND_MENUS",
+           "HAZY_GLOSS_MT_add", "draw_add_menu", "HAZY_GLOSS_MT_presets", "HAZY_GLOSS_MT_material",
+           "draw_menu_entry", "draw_convert_entry", "draw_recomposite_operators",
+           "HAZY_GLOSS_MT_recomposite", "draw_render_menu", "ENTRIES", "add_entries",
+           "remove_entries", "register", "unregister", "classes")
+
 KINDS = K.KINDS
 
 # --------------------------------------------------------------------------------------------

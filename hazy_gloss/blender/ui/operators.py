@@ -35,6 +35,11 @@ from .reports import finish, report
 from ..actions.make_hazy import (CORE_NODES, add_haziness_map, import_two_lobe_mix, make_hazy,
                                  remove_haze, upgrade_layers)
 
+__all__ = ("HAZY_GLOSS_OT_make_hazy", "HAZY_GLOSS_OT_remove_haze", "HAZY_GLOSS_OT_upgrade_layers",
+           "HAZY_GLOSS_OT_add_haziness_map", "HAZY_GLOSS_OT_import_two_lobe_mix", "assign_to_object",
+           "HAZY_GLOSS_OT_new_material", "HAZY_GLOSS_OT_apply_preset", "HAZY_GLOSS_OT_preset_add",
+           "HAZY_GLOSS_OT_plot_to_image", "register", "unregister", "classes")
+
 _MATERIAL_PROP = dict(name="Material", default="", options={"HIDDEN", "SKIP_SAVE"},
                       description="Act on this material (default: the active one)")
 

@@ -31,6 +31,12 @@ from ..model.layer_group import haze_params
 from ..actions.messages import plain_message
 from .menus import draw_recomposite_operators
 
+__all__ = ("warnings_for", "node_edit_notes", "mapped_values", "draw_presets_row", "draw_haze",
+           "draw_warnings", "draw_physical_values", "draw_material", "layer_rows", "layer_warnings",
+           "draw_layer", "layer_group_params", "draw_eevee", "HAZY_GLOSS_PT_material",
+           "HAZY_GLOSS_PT_shader_editor", "HAZY_GLOSS_PT_recomposite", "register", "unregister",
+           "classes")
+
 # --------------------------------------------------------------------------------------------
 # Warnings and mapped values
 # --------------------------------------------------------------------------------------------

@@ -20,6 +20,9 @@ from ...utils import plots as plotlib
 from ..model import material
 from . import properties
 
+__all__ = ("PLOT_SIZE", "IMAGE_NAMES", "compute_plots", "plot_icon", "plot_image", "open_previews",
+           "close_previews")
+
 _previews = {"collection": None}
 _plot_cache = OrderedDict()  # (which, material) -> (key, preview name)
 _PLOT_CACHE_SIZE = 16

@@ -12,6 +12,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty
 from ... import constants as K
 from .. import compat
 
+__all__ = ("ADDON_PACKAGE", "HAZY_GLOSS_AP_preferences", "get", "register", "unregister", "classes")
+
 ADDON_PACKAGE = compat.ADDON_PACKAGE
 
 _KIND_TEXT = {"CONDUCTOR": "Metal", "DIELECTRIC": "Plastic, varnish",

@@ -40,6 +40,11 @@ from ..actions import edit, eevee_output, messages
 from ..model import material, material_read
 from ..actions.messages import plain_message
 
+__all__ = ("PROPERTY_NAME", "GROUP_NODE", "NODE_DISTRIBUTIONS", "KIND_ITEMS", "operator_property",
+           "settings", "has_hazy_nodes", "parameters", "stamp_problem", "begin_preset", "end_preset",
+           "strict_settings", "EEVEE_ITEMS", "HazyGlossMaterialSettings", "PRESET_PROPERTIES",
+           "LAYER_PRESET_PROPERTIES", "attach", "detach", "register", "unregister", "classes")
+
 PROPERTY_NAME = "hazy_gloss_settings"
 GROUP_NODE = material.GROUP_NODE
 NODE_DISTRIBUTIONS = K.NODE_DISTRIBUTIONS

@@ -8,6 +8,9 @@ from ...recomposite import LAYERS, passes_from_exr
 from ..model import recomposite
 from .properties import operator_property
 
+__all__ = ("HAZY_GLOSS_OT_setup_recomposite", "HAZY_GLOSS_OT_clear_recomposite",
+           "HAZY_GLOSS_OT_load_recomposite", "register", "unregister", "classes")
+
 
 def _cycles(context):
     return context.scene is not None and context.scene.render.engine == "CYCLES"

@@ -8,6 +8,8 @@ from . import (recomposite_ops, convert_ops, interchange_ops, menus, operators, 
                preferences, properties, reports)
 from ..actions import sync
 
+__all__ = ("register", "unregister")
+
 # Order matters: properties before the operators and panels that use them.
 _MODULES = (preferences, properties, operators, convert_ops, recomposite_ops, interchange_ops,
             panels, menus)

@@ -2,6 +2,8 @@
 """How an operator reports: to Blender (``op.report``) and to :data:`last_reports` (tests,
 scripts).  Every operator module reports through here, so none imports another's."""
 
+__all__ = ("last_reports", "report", "finish")
+
 #: (level, message) of every report, newest last (kept short).
 last_reports = []
 

@@ -6,4 +6,6 @@ type, subtype, limits, default, hide_value, panel} and each panel's default_clos
 blender/model/layer_group.py builds the layer group's interface from it."""
 from . import load
 
+__all__ = ("TABLES",)
+
 TABLES = load("bsdf_interfaces")

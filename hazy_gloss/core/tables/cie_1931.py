@@ -4,6 +4,8 @@
 Used by core.thin_film to rebuild Cycles' thin-film sensitivity table."""
 from . import load
 
+__all__ = ("START_NM", "STEP_NM", "X_BAR", "Y_BAR", "Z_BAR")
+
 _DATA = load("cie_1931")
 START_NM = _DATA["start_nm"]
 STEP_NM = _DATA["step_nm"]

@@ -19,6 +19,8 @@ roughness index x fastest.
 """
 from . import load
 
+__all__ = ("IOR_S_V4", "IOR_S_V53", "E_V4", "E_V53", "GLASS_E_MU1_V4", "GLASS_E_MU1_V53")
+
 _DATA = load("cycles_albedo_tables")
 IOR_S_V4 = "\n".join(_DATA["IOR_S_V4"])
 IOR_S_V53 = "\n".join(_DATA["IOR_S_V53"])

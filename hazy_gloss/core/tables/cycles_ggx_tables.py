@@ -14,6 +14,8 @@ Roughness index x = R = (α_x α_y)^¼ at the nodes i/31, i = 0..31.
 """
 from . import load
 
+__all__ = ("E_MU1", "EAVG_V4", "EAVG_V53")
+
 _DATA = load("cycles_ggx_tables")
 E_MU1 = tuple(_DATA["E_MU1"])
 EAVG_V4 = tuple(_DATA["EAVG_V4"])
