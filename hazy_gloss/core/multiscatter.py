@@ -564,26 +564,62 @@ def _bezier_share(mapping, flat, rc, p, q, dtype):
         return np.where(k_7 > 0, np.clip(k_w / k_7, 0.0, 1.0), 1.0)
 
 
-def _solve(lobe, version, x_n, x_w, p, rc, g, tint, r0, beta):
-    """(*) for one chunk of texels (1-D arrays, colours (n, 3)) at the mapping's own β: the
-    max channel m (of r_c) first (the dielectric's IOR and the coat's follow from r̂), then
-    every channel.  (*) is increasing in r: each channel has one root in [0, 1], or none when
-    even r = 1 falls short (counted)."""
+def _texels_and_targets(lobe, version, x_n, x_w, p, rc, g, tint):
+    """The chunk's texels and what (*) holds them to: (texels, the max channel's texels, its
+    index m, S_0, the haze-free peak r_c S_0 per channel, that peak of channel m)."""
     narrow, wide = _Lobe(x_n, version), _Lobe(x_w, version)
     white = np.all(tint == 1.0, axis=-1, keepdims=True)
     t = _Texels(lobe, exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
                 mw=wide.missing, ew=wide.eavg, p=p[:, None], rc=rc, g=g, tint=tint, white=white)
     n = len(p)
-    rows = np.arange(n)
     m = np.argmax(rc, axis=-1)
-    tm = t.take(rows, m)  # the max channel (colour axis of length 1)
+    tm = t.take(np.arange(n), m)  # the max channel (colour axis of length 1)
     rc_m = np.take_along_axis(rc, m[:, None], -1)
-    zero = np.zeros((n, 1))
     # the haze-free material: one lobe, F(0) = r_c, β = 0
-    f0, _ = t.fss(rc, 1.0 - rc, rc_m, 1.0 - rc_m, zero)
+    f0, _ = t.fss(rc, 1.0 - rc, rc_m, 1.0 - rc_m, np.zeros((n, 1)))
     s_0 = 1.0 + _excess(t.mn, t.en, f0)
     target = rc * s_0
-    t_m = np.take_along_axis(target, m[:, None], -1)[:, 0]
+    return t, tm, m, s_0, target, np.take_along_axis(target, m[:, None], -1)[:, 0]
+
+
+def _channels(lobe, t, m, target, r_hat, omr_hat, beta, r0):
+    """Every channel's r from (*) at β and the max channel's r̂ (which channel m gets again):
+    r, 1 - r, S_n, S_w, the Newton steps, the channels even r = 1 leaves short, and the
+    largest |hazy / haze-free peak - 1| of the others."""
+    n = len(beta)
+    rows = np.arange(n)
+
+    def f_ch(x, sel):
+        sub = t.take(sel)
+        return target[sel] - sub.peak(1.0 - x, x, r_hat[sel, None], omr_hat[sel, None], beta[sel, None])
+
+    short = f_ch(np.zeros((n, 3)), rows) > 0
+    omr, steps = _root(f_ch, np.zeros((n, 3)), np.ones((n, 3)), np.clip(1.0 - r0, 0.0, 1.0), rows,
+                       target)
+    omr = np.where(short, 0.0, omr)
+    np.put_along_axis(omr, m[:, None], omr_hat[:, None], -1)
+    if lobe == "COAT":  # one Coat IOR: every channel is the max channel (equal up to rounding)
+        omr = np.repeat(omr_hat[:, None], 3, -1)
+    r = 1.0 - omr
+    b = beta[:, None]
+    fn, fw = t.fss(r, omr, r_hat[:, None], omr_hat[:, None], b)
+    s_n = 1.0 + _excess(t.mn, t.en, fn)
+    s_w = 1.0 + _excess(t.mw, t.ew, fw)
+    hazy = r * ((1.0 - b) * s_n + b * t.p * s_w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.where((target > 0) & ~short, hazy / target - 1.0, 0.0)
+    return dict(r=r, omr=omr, s_n=s_n, s_w=s_w, steps=steps, short=short,
+                residual=float(np.abs(err).max(initial=0.0)))
+
+
+def _solve(lobe, version, x_n, x_w, p, rc, g, tint, r0, beta):
+    """(*) for one chunk of texels (1-D arrays, colours (n, 3)) at the mapping's own β: the
+    max channel m (of r_c) first (the dielectric's IOR and the coat's follow from r̂), then
+    every channel.  (*) is increasing in r: each channel has one root in [0, 1], or none when
+    even r = 1 falls short (counted)."""
+    t, tm, m, s_0, target, t_m = _texels_and_targets(lobe, version, x_n, x_w, p, rc, g, tint)
+    n = len(p)
+    rows = np.arange(n)
 
     # the max channel, in x = 1 - r̂ (the peak falls as x grows)
     def f_hat(x, sel):
@@ -597,30 +633,11 @@ def _solve(lobe, version, x_n, x_w, p, rc, g, tint, r0, beta):
     omr_hat = np.where(short_m, 0.0, omr_hat)
     r_hat = 1.0 - omr_hat
 
-    # every channel at that β and r̂ (the max channel gives r̂ again)
-    def f_ch(x, sel):
-        sub = t.take(sel)
-        return target[sel] - sub.peak(1.0 - x, x, r_hat[sel, None], omr_hat[sel, None], beta[sel, None])
-
-    short = f_ch(np.zeros((n, 3)), rows) > 0
-    omr, it = _root(f_ch, np.zeros((n, 3)), np.ones((n, 3)), np.clip(1.0 - r0, 0.0, 1.0), rows, target)
-    steps = max(steps, it)
-    omr = np.where(short, 0.0, omr)
-    np.put_along_axis(omr, m[:, None], omr_hat[:, None], -1)
-    if lobe == "COAT":  # one Coat IOR: every channel is the max channel (equal up to rounding)
-        omr = np.repeat(omr_hat[:, None], 3, -1)
-    r = 1.0 - omr
-
-    b = beta[:, None]
-    fn, fw = t.fss(r, omr, r_hat[:, None], omr_hat[:, None], b)
-    s_n = 1.0 + _excess(t.mn, t.en, fn)
-    s_w = 1.0 + _excess(t.mw, t.ew, fw)
-    hazy = r * ((1.0 - b) * s_n + b * t.p * s_w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        err = np.where((target > 0) & ~short, hazy / target - 1.0, 0.0)
-    return dict(r=r, omr=omr, s_n=s_n, s_w=s_w, s_0=s_0, steps=steps,
-                over=int(np.count_nonzero(short.any(axis=-1) | short_m)),
-                residual=float(np.abs(err).max(initial=0.0)))
+    solved = _channels(lobe, t, m, target, r_hat, omr_hat, beta, r0)
+    return dict(r=solved["r"], omr=solved["omr"], s_n=solved["s_n"], s_w=solved["s_w"], s_0=s_0,
+                steps=max(steps, solved["steps"]),
+                over=int(np.count_nonzero(solved["short"].any(axis=-1) | short_m)),
+                residual=solved["residual"])
 
 
 def _solve_glossy(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
@@ -629,22 +646,9 @@ def _solve_glossy(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
     β_max = min(1, first β at which a channel needs r = 1); k_max = β_max r̂_m(β_max) is the
     largest halo weight of the max channel m (of r_c); k̂ = bh k_max; r̂_m from (*) with
     β = k̂ / r̂_m; then each channel's r from (*) with that β."""
-    narrow, wide = _Lobe(x_n, version), _Lobe(x_w, version)
-    white = np.all(tint == 1.0, axis=-1, keepdims=True)
-    t = _Texels(lobe, exact_conductor(version), mn=narrow.missing, en=narrow.eavg,
-                mw=wide.missing, ew=wide.eavg, p=p[:, None], rc=rc, g=g, tint=tint, white=white)
+    t, tm, m, s_0, target, t_m = _texels_and_targets(lobe, version, x_n, x_w, p, rc, g, tint)
     n = len(p)
     rows = np.arange(n)
-    m = np.argmax(rc, axis=-1)
-    tm = t.take(rows, m)  # the max channel (colour axis of length 1)
-    rc_m = np.take_along_axis(rc, m[:, None], -1)
-    zero = np.zeros((n, 1))
-    # the haze-free material: one lobe, F(0) = r_c, β = 0
-    rc_hat = rc_m
-    f0, _ = t.fss(rc, 1.0 - rc, rc_hat, 1.0 - rc_hat, zero)
-    s_0 = 1.0 + _excess(t.mn, t.en, f0)
-    target = rc * s_0
-    t_m = np.take_along_axis(target, m[:, None], -1)[:, 0]
     steps = 0
 
     def peak_m(r, omr, beta, sel):
@@ -690,32 +694,10 @@ def _solve_glossy(lobe, version, x_n, x_w, p, rc, g, tint, bh, r0, b0):
     with np.errstate(divide="ignore", invalid="ignore"):
         beta = np.where(r_hat > 0, k / r_hat, b0)  # r̂_c = 0: the mapping's limit value
 
-    # every channel's r from (*) with this β (the max channel gives r̂ again)
-    def f_ch(x, sel):
-        r = 1.0 - x
-        sub = t.take(sel)
-        return target[sel] - sub.peak(r, x, r_hat[sel, None], omr_hat[sel, None], beta[sel, None])
-
-    short = f_ch(np.zeros((n, 3)), rows) > 0  # even r = 1 falls short (not expected: β <= β_max)
-    x_lo, x_hi = np.zeros((n, 3)), np.ones((n, 3))
-    omr, it = _root(f_ch, x_lo, x_hi, np.clip(1.0 - r0, 0.0, 1.0), rows, target)
-    steps = max(steps, it)
-    omr = np.where(short, 0.0, omr)
-    np.put_along_axis(omr, m[:, None], omr_hat[:, None], -1)
-    if lobe == "COAT":  # one Coat IOR: every channel is the max channel (equal up to rounding)
-        omr = np.repeat(omr_hat[:, None], 3, -1)
-    r = 1.0 - omr
-
-    b = beta[:, None]
-    fn, fw = t.fss(r, omr, r_hat[:, None], omr_hat[:, None], b)
-    s_n = 1.0 + _excess(t.mn, t.en, fn)
-    s_w = 1.0 + _excess(t.mw, t.ew, fw)
-    hazy = r * ((1.0 - b) * s_n + b * t.p * s_w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        err = np.where((target > 0) & ~short, hazy / target - 1.0, 0.0)
-    return dict(r=r, omr=omr, beta=beta, k=k, k_max=k_max, s_n=s_n, s_w=s_w, s_0=s_0,
-                steps=steps, over=int(np.count_nonzero(short.any(axis=-1))),
-                residual=float(np.abs(err).max(initial=0.0)))
+    solved = _channels(lobe, t, m, target, r_hat, omr_hat, beta, r0)
+    return dict(r=solved["r"], omr=solved["omr"], beta=beta, k=k, k_max=k_max, s_n=solved["s_n"],
+                s_w=solved["s_w"], s_0=s_0, steps=max(steps, solved["steps"]),
+                over=int(np.count_nonzero(solved["short"].any(axis=-1))), residual=solved["residual"])
 
 
 def _first_descent_root(g, k_hi, rows, scale, max_iter=60):
