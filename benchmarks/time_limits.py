@@ -72,7 +72,6 @@ def _blender():
 def file_check():
     _blender()
     import importlib
-    import struct
 
     import numpy as np
     import test_convert_safety as T
@@ -87,17 +86,7 @@ def file_check():
         p = tmp / "fuzz.bin"
         slowest, t0 = 0.0, time.perf_counter()
         for i in range(4000):  # the test's mutations, in its order
-            data = bytearray((exr, png, jpg)[i % 3])
-            op = rng.integers(4)
-            if op == 0:
-                data = data[:rng.integers(1, len(data))]
-            elif op == 1:
-                for _ in range(rng.integers(1, 8)):
-                    data[rng.integers(len(data))] = rng.integers(256)
-            else:
-                at = int(rng.integers(4, min(len(data), 400) - 4))
-                data[at:at + 4] = struct.pack("<i", int(rng.integers(-2 ** 31, 2 ** 31)))
-            p.write_bytes(bytes(data))
+            p.write_bytes(T.fuzzed((exr, png, jpg)[i % 3], rng))
             t = time.perf_counter()
             try:
                 binputs.check_readable(str(p), "fuzz")

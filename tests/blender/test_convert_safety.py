@@ -784,6 +784,22 @@ def test_option_mistakes_are_one_line_and_write_nothing(api, core, tmp_path, opt
 CHECK_WORK = 20_000
 
 
+def fuzzed(data, rng):
+    """``data`` (an image file's bytes) mutated once: cut short, a few bytes changed, or a random
+    int32 where header fields live (benchmarks/time_limits.py times the same mutations)."""
+    data = bytearray(data)
+    op = rng.integers(4)
+    if op == 0:
+        data = data[:rng.integers(1, len(data))]
+    elif op == 1:
+        for _ in range(rng.integers(1, 8)):
+            data[rng.integers(len(data))] = rng.integers(256)
+    else:
+        at = int(rng.integers(4, min(len(data), 400) - 4))
+        data[at:at + 4] = struct.pack("<i", int(rng.integers(-2 ** 31, 2 ** 31)))
+    return bytes(data)
+
+
 def test_file_check_fuzz(binputs, hg, tmp_path):
     """4000 mutations (cuts, byte flips, random 32-bit fields) of an EXR, a PNG and a JPEG: the
     check returns or raises ConversionError, each within CHECK_WORK counted operations (the
@@ -798,17 +814,7 @@ def test_file_check_fuzz(binputs, hg, tmp_path):
     most = 0
     with work_bound.Counter(only=[os.path.dirname(hg.__file__) + os.sep]) as work:
         for i in range(4000):
-            data = bytearray((exr, png, jpg)[i % 3])
-            op = rng.integers(4)
-            if op == 0:
-                data = data[:rng.integers(1, len(data))]
-            elif op == 1:
-                for _ in range(rng.integers(1, 8)):
-                    data[rng.integers(len(data))] = rng.integers(256)
-            else:  # a random int32 where header fields live
-                at = int(rng.integers(4, min(len(data), 400) - 4))
-                data[at:at + 4] = struct.pack("<i", int(rng.integers(-2 ** 31, 2 ** 31)))
-            p.write_bytes(bytes(data))
+            p.write_bytes(fuzzed((exr, png, jpg)[i % 3], rng))
             try:
                 work.run(binputs.check_readable, str(p), "fuzz", limit=CHECK_WORK)
                 outcomes["ok"] += 1
