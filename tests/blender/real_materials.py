@@ -128,15 +128,20 @@ def rel(a, b):
     return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-12))
 
 
+def _furnace_scene(mat, view, samples):
+    """Only a plane of ``mat`` seen at ``view`` degrees, lit by a white world."""
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    scenes.setup_render("CYCLES", samples=samples, resolution=(4, 4), bounces=2)
+    scenes.flat_plane_scene(mat, view_dir=(view, 0.0), strength=0.0)
+    scenes.uniform_world(1.0)
+
+
 def furnace(mat, views=(0.0, 50.0), samples=1024):
     """The plane in a white world: per view the mean pixel, R + T of the closures."""
     vals = []
     for view in views:
-        for o in list(bpy.data.objects):
-            bpy.data.objects.remove(o)
-        scenes.setup_render("CYCLES", samples=samples, resolution=(4, 4), bounces=2)
-        scenes.flat_plane_scene(mat, view_dir=(view, 0.0), strength=0.0)
-        scenes.uniform_world(1.0)
+        _furnace_scene(mat, view, samples)
         vals.append(float(scenes.render_exr()[..., :3].mean()))
     return np.array(vals)
 
@@ -149,11 +154,7 @@ def furnace_passes(read_exr, mat, views=(0.0, 50.0), samples=1024):
     names = ["combined"] + [f"{k}_{p}" for k in kinds for p in ("direct", "indirect", "color")]
     out = {k: [] for k in kinds + ("combined",)}
     for view in views:
-        for o in list(bpy.data.objects):
-            bpy.data.objects.remove(o)
-        scenes.setup_render("CYCLES", samples=samples, resolution=(4, 4), bounces=2)
-        scenes.flat_plane_scene(mat, view_dir=(view, 0.0), strength=0.0)
-        scenes.uniform_world(1.0)
+        _furnace_scene(mat, view, samples)
         ps = scenes.render_passes(read_exr, names)
         out["combined"].append(float(ps["combined"].mean()))
         for k in kinds:
