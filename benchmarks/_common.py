@@ -194,6 +194,16 @@ def save_image(rgb, name, *, exposure=1.0):
     return f"img/{name}"
 
 
+def publish(name, res, md, begin, end):
+    """Write out/report/<name>.json and <name>.md; run alone (not from benchmarks/report.py,
+    which assembles the docs itself), also replace the section of docs/performance.md between
+    the markers ``begin`` and ``end``."""
+    write_json(name, res)
+    (OUT / f"{name}.md").write_text(md)
+    if os.environ.get("HG_REPORT_SECTION") != "1":
+        write_section(begin, end, md)
+
+
 def write_section(begin, end, md):
     """Replace the text between the markers ``begin`` and ``end`` of docs/performance.md with
     ``md`` (appended with its markers when they are not there yet): a section one benchmark

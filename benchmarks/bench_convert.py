@@ -11,7 +11,7 @@ A  conversion: ``api.convert_maps`` (conductor, anisotropic: 9 maps, float EXR Z
 B  floor: the same image reads (load + pixels + decoding) and the same writes (the same output
    arrays, same format and codec, each read back and verified) through bpy, no mapping math;
    A and B run interleaved (A..B, B..A, ...) so machine load drifts hit both;
-C  the pure-numpy mapping (``hazy_gloss.convert.map_textures``) on the in-memory inputs;
+C  the pure-numpy mapping (``hazy_gloss.conversion.convert.map_textures``) on the in-memory inputs;
 D  a naive per-texel Python loop (``api.map_parameters``-style: conventions + haze_mapping on one
    texel at a time) on a 48x48 crop, extrapolated to the full image;
    C and D run inside every round too (their medians are reported);
@@ -141,8 +141,8 @@ def run_floor(binputs, boutputs, core, paths, out, outputs):
     """The conversion's image I/O without the mapping: the same sources read (strips, decoding),
     the same arrays written and verified by the same strip writers (the conversion's renames
     into place are left out)."""
-    from hazy_gloss import imagestream as S
-    from hazy_gloss.oiio import openimageio
+    from hazy_gloss.conversion import imagestream as S
+    from hazy_gloss.conversion.oiio import openimageio
     t = time.perf_counter()
     specs, _ = core.resolve_inputs(paths)
     warnings = []
@@ -207,7 +207,7 @@ def main(argv=None):
     bpy = _start()
     import numpy as np
     from hazy_gloss import api
-    from hazy_gloss import convert as core
+    from hazy_gloss.conversion import convert as core
     from hazy_gloss.blender.model import convert_inputs as binputs, convert_outputs as boutputs
 
     n = args.size

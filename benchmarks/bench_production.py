@@ -57,8 +57,9 @@ if cpus:
     os.sched_setaffinity(0, {int(c) for c in cpus.split(",")})
 import bpy
 import numpy as np
-from hazy_gloss import api, imagestream as S
-from hazy_gloss import convert as core
+from hazy_gloss import api
+from hazy_gloss.conversion import imagestream as S
+from hazy_gloss.conversion import convert as core
 from hazy_gloss.blender.actions import convert as bc
 from hazy_gloss.blender.model import convert_inputs as bin_, convert_outputs as bout
 
@@ -129,7 +130,7 @@ import sys
 sys.path.insert(0, sys.argv[1])
 folder, n = sys.argv[2], int(sys.argv[3])
 import numpy as np
-from hazy_gloss import imagestream as S
+from hazy_gloss.conversion import imagestream as S
 rng = np.random.default_rng(22)
 rows = S.strip_rows(n)
 x = np.arange(n, dtype=np.float32) / np.float32(n)
@@ -141,7 +142,7 @@ def smooth(y0, y1, fx, fy, phase):
 def noisy(a, amp):
     return np.clip(a + rng.normal(0, amp, a.shape).astype(np.float32), 0, 1).astype(np.float32)
 
-from hazy_gloss.oiio import openimageio
+from hazy_gloss.conversion.oiio import openimageio
 oiio = openimageio()
 rc = S.OiioStripWriter(oiio, folder + "/rc16.png", n, n, "PNG")
 rough = S.OiioStripWriter(oiio, folder + "/rough.png", n, n, "PNG")
@@ -169,7 +170,7 @@ def make_set(folder, n):
     _child([_MAKE, str(ROOT), str(folder), str(n)])
     # the colour input as an 8-bit sRGB PNG, converted by Blender's OpenImageIO (streamed)
     _child(["import sys, bpy; sys.path.insert(0, sys.argv[1]);"
-            "from hazy_gloss.oiio import openimageio as o; oi = o();"
+            "from hazy_gloss.conversion.oiio import openimageio as o; oi = o();"
             "inp = oi.ImageInput.open(sys.argv[2]); spec = oi.ImageSpec(inp.spec().width, "
             "inp.spec().height, 3, oi.UINT8); out = oi.ImageOutput.create(sys.argv[3]);"
             "out.open(sys.argv[3], spec);"
@@ -244,11 +245,7 @@ def main():
         subprocess.run(["rm", "-rf", str(base)])
     results["seconds"] = time.perf_counter() - t_all
     results["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
-    C.write_json("bench_production", results)
-    md = markdown(results)
-    (C.OUT / "bench_production.md").write_text(md)
-    if not os.environ.get("HG_REPORT_SECTION"):
-        C.write_section(BEGIN, END, md)
+    C.publish("bench_production", results, markdown(results), BEGIN, END)
     print(md)
 
 

@@ -18,7 +18,6 @@ docs/performance.md (between the bench_real_materials markers).
 from __future__ import annotations
 
 import datetime
-import os
 import sys
 import time
 from pathlib import Path
@@ -81,18 +80,15 @@ def main():
     t0 = time.perf_counter()
     C.start_blender()
     import bpy
-    from hazy_gloss import api, imagecheck
+    from hazy_gloss import api
+    from hazy_gloss.conversion import imagecheck
     from hazy_gloss.blender.model import layer, layer_notes
     import real_materials as R
     rows, furnace = measure(api, layer, layer_notes, imagecheck.read_exr, R)
     res = {"rows": rows, "furnace": furnace, "blender": bpy.app.version_string,
            "machine": C.machine(), "seconds": time.perf_counter() - t0,
            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
-    C.write_json("bench_real_materials", res)
-    md = markdown(res)
-    (C.OUT / "bench_real_materials.md").write_text(md)
-    if os.environ.get("HG_REPORT_SECTION") != "1":
-        C.write_section(BEGIN, END, md)
+    C.publish("bench_real_materials", res, markdown(res), BEGIN, END)
     print(f"[bench_real_materials] {len(rows)} materials in {res['seconds']:.0f} s", flush=True)
 
 

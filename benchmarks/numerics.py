@@ -440,8 +440,8 @@ def bad_texels(shader):
             v[param] = np.full(3, val, F32) if param in ("core_reflectivity", "edge_tint") else F32(val)
             items.append((param, label, v))
     res = []
-    # numpy: the texture-conversion path (hazy_gloss.convert.map_textures, float32, clamp+count)
-    from hazy_gloss import convert as hconv
+    # numpy: the texture-conversion path (hazy_gloss.conversion.convert.map_textures, float32, clamp+count)
+    from hazy_gloss.conversion import convert as hconv
     for param, label, v in items:
         arrays = {"core_reflectivity": v["core_reflectivity"].reshape(1, 1, 3),
                   "edge_tint": v["edge_tint"].reshape(1, 1, 3),

@@ -36,7 +36,8 @@ def _per_call(fn, n, repeats=5):
 
 def main():
     C.start_blender()
-    from hazy_gloss import api, convert as hconv
+    from hazy_gloss import api
+    from hazy_gloss.conversion import convert as hconv
     from hazy_gloss.core import haze_mapping
     import perf_scene as P
 

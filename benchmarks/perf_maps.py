@@ -53,7 +53,8 @@ def perceptual_maps(h, w):
 def main():
     C.start_blender()
     import bpy
-    from hazy_gloss import api, convert as hconv
+    from hazy_gloss import api
+    from hazy_gloss.conversion import convert as hconv
     from hazy_gloss.core.lobes import describe
     import perf_scene as P
     import scenes
@@ -303,11 +304,11 @@ def _markdown(res):
            "file per physical map, wired into the lean tree by `material=`, Closest "
            "interpolation), in the two formats it writes (float EXR, 16-bit PNG). To compare all "
            "four formats with one layout, the first four rows convert with the same bpy-free "
-           "core (`hazy_gloss.convert.map_textures`, float32, its `encode_png` x/(1+x) encoding "
+           "core (`hazy_gloss.conversion.convert.map_textures`, float32, its `encode_png` x/(1+x) encoding "
            "of η and κ), pack the maps into 3 RGB images and write them with "
            "`Image.save_render`." if res["convert_maps_api"] else
            "`hazy_gloss.api.convert_maps` did not exist when this ran, so the maps are baked "
-           "here: the product's bpy-free conversion core (`hazy_gloss.convert.map_textures`, "
+           "here: the product's bpy-free conversion core (`hazy_gloss.conversion.convert.map_textures`, "
            "float32, its x/(1+x) PNG encoding of η and κ) and `Image.save_render`.")
     L.append(f"Perceptual maps ({res['size'][1]}x{res['size'][0]} texels: colour r_c and g, "
              "roughness, haziness ramps 0-0.95, haze extent 2-12) on the UV sphere of section 1, "

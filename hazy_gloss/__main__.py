@@ -275,7 +275,7 @@ def _run_convert(args, signals):
                       "Blender", K.EXIT_NO_BPY)
     from . import api
     from .blender.actions import convert as _  # noqa: F401  (imported before the signals raise)
-    from .convert import ConversionError, Progress
+    from .conversion.convert import ConversionError, Progress
     bar = ProgressBar(sys.stderr, enabled=not args.quiet and not args.json and (
         args.progress or _isatty(sys.stderr)))
     progress = Progress(bar.update)
@@ -353,7 +353,7 @@ class ProgressBar:
         if self._last is not None and now - self._last < self.interval and done < total:
             return
         self._last = now
-        from .convert import progress_bar
+        from .conversion.convert import progress_bar
         self.stream.write("\r" + progress_bar(self.progress)[:119].ljust(119))
         self.stream.flush()
         self._shown = True
@@ -369,7 +369,7 @@ def _run_batch(args, inputs, progress, bar, cli, signals):
     """--batch FOLDER: every subfolder a PBR set; a summary line at the end; exit 0 when every
     set converted, 4 when some failed (one line each on stderr)."""
     from .blender.actions.convert_pbr import convert_library_steps
-    from .convert import ConversionError, drain
+    from .conversion.convert import ConversionError, drain
     haze = {k: v for k, v in inputs.items() if k in HAZE_MAP_INPUTS}
     paths = [k for k, v in haze.items() if isinstance(v, str)]
     others = [k for k in inputs if k not in haze]

@@ -221,17 +221,17 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     reason and parameter, seconds, warnings).  Options: resample=False, prefix="",
     exr_codec="ZIP", material=None (wire the maps into that material's lean tree),
     interpolation="Linear", progress=None (callable(done, total, message), or a
-    hazy_gloss.convert.Progress: its cancel() stops the run, undone, at the next strip).
+    hazy_gloss.conversion.convert.Progress: its cancel() stops the run, undone, at the next strip).
     Files are read and written in strips: memory does not grow with the image
     (docs/textures.md, "Production sizes").
 
     All or nothing: every target is checked before anything is written, the maps are written
     to temporary names, read back and compared, then renamed into place together; on any
     failure or KeyboardInterrupt the output folder is left as it was (docs/textures.md).
-    Every error the caller can cause raises hazy_gloss.convert.ConversionError (a ValueError)
+    Every error the caller can cause raises hazy_gloss.conversion.convert.ConversionError (a ValueError)
     with a one-line message naming the parameter or file (an unknown option:
     ConversionOptionError, also a TypeError)."""
-    from .convert import ConversionOptionError, did_you_mean
+    from .conversion.convert import ConversionOptionError, did_you_mean
     from .blender.actions import convert_pbr as _pbr
     if _pbr.is_pbr(inputs):
         unknown = [k for k in options if k not in _PBR_OPTIONS]

@@ -48,6 +48,7 @@ BASE = ("", "compat")
 #: command line) are a group of their own.  A new folder gets a group of its own.
 ENTRY = ("", "api", "__main__")
 FREE_FOLDERS = {"core": "the haze mapping, lobes, node math, multiscatter, thin film",
+                "conversion": "texture conversion: image files to the mapping's maps",
                 "interchange": "MaterialX, USD, other engines",
                 "utils": "presets, looks, plots"}
 
@@ -71,7 +72,7 @@ def group_of(module, packages=()):
             return "blender", role, f"{where}: {ROLES[role]}"
         return "blender", "other", "blender/ other: not in a layer's folder"
     if len(parts) == 1 and module not in packages:
-        return "free", "toplevel", "hazy_gloss/*.py: constants, conversion, image files"
+        return "free", "toplevel", "hazy_gloss/*.py: constants, schema, recomposite, node layout"
     folder = parts[0]
     what = FREE_FOLDERS.get(folder, "")
     return "free", folder, f"{folder}/" + (f": {what}" if what else "")
@@ -119,7 +120,7 @@ def diagram(root=layout_graph.ROOT):
         if a != b:
             edges[(a, b)] = edges.get((a, b), False) or not imp.function_level
     order = ["entry", "ui", "actions", "model", "nodes", "base", "other",
-             "toplevel", "core", "interchange", "utils"]
+             "toplevel", "core", "conversion", "interchange", "utils"]
     gids = sorted(members, key=lambda g: (order.index(g) if g in order else len(order), g))
     out = ["```mermaid", "flowchart TB"]
     for layer, title in LAYERS:

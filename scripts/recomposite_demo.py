@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 
 import hazy_gloss  # noqa: E402
 from hazy_gloss import recomposite as rc  # noqa: E402  (bpy-free)
-from hazy_gloss.oiio import openimageio  # noqa: E402
+from hazy_gloss.conversion.oiio import openimageio  # noqa: E402
 from gallery import analytic_sphere, band_world  # noqa: E402  (scripts/ is on sys.path)
 
 ORIGINAL = {"metal": 0.15, "plastic": 0.02}

@@ -50,7 +50,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
 from .. import constants as K
-from ..convert import output_specs
+from ..conversion.convert import output_specs
 from ..core.parameters import PARAMETERS, normalise
 from . import engines, layered
 from .builder import Builder

@@ -608,7 +608,7 @@ def render_passes(read_exr, names=("combined",), *, path=None):
     "alpha" (H, W).  Cycles' direct passes hold
     the light without the BSDF's colour: "glossy" (glossy direct x glossy colour) and "diffuse"
     are what the combined pass adds up.  ``read_exr`` is an EXR reader
-    ``path -> {channel: (H, W)}`` (hazy_gloss.imagecheck.read_exr; the harness does not import it)."""
+    ``path -> {channel: (H, W)}`` (hazy_gloss.conversion.imagecheck.read_exr; the harness does not import it)."""
     scene = bpy.context.scene
     vl = bpy.context.view_layer
     wanted = list(names)

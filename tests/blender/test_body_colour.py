@@ -35,7 +35,7 @@ ANGLES = (0.0, 20.0, 40.0, 60.0, 70.0, 80.0)
 @pytest.fixture
 def env(hg, clean_file):
     return (importlib.import_module(f"{hg.__name__}.core.body_colour"),
-            importlib.import_module(f"{hg.__name__}.imagecheck").read_exr,
+            importlib.import_module(f"{hg.__name__}.conversion.imagecheck").read_exr,
             importlib.import_module(f"{hg.__name__}.core.lobes"))
 
 

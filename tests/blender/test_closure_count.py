@@ -165,4 +165,4 @@ def test_a_layer_alone_is_within_the_limit_and_says_nothing(env):
 def api_env(api):
     """What test_layer.render reads from its env: the exr reader."""
     from types import SimpleNamespace
-    return SimpleNamespace(exr=importlib.import_module(api.__name__.rsplit(".", 1)[0] + ".imagecheck"))
+    return SimpleNamespace(exr=importlib.import_module(api.__name__.rsplit(".", 1)[0] + ".conversion.imagecheck"))

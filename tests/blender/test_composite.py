@@ -433,7 +433,7 @@ def test_recomposite_reads_zip_piz_and_dwab_passes(mods, tmp_path):
         scene.render.image_settings.exr_codec = codec
         p = str(tmp_path / f"{codec}.exr")
         result.save_render(p, scene=scene)
-        inp = importlib.import_module(api.__name__.rpartition(".")[0] + ".oiio").openimageio() \
+        inp = importlib.import_module(api.__name__.rpartition(".")[0] + ".conversion.oiio").openimageio() \
             .ImageInput.open(p)
         assert inp.spec().get_string_attribute("compression").startswith(codec.lower()), codec
         inp.close()
@@ -467,7 +467,7 @@ def test_damaged_source_is_refused_before_blender_loads_it(mods, tmp_path):
     """A saved render cut off (interrupted while it was written): build_compositor raises one
     line naming the file before bpy.data.images.load sees it (it crashed bpy 5.0.1)."""
     _, comp = mods
-    ic = importlib.import_module(comp.__name__.rpartition(".blender")[0] + ".imagecheck")
+    ic = importlib.import_module(comp.__name__.rpartition(".blender")[0] + ".conversion.imagecheck")
     scenes.setup_render(samples=1, resolution=(23, 37), bounces=0)
     img = bpy.data.images.new("HG ramp", 23, 37, float_buffer=True)
     img.pixels.foreach_set(np.random.default_rng(4).random(23 * 37 * 4, dtype=np.float32))

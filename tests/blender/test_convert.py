@@ -38,7 +38,7 @@ def api(hg, clean_file):
 
 @pytest.fixture
 def core(hg):
-    return importlib.import_module(hg.__name__ + ".convert")
+    return importlib.import_module(hg.__name__ + ".conversion.convert")
 
 
 @pytest.fixture
@@ -152,7 +152,7 @@ def reference_texel(hg, v, i, j, kind, edge_tint, distribution="GGX"):
     """The lobes of one texel from core.lobes.describe (the one description every path uses),
     in float32 (one-element arrays: see the pure test), with the file's colour decoding."""
     lobes = importlib.import_module(hg.__name__ + ".core.lobes")
-    core = importlib.import_module(hg.__name__ + ".convert")
+    core = importlib.import_module(hg.__name__ + ".conversion.convert")
 
     def one(name, default, colour=False):
         x = v.get(name)

@@ -20,8 +20,8 @@ from measurements import record
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("imagecheck"),
-                           convert=mod("convert"), material=mod("blender.model.material"))
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("conversion.imagecheck"),
+                           convert=mod("conversion.convert"), material=mod("blender.model.material"))
 
 
 def write_image(path, values):

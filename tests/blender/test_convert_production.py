@@ -37,13 +37,13 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 def mods(hg, clean_file):
     class M:
         api = importlib.import_module(hg.__name__ + ".api")
-        core = importlib.import_module(hg.__name__ + ".convert")
+        core = importlib.import_module(hg.__name__ + ".conversion.convert")
         bconv = importlib.import_module(hg.__name__ + ".blender.actions.convert")
         binputs = importlib.import_module(hg.__name__ + ".blender.model.convert_inputs")
         pbr = importlib.import_module(hg.__name__ + ".blender.actions.convert_pbr")
         ops = importlib.import_module(hg.__name__ + ".blender.ui.convert_ops")
-        stream = importlib.import_module(hg.__name__ + ".imagestream")
-        oiio = importlib.import_module(hg.__name__ + ".oiio")
+        stream = importlib.import_module(hg.__name__ + ".conversion.imagestream")
+        oiio = importlib.import_module(hg.__name__ + ".conversion.oiio")
     return M
 
 
@@ -56,8 +56,9 @@ _MEASURE = r"""
 import json, sys, time
 import numpy as np
 import bpy
-from hazy_gloss import api, imagestream as S
-from hazy_gloss import convert as core
+from hazy_gloss import api
+from hazy_gloss.conversion import imagestream as S
+from hazy_gloss.conversion import convert as core
 folder, n = sys.argv[1], int(sys.argv[2])
 
 def status(key):
@@ -71,7 +72,7 @@ x = np.arange(n, dtype=np.float32) / np.float32(n)
 def haze(y0, y1):
     y = (np.arange(y0, y1, dtype=np.float32) / np.float32(n))[:, None]
     return (np.float32(0.45) + np.float32(0.4) * np.sin(np.float32(6.28) * (3 * x + 2 * y))).astype(np.float32)
-from hazy_gloss.oiio import openimageio
+from hazy_gloss.conversion.oiio import openimageio
 w = S.OiioStripWriter(openimageio(), folder + "/haze.exr", n, n, "OPEN_EXR", "NONE", channels=1)
 for y0 in range(0, n, rows):
     w.append(w.encode(y0, haze(y0, min(n, y0 + rows))))

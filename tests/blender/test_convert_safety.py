@@ -40,7 +40,7 @@ def api(hg, clean_file):
 
 @pytest.fixture
 def core(hg):
-    return importlib.import_module(hg.__name__ + ".convert")
+    return importlib.import_module(hg.__name__ + ".conversion.convert")
 
 
 @pytest.fixture

@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture
 def ic(hg, clean_file):
-    return importlib.import_module(hg.__name__ + ".imagecheck")
+    return importlib.import_module(hg.__name__ + ".conversion.imagecheck")
 
 
 def _settings(file_format, depth, codec=None, mode="RGBA"):
@@ -179,7 +179,7 @@ sys.path[:0] = [sys.argv[1], os.path.join(sys.argv[1], "tests", "pure")]
 import bpy
 import numpy as np
 import fuzz_files as F
-from hazy_gloss import imagecheck
+from hazy_gloss.conversion import imagecheck
 folder = sys.argv[2]
 cases = [(a, d, ".exr") for a, _, d, _ in F.all_cases()]
 cases += [(a, m, ".png") for label, data in F.png_bases()

@@ -371,7 +371,7 @@ def test_layer_texture_maps_come_back_with_their_values(api, hg, tmp_path):
     res = 16  # the camera sees uv 0.375-0.625: texels 12-19, 2 x 2 pixels each
     scenes.setup_render("CYCLES", samples=1, resolution=(res, res), bounces=0)
     scenes.flat_plane_scene(mat)
-    read_exr = importlib.import_module(hg.__name__ + ".imagecheck").read_exr
+    read_exr = importlib.import_module(hg.__name__ + ".conversion.imagecheck").read_exr
     want = scenes.render_aovs(read_exr, tree, {k: t.outputs["Color"] for k, t in texs.items()})
 
     bpy.ops.wm.read_homefile(use_empty=True)

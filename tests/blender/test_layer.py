@@ -25,7 +25,7 @@ def env(hg, clean_file):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), make=mod("blender.actions.make_hazy"),
                            layer_values=mod("blender.model.layer_values"),
-                           layer_notes=mod("blender.model.layer_notes"), material=mod("blender.model.material"), exr=mod("imagecheck"), core=mod("core"),
+                           layer_notes=mod("blender.model.layer_notes"), material=mod("blender.model.material"), exr=mod("conversion.imagecheck"), core=mod("core"),
                            lobes=mod("core.lobes"), reports=mod("blender.ui.reports"), hg=hg)
 
 

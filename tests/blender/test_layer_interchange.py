@@ -38,7 +38,7 @@ def env(hg, clean_file):
     from types import SimpleNamespace
     return SimpleNamespace(api=mod("api"), ix=mod("blender.actions.interchange"), layer=mod("blender.model.layer"),
                            fallback=mod("blender.model.fallback"), doc=mod("interchange.document"), graph=mod("core.graph"),
-                           exr=mod("imagecheck"), hg=hg)
+                           exr=mod("conversion.imagecheck"), hg=hg)
 
 
 def _stdlib():

@@ -26,7 +26,7 @@ from test_layer import car_paint, metallic_map, principled, rel_diff, render
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("imagecheck"),
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("conversion.imagecheck"),
                            reports=mod("blender.ui.reports"), material=mod("blender.model.material"),
                            E=mod("blender.actions.eevee_output"), hg=hg)
 

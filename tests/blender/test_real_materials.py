@@ -37,7 +37,7 @@ def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
     return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"),
-                           layer_notes=mod("blender.model.layer_notes"), exr=mod("imagecheck"),
+                           layer_notes=mod("blender.model.layer_notes"), exr=mod("conversion.imagecheck"),
                            layer_values=mod("blender.model.layer_values"))
 
 

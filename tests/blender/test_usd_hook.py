@@ -20,7 +20,7 @@ import test_layer as TL
 def env(hg, clean_file):
     def mod(name):
         return importlib.import_module(f"{hg.__name__}.{name}")
-    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("imagecheck"),
+    return SimpleNamespace(api=mod("api"), layer=mod("blender.model.layer"), exr=mod("conversion.imagecheck"),
                            hook=mod("blender.actions.usd_hook"), hg=hg)
 
 

@@ -5,7 +5,7 @@ tests/blender/test_imagecheck.py checks that Blender loads what the writer write
 the check passes of these files).
 
 ``python tests/pure/fuzz_files.py [old_reader.py]`` prints the attack -> count -> outcome table
-for ``hazy_gloss.imagecheck.read_exr``, or for the ``read_exr`` of an older module given as a
+for ``hazy_gloss.conversion.imagecheck.read_exr``, or for the ``read_exr`` of an older module given as a
 file (each case in a time limit; run it under ``ulimit -v`` for an old reader, which can try to
 allocate 14 GiB).
 """
@@ -644,7 +644,7 @@ def _main(argv):
         spec.loader.exec_module(mod)
         expected = (ValueError,)
     else:
-        from hazy_gloss import imagecheck as mod
+        from hazy_gloss.conversion import imagecheck as mod
         expected = (mod.ImageFileError,)
     table = Counter()
     with tempfile.TemporaryDirectory() as tmp:

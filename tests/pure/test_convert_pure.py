@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Texture conversion, bpy-free part (hazy_gloss/convert.py).
+"""Texture conversion, bpy-free part (hazy_gloss/conversion/convert.py).
 
 The whole-image mapping must equal the one-texel description (core.lobes.describe on one
 texel, float32: the single piece every path uses; tests/pure/test_lobes.py checks it against an
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hazy_gloss import constants as K
-from hazy_gloss import convert as C
+from hazy_gloss.conversion import convert as C
 from hazy_gloss.core.lobes import describe
 
 H, W = 12, 10
@@ -289,7 +289,7 @@ def _run_blocked(body):
 
 def test_numeric_part_needs_no_bpy():
     r = _run_blocked("import numpy as np\n"
-                     "from hazy_gloss import convert as C\n"
+                     "from hazy_gloss.conversion import convert as C\n"
                      "m = C.map_textures({**{k: np.float32(v) if np.ndim(v) == 0 else np.float32(v)"
                      " for k, v in C.DEFAULTS.items()}, 'haziness': np.full((4, 4), 0.3, np.float32),"
                      " 'core_reflectivity': np.full(3, 0.5, np.float32), 'edge_tint': np.zeros(3, np.float32)})\n"

@@ -22,10 +22,10 @@ DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
 #: Folders a backticked path may start from: the repository's, and the package's (docs write
 #: ``core/mapping.py`` for ``hazy_gloss/core/mapping.py``).
 REPO_DIRS = ("hazy_gloss", "scripts", "benchmarks", "tests", "node_groups", "docs")
-PKG_DIRS = ("core", "blender", "interchange", "utils")
+PKG_DIRS = ("core", "blender", "conversion", "interchange", "utils")
 #: Names a backticked dotted name may start from, relative to the package.
-PKG_NAMES = ("api", "constants", "core", "blender", "interchange", "utils", "convert", "oiio",
-             "imagecheck", "imagestream", "recomposite")
+PKG_NAMES = ("api", "constants", "core", "blender", "conversion", "interchange", "utils",
+             "recomposite")
 #: Where a bare file name (a backticked span that is only ``name.py``) may live.
 SEARCH = ("hazy_gloss", "scripts", "benchmarks", "tests", "node_groups")
 

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Fuzz the add-on's image files, read through OpenImageIO: hazy_gloss.imagecheck.read_exr,
+"""Fuzz the add-on's image files, read through OpenImageIO: hazy_gloss.conversion.imagecheck.read_exr,
 check_image_file (EXR and PNG) and recomposite.passes_from_exr.
 
 Valid files come from the pure-python writer in fuzz_files.py (NONE / RLE / ZIPS / ZIP, single
@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 
 import fuzz_files as F
-from hazy_gloss import imagecheck, recomposite
+from hazy_gloss import recomposite
+from hazy_gloss.conversion import imagecheck
 
 PEAK_LIMIT = 64 << 20
 RSS_LIMIT = 256 << 20
@@ -198,7 +199,7 @@ def test_huge_data_window_is_refused_without_allocating(workdir):
 def test_truncated_file_is_one_line(workdir, comp):
     """Every codec, cut in the header, the chunks or by one byte: one line naming the file (an
     uncompressed file cut in its last chunk reads without an error through OpenImageIO's
-    default OpenEXR reader; hazy_gloss.oiio opens files with the classic one)."""
+    default OpenEXR reader; hazy_gloss.conversion.oiio opens files with the classic one)."""
     data, _ = _base(comp)
     for cut in (4, 20, len(data) // 2, len(data) - 1):
         path = _write(workdir / "cut.exr", data[:cut])

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""hazy_gloss.imagecheck.check_image_file beyond the fuzzing (test_fuzz_readers.py): JPEG cut or
+"""hazy_gloss.conversion.imagecheck.check_image_file beyond the fuzzing (test_fuzz_readers.py): JPEG cut or
 damaged, the PNG CRC rule (critical chunks only), deep OpenEXR refused, the texel bound of a
 header, crafted files, a file cut short while it is read.  Files are built here from the
 formats' specifications (the PNG spec, the OpenEXR file layout) or written by OpenImageIO
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import fuzz_files as F
-from hazy_gloss import imagecheck
-from hazy_gloss.oiio import openimageio
+from hazy_gloss.conversion import imagecheck
+from hazy_gloss.conversion.oiio import openimageio
 
 
 def _write(path, data):
@@ -238,7 +238,7 @@ def test_valid_files_pass_with_their_size(tmp_path):
 #: opened it (it has read the header and taken the file's length).
 _CUT_WHILE_CHECKED = """
 import os, sys
-from hazy_gloss import imagecheck, oiio
+from hazy_gloss.conversion import imagecheck, oiio
 path, keep = sys.argv[1], int(sys.argv[2])
 real = oiio.open_input
 def open_then_cut(*args):

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import fuzz_files as F
-from hazy_gloss import convert as C
-from hazy_gloss import imagecheck
-from hazy_gloss import imagestream as S
-from hazy_gloss.oiio import openimageio
+from hazy_gloss.conversion import convert as C
+from hazy_gloss.conversion import imagecheck
+from hazy_gloss.conversion import imagestream as S
+from hazy_gloss.conversion.oiio import openimageio
 
 
 def _png_decode(path):

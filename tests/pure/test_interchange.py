@@ -335,7 +335,7 @@ def test_graph_alone_gives_the_parameters_back(tmp_path_factory, p):
 
 def test_texture_driven_export_writes_image_nodes(tmp_path, stdlib):
     maps = {}
-    from hazy_gloss.convert import output_specs
+    from hazy_gloss.conversion.convert import output_specs
     for spec in output_specs("CONDUCTOR", True):
         f = tmp_path / f"{spec.name}.png"
         f.write_bytes(b"")

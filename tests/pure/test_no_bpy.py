@@ -108,8 +108,8 @@ def test_blocker_really_blocks():
     assert "BLOCKED" in out
 
 
-@pytest.mark.parametrize("module", ["hazy_gloss.core", "hazy_gloss.core.mapping", "hazy_gloss.oiio",
-                                    "hazy_gloss.imagecheck", "hazy_gloss.imagestream",
+@pytest.mark.parametrize("module", ["hazy_gloss.core", "hazy_gloss.core.mapping", "hazy_gloss.conversion.oiio",
+                                    "hazy_gloss.conversion.imagecheck", "hazy_gloss.conversion.imagestream",
                                     "hazy_gloss.recomposite",
                                     "hazy_gloss.core.body_colour"])
 def test_core_modules_have_no_blender_imports_in_source(module):

@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Which file of a texture library's PBR set is which map (hazy_gloss.convert.detect_pbr_set)."""
+"""Which file of a texture library's PBR set is which map (hazy_gloss.conversion.convert.detect_pbr_set)."""
 import pytest
 
-from hazy_gloss.convert import ConversionError, detect_pbr_set
+from hazy_gloss.conversion.convert import ConversionError, detect_pbr_set
 
 LIBRARIES = {
     "ambientCG": (["Wood049_4K-PNG_Color.png", "Wood049_4K-PNG_NormalGL.png",

@@ -2,7 +2,7 @@
 """Texture batch conversion through bpy: perceptual maps in, physical maps out, strip by strip.
 
 The numeric part (validation, Blender's conventions, haze mapping, PNG encodings) is bpy-free
-in ``hazy_gloss/convert.py``, the strip readers and writers in ``hazy_gloss/imagestream.py``;
+in ``hazy_gloss/conversion/convert.py``, the strip readers and writers in ``hazy_gloss/conversion/imagestream.py``;
 what needs Blender is in four modules:
 
 - blender/model/convert_inputs.py: reading the perceptual maps in strips (files through Blender's own
@@ -29,10 +29,10 @@ import bpy
 import numpy as np
 
 from ... import constants as K
-from ... import convert as conversion
-from ... import imagestream as stream
-from ...convert import ConversionError
-from ...oiio import openimageio
+from ...conversion import convert as conversion
+from ...conversion import imagestream as stream
+from ...conversion.convert import ConversionError
+from ...conversion.oiio import openimageio
 from ..model.convert_inputs import UDIM_TOKEN, Source, os_reason, short_repr, tile_paths, udim_tiles
 from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_codec, final_path,
                                      out_path, undo_run)

@@ -20,9 +20,9 @@ import bpy
 import numpy as np
 
 from ... import constants as K
-from ... import convert as conversion
-from ... import imagestream as stream
-from ...convert import ConversionError, did_you_mean
+from ...conversion import convert as conversion
+from ...conversion import imagestream as stream
+from ...conversion.convert import ConversionError, did_you_mean
 from ...core import layer_graph
 from ...core.graph import evaluate
 from ...core.parameters import HAZE_DEFAULTS, RANGES
@@ -30,7 +30,7 @@ from ...schema import HAZE_MAP_INPUTS, HAZE_SOCKETS, LAYER_MAP_INPUTS
 from .. import compat
 from ..model import layer, layer_group, layer_values
 from .convert import check_prefix, check_targets
-from ...oiio import openimageio
+from ...conversion.oiio import openimageio
 from ..model.convert_inputs import UDIM_TOKEN, Source, os_reason, udim_tiles
 from ..model.convert_outputs import (EXTENSIONS, MapFile, Transaction, check_codec, final_path,
                                      out_path)

@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 
 from ... import constants as K
-from ...convert import ConversionReport, ConversionResult, output_specs
+from ...conversion.convert import ConversionReport, ConversionResult, output_specs
 from ...interchange import layered_tree, materialx, usd
 from .. import compat
 from ..model import fallback, layer, layer_group, material, material_read, stamp, surface_build

@@ -17,9 +17,9 @@ import uuid
 import bpy
 
 from ... import constants as K
-from ... import imagestream as stream
-from ...convert import ConversionError
-from ...oiio import MISSING, openimageio
+from ...conversion import imagestream as stream
+from ...conversion.convert import ConversionError
+from ...conversion.oiio import MISSING, openimageio
 from .convert_inputs import DeferredSignals, absolute_path, os_reason, short_repr
 
 __all__ = ("EXTENSIONS", "exr_codecs", "check_codec", "MapFile", "Transaction", "out_path",
@@ -79,7 +79,7 @@ def _require_oiio():
 
 
 class MapFile:
-    """One output map written to its temporary in strips (hazy_gloss.imagestream, through
+    """One output map written to its temporary in strips (hazy_gloss.conversion.imagestream, through
     OpenImageIO) and proved complete at the end: the file decodes to what was written (lossy
     codecs: to finite values).  I/O errors become one-line ConversionErrors naming ``final``."""
 

@@ -11,7 +11,7 @@ import os
 import bpy
 
 from ... import constants as K
-from ...convert import ConversionError
+from ...conversion.convert import ConversionError
 from ...core.graph import Graph
 from .. import compat
 from . import material

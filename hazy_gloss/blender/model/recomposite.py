@@ -20,7 +20,7 @@ from ...core import node_math
 from ...core.graph import Graph
 from ...recomposite import (AOVS, GRAPH_INPUTS, GROUP_NAME, GROUP_VERSION, HOLDOUT_COLLECTION,
                             LAYERS, PROPERTY, compositor_graph, exr_layers)
-from ...imagecheck import FORMAT_NAMES, check_image_file, read_exr
+from ...conversion.imagecheck import FORMAT_NAMES, check_image_file, read_exr
 from .. import compat
 from . import fallback, material, material_read
 from . import stamp as _stamps
@@ -546,7 +546,7 @@ def build_compositor(scene, source=None, *, original=None, haziness=None, core_r
     one layer of the file that is not ours).
     ``haziness`` / ``core_reflectivity``: new values (factors set to 1); None keeps.
     Returns the group node.  A damaged ``source`` raises ImageFileError (a ValueError,
-    hazy_gloss.imagecheck) before Blender loads it."""
+    hazy_gloss.conversion.imagecheck) before Blender loads it."""
     tree = compat.compositor_tree(scene)
     for n in [n for n in tree.nodes if n.name.startswith(RC_PREFIX + " ")]:
         tree.nodes.remove(n)

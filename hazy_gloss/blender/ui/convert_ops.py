@@ -10,8 +10,8 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ... import constants as K
-from ... import convert as conversion
-from ...convert import ConversionError
+from ...conversion import convert as conversion
+from ...conversion.convert import ConversionError
 from .. import compat
 from ..actions.convert import convert_maps_steps
 from ..actions.convert_pbr import convert_library_steps, convert_set_steps

@@ -27,13 +27,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import constants as K
-from .core.lobes import describe
-from .core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, check_value, sanitise
-# Split off this module and re-exported here (``hazy_gloss.convert`` still names them): the
-# errors and progress, the pixel helpers, the PBR texture sets.
-from .conversion_status import (ConversionCancelled, ConversionError, ConversionOptionError,
-                                Progress, did_you_mean, drain, format_seconds, progress_bar)
+from .. import constants as K
+from ..core.lobes import describe
+from ..core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, check_value, sanitise
+# The conversion's callers import this one module: it also names the errors and progress, the
+# pixel helpers and the PBR texture sets, which live in modules of their own.
+from .status import (ConversionCancelled, ConversionError, ConversionOptionError,
+                     Progress, did_you_mean, drain, format_seconds, progress_bar)
 from .pbr_sets import PBR_NAME_PARTS, detect_pbr_set, udim_sets
 from .pixels import (linear_to_srgb, resample_axis, resample_block, resample_bilinear,
                      srgb_bytes_to_linear, srgb_to_linear)
