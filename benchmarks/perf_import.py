@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -207,11 +206,7 @@ def main():
         res["distribution"] = distribution(tmp)
     res["machine"] = C.machine()
     res["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    C.write_json("perf_import", res)
-    md = markdown(res)
-    (C.OUT / "perf_import.md").write_text(md)
-    if os.environ.get("HG_REPORT_SECTION") != "1":
-        C.write_section(BEGIN, END, md)
+    C.publish("perf_import", res, markdown(res), BEGIN, END)
 
 
 if __name__ == "__main__":

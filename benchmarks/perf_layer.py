@@ -25,7 +25,6 @@ Writes out/report/perf_layer.{json,md} and, run standalone, its section of docs/
 from __future__ import annotations
 
 import datetime
-import os
 import sys
 import time
 from pathlib import Path
@@ -270,11 +269,7 @@ def main():
               f"{r['hazy/original']['median']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
     res["machine"] = C.machine()
     res["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    C.write_json("perf_layer", res)
-    md = markdown(res)
-    (C.OUT / "perf_layer.md").write_text(md)
-    if os.environ.get("HG_REPORT_SECTION") != "1":  # standalone: update the docs in place
-        C.write_section(BEGIN, END, md)
+    C.publish("perf_layer", res, markdown(res), BEGIN, END)
 
 
 def markdown(res):

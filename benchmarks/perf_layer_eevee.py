@@ -291,11 +291,7 @@ def main():
         res["closures"][version] = C.read_json(f"perf_layer_eevee_closures_{version}")
         print(f"[perf_layer_eevee] closures in {version}: {time.perf_counter() - t0:.0f} s",
               flush=True)
-    C.write_json("perf_layer_eevee", res)
-    md = markdown(res)
-    (C.OUT / "perf_layer_eevee.md").write_text(md)
-    if os.environ.get("HG_REPORT_SECTION") != "1":
-        C.write_section(BEGIN, END, md)
+    C.publish("perf_layer_eevee", res, markdown(res), BEGIN, END)
 
 
 def _strip(strips):
