@@ -31,6 +31,12 @@ import layout_graph  # noqa: E402
 DOC = ROOT / "docs" / "architecture.md"
 BEGIN = "<!-- architecture diagram: begin (scripts/architecture.py) -->"
 END = "<!-- architecture diagram: end -->"
+SIZE_BEGIN = "<!-- package size: begin (scripts/architecture.py) -->"
+SIZE_END = "<!-- package size: end -->"
+#: The package when the lean-codebase work began (14be10a, 2026-12-03): Python modules and
+#: lines of hazy_gloss/, of hazy_gloss/blender/, and the lines of hand-written image codecs.
+BEFORE = {"commit": "14be10a", "modules": 112, "lines": 30933, "blender_lines": 13784,
+          "codec_lines": 1436}
 PKG = layout_graph.PACKAGE
 
 #: The layers of hazy_gloss/blender, top down, each a folder (base: blender/compat.py and the
@@ -141,9 +147,29 @@ def diagram(root=layout_graph.ROOT):
     return "\n".join(out), other
 
 
-def render(text, block):
-    """``text`` with ``block`` between the markers (ValueError when they are missing)."""
-    return generated_doc.render(text, block, BEGIN, END, DOC.relative_to(ROOT))
+def size_table(root=ROOT):
+    """The package's size now beside :data:`BEFORE` (a Markdown table)."""
+    pkg = root / PKG
+    files = sorted(pkg.rglob("*.py"))
+    lines = {f: len(f.read_text(encoding="utf-8").splitlines()) for f in files}
+    blender = sum(n for f, n in lines.items() if (pkg / "blender") in f.parents)
+    b = BEFORE
+    rows = [("Python modules", b["modules"], len(files)),
+            ("lines of Python", b["lines"], sum(lines.values())),
+            ("of them in blender/", b["blender_lines"], blender),
+            ("hand-written image codecs (lines)", b["codec_lines"], 0)]
+    out = [f"| | before ({b['commit']}) | now |", "|---|---|---|"]
+    out += [f"| {what} | {was:,} | {now:,} |" for what, was, now in rows]
+    return "\n".join(out)
+
+
+def render(text, block, size=None):
+    """``text`` with ``block`` (and the size table) between their markers (ValueError when
+    they are missing)."""
+    where = DOC.relative_to(ROOT)
+    text = generated_doc.render(text, block, BEGIN, END, where)
+    return generated_doc.render(text, size if size is not None else size_table(), SIZE_BEGIN,
+                                SIZE_END, where)
 
 
 def main(argv=None):
@@ -155,8 +181,10 @@ def main(argv=None):
     if other:
         print(f"architecture.py: outside the layers' folders (drawn as 'other'): {', '.join(other)}",
               file=sys.stderr)
-    return generated_doc.write_or_check(DOC, ROOT, lambda old: render(old, block), check=args.check,
-                                        script="architecture.py", source="the import graph")
+    size = size_table()
+    return generated_doc.write_or_check(DOC, ROOT, lambda old: render(old, block, size),
+                                        check=args.check, script="architecture.py",
+                                        source="the import graph and the package's size")
 
 
 if __name__ == "__main__":
