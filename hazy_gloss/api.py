@@ -228,7 +228,7 @@ def convert_maps(inputs, out_dir, *, kind="CONDUCTOR", smoothness=None, distribu
     All or nothing: every target is checked before anything is written, the maps are written
     to temporary names, read back and compared, then renamed into place together; on any
     failure or KeyboardInterrupt the output folder is left as it was (docs/textures.md).
-    Every error the caller can cause raises hazy_gloss.conversion.convert.ConversionError (a ValueError)
+    Every error the caller can cause raises conversion.convert.ConversionError (a ValueError)
     with a one-line message naming the parameter or file (an unknown option:
     ConversionOptionError, also a TypeError)."""
     from .conversion.convert import ConversionOptionError, did_you_mean

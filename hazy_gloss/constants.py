@@ -130,7 +130,7 @@ HAZE_PANEL = "Haze"
 LAYER_NODE_KEY = "hazy_gloss_layer"
 ORIGINAL_NODE_KEY = "hazy_gloss_original"
 
-#: Limits of the add-on's image files (hazy_gloss.conversion.imagecheck): anything beyond them is a damaged
+#: Limits of the add-on's image files (conversion/imagecheck.py): anything beyond them is a damaged
 #: or hostile file, refused before memory is allocated for it.
 MAX_IMAGE_PIXELS = 1 << 30  # width x height (e.g. 32768 x 32768; 16 GiB as RGBA float)
 MAX_EXR_DECODED_BYTES = 1 << 31  # float32 values read_exr returns (a 4K 30-channel render: 1 GiB)
@@ -138,7 +138,7 @@ MAX_EXR_DECODED_BYTES = 1 << 31  # float32 values read_exr returns (a 4K 30-chan
 #: constant 32768-wide HTJ2K image packs ~4000 texels into a byte, deflate at most ~1032 bytes)
 #: that stops tiny files whose header would make Blender allocate gigabytes.
 MAX_TEXELS_PER_BYTE = 1 << 16
-#: Texture conversion in strips (hazy_gloss/conversion/imagestream.py): texels per strip (memory per map
+#: Texture conversion in strips (conversion/imagestream.py): texels per strip (memory per map
 #: in flight), and the zlib levels its writers ask OpenImageIO for (measured on a 1K β map: EXR
 #: ZIP level 4 within 0.1 % of Blender's file, level 6 no smaller; 16-bit PNG level 3 5 %
 #: smaller than Blender's, level 6 3 % smaller still for more time).
@@ -146,7 +146,7 @@ STRIP_TEXELS = 1 << 18
 EXR_ZIP_LEVEL = 4
 PNG_ZIP_LEVEL = 3
 
-# -- texture conversion (hazy_gloss/conversion/convert.py, blender/actions/convert.py, python -m hazy_gloss) -------
+# -- texture conversion (conversion/, blender/actions/convert.py, python -m hazy_gloss) --------
 #: Exit statuses of ``python -m hazy_gloss convert`` (docs/textures.md).
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2  # bad input or usage: one line "hazy_gloss convert: error: ..." on stderr

@@ -71,9 +71,9 @@ def passes_from_exr(path, original=None, layers=LAYERS):
     AOVs ``beta``, ``peak_ratio``, ``mask``, ``haziness`` (H, W) and ``reflectivity``,
     ``core_reflectivity`` (H, W, 3).  Row 0 = bottom row.
 
-    The file is read through OpenImageIO (:func:`hazy_gloss.conversion.imagecheck.read_exr`): every codec
+    The file is read through OpenImageIO (:func:`conversion.imagecheck.read_exr`): every codec
     Blender writes (ZIP, PIZ, DWAA, DWAB, RLE, NONE, ...), scanline or tiled.  Raises
-    :class:`~hazy_gloss.conversion.imagecheck.ImageFileError` (a ValueError) for a damaged or unsupported
+    :class:`~conversion.imagecheck.ImageFileError` (a ValueError) for a damaged or unsupported
     file or passes of different sizes, KeyError for a well-formed file without the passes; both
     one line naming the file."""
     ch = read_exr(path)

@@ -29,7 +29,8 @@ import numpy as np
 
 from .. import constants as K
 from ..core.lobes import describe
-from ..core.parameters import DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, check_value, sanitise
+from ..core.parameters import (DEFAULTS as _API_DEFAULTS, RANGES as _API_RANGES, check_value,
+                               sanitise)
 # The conversion's callers import this one module: it also names the errors and progress, the
 # pixel helpers and the PBR texture sets, which live in modules of their own.
 from .status import (ConversionCancelled, ConversionError, ConversionOptionError,

@@ -7,7 +7,7 @@ Blender's loaders are not safe on damaged files: the first half of a small ZIP O
 segfaults bpy 5.0.1 on ``img.size`` after ``bpy.data.images.load`` (4.5, 5.2 and 5.3 load it as
 0x0), a PNG cut off by a full disk loads as 0x0, a cut-off JPEG is filled with grey without an
 error, and a tiny file whose header claims a huge image makes Blender allocate gigabytes.
-:func:`check_image_file` opens the file with the OpenImageIO Blender ships (:mod:`hazy_gloss.conversion.oiio`),
+:func:`check_image_file` opens the file with the OpenImageIO Blender ships (:mod:`.oiio`),
 refuses a header that claims more pixels than the file can hold, then decodes every subimage
 (level 0 of a tiled file: what Blender reads) in strips of rows (memory: one strip), so a file
 that passes decodes without an error in the libraries Blender reads it with.

@@ -175,7 +175,7 @@ _BYTE_FLOATS = np.arange(256, dtype=np.float32) * np.float32(1 / 255)
 
 class OiioStrips:
     """Rows of an image file through an OpenImageIO module ``oiio`` (passed in: it is found
-    through Blender, :mod:`hazy_gloss.conversion.oiio`).  ``rows(y0, y1)`` -> float32 (n, W, C) raw file
+    through Blender, :mod:`.oiio`).  ``rows(y0, y1)`` -> float32 (n, W, C) raw file
     values in file order: 8-bit files as k x float32(1/255), others as OpenImageIO's float
     conversion (16-bit: k x float32(1/65535); both bit-identical to Blender's ``Image.pixels``,
     tested).  Rows must be asked in increasing order for sequential formats (PNG, JPEG).  A

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""PBR texture sets for the converter (hazy_gloss/conversion/convert.py): which file of a folder is which
+"""PBR texture sets for the converter (convert.py): which file of a folder is which
 map (base colour, metallic, roughness, ... by the name parts texture libraries use), and UDIM
 tile sets folded into one name.
 """

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The texture converter's pixel helpers (hazy_gloss/conversion/convert.py): the sRGB transfer functions
+"""The texture converter's pixel helpers (convert.py): the sRGB transfer functions
 (float and 8-bit) and the bilinear resampling of a map to another size, in numpy.
 """
 from __future__ import annotations

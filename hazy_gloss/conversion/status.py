@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""How a texture conversion (hazy_gloss/conversion/convert.py) fails, reports its progress and is cancelled:
+"""How a texture conversion (convert.py) fails, reports its progress and is cancelled:
 :class:`ConversionError` (one line for the user) and its kinds, :class:`Progress` (work done,
 ETA, the cancel flag), the text progress bar and :func:`drain`.
 """

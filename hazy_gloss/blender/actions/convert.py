@@ -2,7 +2,7 @@
 """Texture batch conversion through bpy: perceptual maps in, physical maps out, strip by strip.
 
 The numeric part (validation, Blender's conventions, haze mapping, PNG encodings) is bpy-free
-in ``hazy_gloss/conversion/convert.py``, the strip readers and writers in ``hazy_gloss/conversion/imagestream.py``;
+in ``conversion/convert.py``, the strip readers and writers in ``conversion/imagestream.py``;
 what needs Blender is in four modules:
 
 - blender/model/convert_inputs.py: reading the perceptual maps in strips (files through Blender's own

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The inputs of a texture conversion, read through bpy: perceptual maps as strips of linear or raw values.
 
-Files are read through Blender's own OpenImageIO module (:mod:`hazy_gloss.conversion.oiio`) and decoded as
+Files are read through Blender's own OpenImageIO module (:mod:`conversion.oiio`) and decoded as
 Blender would (colour maps to linear, data maps raw); datablocks (packed and unsaved ones
 included) are read in place, whole, as measured in Blender 4.5 / 5.x (``Image.pixels`` of an
 8-bit image holds the file's encoded values whatever its colour space; float images are already
@@ -45,7 +45,7 @@ _DATA_NAMES = ("Non-Color", "Raw", "Generic Data")
 
 
 def check_readable(path, label):
-    """The one check before Blender reads a file (:func:`hazy_gloss.conversion.imagecheck.check_image_file`:
+    """The one check before Blender reads a file (:func:`conversion.imagecheck.check_image_file`:
     a non-empty regular file, an image format Blender reads, an OpenEXR, PNG or JPEG not cut
     off or damaged, no header claiming more than the file can hold): Blender 5.0.1 segfaults on
     a truncated EXR.  Raises ConversionError (one line naming ``label`` and ``path``); returns

@@ -45,7 +45,7 @@ def _set_value(sock, value):
 
 
 def _damage(path):
-    """Why Blender must not load ``path`` (hazy_gloss.conversion.imagecheck: damaged, not an image), or
+    """Why Blender must not load ``path`` (conversion.imagecheck: damaged, not an image), or
     None when it passes the check; a missing file is None too (the caller tells)."""
     try:
         check_image_file(path)
