@@ -379,7 +379,7 @@ def test_output_folder_that_cannot_be_created(api, core, tmp_path, monkeypatch):
     with pytest.raises(core.ConversionError, match="cannot create the output folder /proc/"):
         api.convert_maps(paths, "/proc/hazy_gloss_test_out")
     # a failed run removes the folders it created (here: the write of the first map fails)
-    boutputs = importlib.import_module(core.__name__.rsplit(".", 1)[0] + ".blender.model.convert_outputs")
+    boutputs = importlib.import_module(api.__name__.rsplit(".", 1)[0] + ".blender.model.convert_outputs")
     monkeypatch.setattr(boutputs.MapFile, "close_file", lambda self: (_ for _ in ()).throw(
         OSError(5, "simulated")))
     with pytest.raises(core.ConversionError, match="could not write .*beta.exr: simulated"):
