@@ -324,7 +324,7 @@ def write_doc(r, bpy):
         f"| A conversion (`api.convert_maps`) | {r['conversion_s']:.1f} s | |",
         f"| B floor: same reads and writes through bpy, no mapping | {r['floor_s']:.1f} s | "
         f"A/B = **{r['conversion_s'] / r['floor_s']:.2f}** (target <= 3) |",
-        f"| C pure-numpy mapping (`convert.map_textures`) | {r['numpy_s']:.1f} s | "
+        f"| C pure-numpy mapping (`conversion.convert.map_textures`) | {r['numpy_s']:.1f} s | "
         f"C/A = {r['numpy_s'] / r['conversion_s']:.2f} |",
         f"| D naive per-texel Python loop ({r['crop']}x{r['crop']} crop, extrapolated) | "
         f"{r['loop_s']:.0f} s | "

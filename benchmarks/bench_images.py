@@ -42,12 +42,18 @@ import json, os, sys, time
 tree, what, fmt, path, n = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5])
 sys.path.insert(0, tree)
 import numpy as np
-from hazy_gloss.conversion import imagestream as S, imagecheck
+try:  # this tree, or one from before conversion/ (the image modules at the package's top)
+    from hazy_gloss.conversion import imagestream as S, imagecheck
+except ImportError:
+    from hazy_gloss import imagestream as S, imagecheck
 try:
     from hazy_gloss.conversion.oiio import openimageio
-except ImportError:  # the tree before hazy_gloss.conversion.oiio: Blender's copy, found the same way
-    sys.path.insert(0, os.environ["HG_BENCH_ROOT"])
-    from hazy_gloss_bench_oiio import openimageio
+except ImportError:
+    try:
+        from hazy_gloss.oiio import openimageio
+    except ImportError:  # the tree before oiio.py: Blender's copy, found the same way
+        sys.path.insert(0, os.environ["HG_BENCH_ROOT"])
+        from hazy_gloss_bench_oiio import openimageio
 
 def status(key):
     for line in open("/proc/self/status"):
@@ -100,7 +106,7 @@ out["bytes"] = os.path.getsize(path)
 print(json.dumps(out))
 """
 
-#: For a tree without hazy_gloss.conversion.oiio: the bpy wheel's OpenImageIO, loaded by its file.
+#: For a tree without oiio.py: the bpy wheel's OpenImageIO, loaded by its file.
 _OIIO_SHIM = '''
 import glob, importlib.util, os, sys
 def openimageio():

@@ -245,7 +245,8 @@ def main():
         subprocess.run(["rm", "-rf", str(base)])
     results["seconds"] = time.perf_counter() - t_all
     results["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
-    C.publish("bench_production", results, markdown(results), BEGIN, END)
+    md = markdown(results)
+    C.publish("bench_production", results, md, BEGIN, END)
     print(md)
 
 

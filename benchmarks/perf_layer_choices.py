@@ -170,18 +170,22 @@ def markdown(res):
     L.append(C.md_table(header, rows) + "\n")
     ms = [r for r in res["rows"] if r["choice"].startswith("Multiscatter")]
     within = [r["choice"] for r in ms if r["peak_max"] <= 1e-3]
-    by_cost = sorted(ms, key=lambda r: r["per_point"])
-    lo, hi = by_cost[0], by_cost[-1]
-    per_100 = 100 * (hi["hazy/peer"]["median"] - lo["hazy/peer"]["median"]) / max(
-        hi["per_point"] - lo["per_point"], 1)
-    apart = all(a["hazy/peer"]["q3"] < b["hazy/peer"]["q1"] for a, b in zip(by_cost, by_cost[1:]))
     L.append(f"Within the 1e-3 budget: {', '.join(within) or 'none'}. The per-point math is "
              "what a textured roughness pays for: the GGX row runs the mapping alone, the "
-             "Multiscatter rows add the correction's Newton steps. From the fewest to the most "
-             f"math per point, every 100 math nodes a shading point runs add {per_100:.2f} to "
-             "hazy / peer" + (" (the rows' IQRs do not overlap)" if apart else
-                              " (the IQRs of neighbouring rows overlap: the render's noise on "
-                              "this machine)") + ".\n")
+             "Multiscatter rows add the correction's Newton steps.")
+    by_cost = sorted(ms, key=lambda r: r["per_point"])
+    if len(by_cost) >= 2 and by_cost[-1]["per_point"] > by_cost[0]["per_point"]:
+        lo, hi = by_cost[0], by_cost[-1]
+        per_100 = 100 * (hi["hazy/peer"]["median"] - lo["hazy/peer"]["median"]) / (
+            hi["per_point"] - lo["per_point"])
+        apart = all(a["hazy/peer"]["q3"] < b["hazy/peer"]["q1"]
+                    for a, b in zip(by_cost, by_cost[1:]))
+        L[-1] += (f" From the fewest to the most math per point, every 100 math nodes a shading "
+                  f"point runs add {per_100:.2f} to hazy / peer" +
+                  (" (the Multiscatter rows' IQRs do not overlap)" if apart else
+                   " (the IQRs of neighbouring Multiscatter rows overlap: the render's noise on "
+                   "this machine)") + ".")
+    L[-1] += "\n"
     return "\n".join(L)
 
 

@@ -157,9 +157,9 @@ def _markdown(res, P):
     n = res["texels"]
     c = res["convert"]
     L.append(f"Texture conversion, {n:,} texels of random perceptual values (one run each):\n")
-    rows = [["`convert.map_textures` (float32, isotropic conductor)", f"{c['map_textures_iso']:.2f}",
+    rows = [["`conversion.convert.map_textures` (float32, isotropic conductor)", f"{c['map_textures_iso']:.2f}",
              f"{n / c['map_textures_iso'] / 1e6:.1f}"],
-            ["`convert.map_textures` (float32, anisotropic conductor)", f"{c['map_textures_aniso']:.2f}",
+            ["`conversion.convert.map_textures` (float32, anisotropic conductor)", f"{c['map_textures_aniso']:.2f}",
              f"{n / c['map_textures_aniso'] / 1e6:.1f}"],
             ["`core.haze_mapping` float32 (no node conventions)", f"{c['haze_mapping_f32']:.2f}",
              f"{n / c['haze_mapping_f32'] / 1e6:.1f}"],

@@ -4,7 +4,7 @@
 Layout (in the spirit of glTF-Blender-IO: a bpy-free core beside the Blender half):
 - bpy-free: ``constants.py`` and ``schema.py`` (the parameters), ``core/`` (the haze mapping,
   its node math, Multiscatter, thin film), ``conversion/`` (texture conversion, image files),
-  ``recomposite.py``, ``interchange/`` (MaterialX, USD, other engines), ``utils/`` (presets,
+  ``recomposite.py``, ``node_layout.py``, ``interchange/`` (MaterialX, USD, other engines), ``utils/`` (presets,
   looks, plots).
 - ``blender/``: everything that imports bpy, in layers that import downward: ``ui/``
   (operators, panels, registration), ``actions/`` (what they do), ``model/`` (hazy materials

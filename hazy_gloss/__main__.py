@@ -269,7 +269,7 @@ def _run_convert(args, signals):
     if problem is not None:
         return _error(problem)
     try:
-        from .blender.actions import cli  # imports bpy (the conversion reads and writes images with it)
+        from .blender.actions import cli  # imports bpy (the conversion's Blender half needs it)
     except ImportError as exc:
         return _error(f"bpy is not importable ({exc}); install the bpy module or run inside "
                       "Blender", K.EXIT_NO_BPY)

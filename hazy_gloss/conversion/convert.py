@@ -8,14 +8,15 @@ textures storing variations of these parameters".  This module does the numeric 
 - :func:`map_textures` applies Blender's conventions exactly as ``api.map_parameters`` does
   (roughness R = √α, raised to the mirror cut-off; Metallic anisotropy; α <= 1; aspect <= 10),
   validates every texel (NaN, out of range: clamped and counted), runs
-  :func:`hazy_gloss.core.haze_mapping` over whole images in float32, tile by tile to bound the
+  :func:`hazy_gloss.core.lobes.describe` over whole images in float32, tile by tile to bound the
   temporaries, and returns the physical maps in the convention of the lean node tree;
 - :func:`encode_png` / :func:`decode_png` give the documented 16-bit PNG encodings of the maps
   that do not fit in [0, 1] (η, κ, Glossy anisotropy, rotation);
-- :func:`srgb_to_linear` / :func:`linear_to_srgb` (IEC 61966-2-1, the curve Blender's OCIO
-  "sRGB" uses) and :func:`resample_bilinear`.
+- it also names :func:`srgb_to_linear` / :func:`linear_to_srgb` (IEC 61966-2-1, the curve
+  Blender's OCIO "sRGB" uses) and :func:`resample_bilinear` of :mod:`.pixels`.
 
-Reading and writing images goes through bpy (hazy_gloss/blender/actions/convert.py).  Images here are
+Image files are read and written through OpenImageIO (imagestream.py), datablocks through bpy
+(blender/model/convert_inputs.py).  Images here are
 arrays shaped (H, W) for scalar maps and (H, W, 3) for colours, in Blender's row order (row 0 is
 the bottom row); nothing here depends on the order.
 """

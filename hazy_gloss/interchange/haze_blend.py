@@ -24,7 +24,7 @@ and :func:`solve` finds the user's r_c and (β_h, λ) that give it:
 
 The blend is reachable unless it is brighter at its peak than the energy bounds of Eq. 6 allow
 (β_h would be ≥ 1) or its F0 would need r_c > 1; then β_h is capped at MAX_HAZINESS and the
-residual is returned (measured in tests/pure/test_haze_blend.py and docs/interchange.md §2).
+residual is returned (measured in tests/pure/test_import_surfaces.py and docs/interchange.md §2).
 """
 from __future__ import annotations
 

@@ -47,6 +47,23 @@ def test_check_fails_on_a_stale_diagram(tmp_path, monkeypatch):
     assert architecture.main(["--check"]) == 1
 
 
+def test_size_table_check_allows_a_small_drift_only(tmp_path, monkeypatch):
+    """--check accepts the size table within 1 % of the counts (an edit of a few lines must not
+    fail the suite), and fails one further off."""
+    architecture = _script("architecture")
+    now = architecture.size_table()
+    text = architecture.DOC.read_text(encoding="utf-8")
+    doc = tmp_path / "architecture.md"
+    monkeypatch.setattr(architecture, "DOC", doc)
+    monkeypatch.setattr(architecture, "ROOT", tmp_path)
+    lines = architecture._numbers(now)[1]
+    for factor, status in ((1.004, 0), (1.05, 1)):
+        drifted = now.replace(f"{lines / 1000:.1f}k", f"{lines * factor / 1000:.1f}k")
+        assert drifted != now
+        doc.write_text(text.replace(now, drifted), encoding="utf-8")
+        assert architecture.main(["--check"]) == status, factor
+
+
 def test_unknown_blender_module_goes_in_other():
     architecture = _script("architecture")
     assert architecture.group_of("hazy_gloss.blender.brand_new")[1] == "other"

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What the command line (``python -m hazy_gloss``, bpy-free) needs from Blender: importing this
-module imports bpy, so ``from .blender import cli`` failing with ImportError is "bpy is not
+module imports bpy, so ``from .blender.actions import cli`` failing with ImportError is "bpy is not
 importable" (exit 3)."""
 import os
 

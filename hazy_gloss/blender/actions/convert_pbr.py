@@ -5,8 +5,8 @@ texture library ships them) plus haze maps into a Principled material with a bak
 The set goes into a Principled BSDF (a new material, or the user's own: its empty inputs take
 the maps; an input the user linked to something else is refused, never replaced).  The haze
 layer is the one Make Hazy builds (blender.model.layer): its outputs (the raised IOR / Base Color, the
-wide roughness, β per part, the coat's) are computed by the layer's own graph (conversion.graph:
-the node math of the in-shader layer, evaluated in numpy with Blender's float32 semantics) over
+wide roughness, β per part, the coat's) are computed by the layer's own graph (core.layer_graph:
+the node math of the in-shader layer, evaluated by core.graph in numpy with Blender's float32 semantics) over
 every texel and written as maps, all or nothing (blender.model.convert_outputs' transaction); the
 layer then reads those maps instead of node math.  A Metallic map splits the material per texel into its
 dielectric and metal parts, each with its own β map.

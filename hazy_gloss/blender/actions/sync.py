@@ -103,7 +103,7 @@ def _follow_fallback(mat, force):
 def refresh_derived(mat):
     """What is built from a layer follows it after every layer.apply: the export fallback
     (blender/model/fallback.py, the user's BSDF at haziness 0) and the EEVEE-only output
-    (blender/eevee_output.py, when one was asked for).  Problems go to the panel, never up."""
+    (blender/actions/eevee_output.py, when one was asked for).  Problems go to the panel, never up."""
     try:
         if eevee_output.requested_mode(mat) is not None:
             eevee_output.sync_eevee_output(mat)

@@ -1,3 +1,3 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""What the artist sees: operators (thin: they call actions/), panels, menus, properties,
+"""What the artist sees: operators (thin: they call actions/, or a model function where no action is needed), panels, menus, properties,
 preferences, plots, and the one registration point (registration)."""

@@ -456,7 +456,7 @@ def layer_group_params(node):
 
 
 def draw_eevee(layout, mat, hg):
-    """The EEVEE-only simplification (blender/eevee_output.py): the choice, and whether it is
+    """The EEVEE-only simplification (blender/actions/eevee_output.py): the choice, and whether it is
     in effect here and why."""
     box = layout.box().column()
     box.use_property_split = True
