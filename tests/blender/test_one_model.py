@@ -5,8 +5,8 @@
 material); Make Hazy puts the haze layer on an artist's BSDF. This test builds the BSDF an
 artist would for the same perceptual parameters, from the paper's and Blender's relations
 written out here (not the add-on's functions): a Metallic BSDF in Physical Conductor mode with
-Gulbrandsen's printed η, κ; a Principled BSDF with IOR (1+√r)/(1-√r) (a grey r: white
-Specular Tint); a Glossy BSDF with colour r_c and the Glossy node's anisotropy for the same
+Gulbrandsen's printed η, κ; a Principled BSDF with IOR (1+√r̂)/(1-√r̂) of the max channel r̂
+and Specular Tint r_c/r̂; a Glossy BSDF with colour r_c and the Glossy node's anisotropy for the same
 α_x, α_y. Both are rendered on the plane of test_render_claims (each pixel is f_r cos θ
 exactly) from five light directions. So that agreement cannot come from haze that shows
 nowhere, the BSDF without its layer must render differently, and so must the whole material
@@ -47,6 +47,7 @@ CASES = {
     "conductor, Bezier halo": ("CONDUCTOR", "GGX", 0.0, {"smoothness": 0.5}),
     "dielectric": ("DIELECTRIC", "GGX", 0.0, {}),
     "dielectric, Multiscatter GGX, anisotropic": ("DIELECTRIC", "MULTI_GGX", 0.6, {}),
+    "dielectric, coloured r_c": ("DIELECTRIC", "GGX", 0.0, {"core_reflectivity": (0.06, 0.04, 0.02)}),
     "dielectric, base colour (diffuse body)": ("DIELECTRIC", "GGX", 0.0,
                                                {"base_color": (0.2, 0.4, 0.1)}),
     "glossy": ("LEGACY", "GGX", 0.0, {}),
@@ -104,8 +105,11 @@ def artists_bsdf(kind, distribution, anisotropy, extra):
     elif kind == "DIELECTRIC":
         b = tree.nodes.new("ShaderNodeBsdfPrincipled")
         base = extra.get("base_color", (0.0, 0.0, 0.0))
-        values = {"IOR": (1 + math.sqrt(0.05)) / (1 - math.sqrt(0.05)), "Base Color": base + (1.0,),
-                  "Specular IOR Level": 0.5, "Specular Tint": (1.0, 1.0, 1.0, 1.0),
+        rc = np.broadcast_to(np.asarray(extra.get("core_reflectivity", 0.05), np.float64), 3)
+        r_hat = float(rc.max())  # the IOR sets F(0) of the max channel, the tint the others
+        values = {"IOR": (1 + math.sqrt(r_hat)) / (1 - math.sqrt(r_hat)),
+                  "Base Color": base + (1.0,), "Specular IOR Level": 0.5,
+                  "Specular Tint": tuple(float(c) for c in rc / r_hat) + (1.0,),
                   "Anisotropic": anisotropy}
     else:
         b = tree.nodes.new("ShaderNodeBsdfGlossy")
@@ -136,7 +140,7 @@ def test_the_layer_renders_the_whole_hazy_material(env, case):
     if "smoothness" in extra:
         haze["smoothness"] = extra["smoothness"]
     own = {"CONDUCTOR": dict(core_reflectivity=RC_METAL, edge_tint=EDGE),
-           "DIELECTRIC": dict(core_reflectivity=0.05,
+           "DIELECTRIC": dict(core_reflectivity=extra.get("core_reflectivity", 0.05),
                               base_color=extra.get("base_color", (0.0, 0.0, 0.0))),
            "LEGACY": dict(core_reflectivity=RC_GLOSSY)}[kind]
     shared = dict(kind=kind, distribution=distribution, roughness=ROUGHNESS, **own)
