@@ -6,6 +6,7 @@ Nothing here is part of the add-on; matplotlib is a dev-only dependency (require
 """
 from __future__ import annotations
 
+import datetime
 import json
 import os
 import platform
@@ -20,6 +21,8 @@ OUT = ROOT / "out" / "report"
 OUT.mkdir(parents=True, exist_ok=True)
 IMG = ROOT / "docs" / "img"
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(ROOT / "tests" / "blender"))
+from layer_probe import count_nodes  # noqa: E402,F401  (one count of a group's nodes)
 #: HG_REPORT_QUICK=1: tiny sample counts, to check the scripts run (never for committed docs).
 QUICK = os.environ.get("HG_REPORT_QUICK", "") not in ("", "0")
 
@@ -194,6 +197,11 @@ def save_image(rgb, name, *, exposure=1.0):
     return f"img/{name}"
 
 
+def utc_date():
+    """The date and minute a measurement was made, as the generated docs state it."""
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
 def publish(name, res, md, begin, end):
     """Write out/report/<name>.json and <name>.md; run alone (not from benchmarks/report.py,
     which assembles the docs itself), also replace the section of docs/performance.md between
@@ -237,9 +245,3 @@ def sci(x, digits=1):
     if math.isinf(x):
         return "inf"
     return f"{x:.{digits}e}"
-
-
-def count_nodes(tree):
-    """Every node of a node tree, nested groups expanded (as scripts/node_counts.py counts)."""
-    return sum(1 + (count_nodes(n.node_tree) if n.bl_idname == "ShaderNodeGroup" and n.node_tree
-                    else 0) for n in tree.nodes)

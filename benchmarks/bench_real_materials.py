@@ -17,7 +17,6 @@ docs/performance.md (between the bench_real_materials markers).
 """
 from __future__ import annotations
 
-import datetime
 import sys
 import time
 from pathlib import Path
@@ -87,7 +86,7 @@ def main():
     rows, furnace = measure(api, layer, layer_notes, imagecheck.read_exr, R)
     res = {"rows": rows, "furnace": furnace, "blender": bpy.app.version_string,
            "machine": C.machine(), "seconds": time.perf_counter() - t0,
-           "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
+           "date": C.utc_date()}
     C.publish("bench_real_materials", res, markdown(res), BEGIN, END)
     print(f"[bench_real_materials] {len(rows)} materials in {res['seconds']:.0f} s", flush=True)
 

@@ -20,7 +20,6 @@ docs/performance.md (between the perf_import markers).
 """
 from __future__ import annotations
 
-import datetime
 import json
 import statistics
 import subprocess
@@ -205,7 +204,7 @@ def main():
         res = {"reader": reader(tmp)}
         res["distribution"] = distribution(tmp)
     res["machine"] = C.machine()
-    res["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    res["date"] = C.utc_date()
     C.publish("perf_import", res, markdown(res), BEGIN, END)
 
 

@@ -24,7 +24,6 @@ Writes out/report/perf_layer.{json,md} and, run standalone, its section of docs/
 """
 from __future__ import annotations
 
-import datetime
 import sys
 import time
 from pathlib import Path
@@ -268,7 +267,7 @@ def main():
         print(f"[perf_layer] {label}: hazy/peer {r['hazy/peer']['median']:.3f}, hazy/original "
               f"{r['hazy/original']['median']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
     res["machine"] = C.machine()
-    res["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    res["date"] = C.utc_date()
     C.publish("perf_layer", res, markdown(res), BEGIN, END)
 
 

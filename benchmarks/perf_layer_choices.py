@@ -22,7 +22,6 @@ another look) for the cost of the correction itself.
 """
 from __future__ import annotations
 
-import datetime
 import sys
 import time
 from pathlib import Path
@@ -145,7 +144,7 @@ def main():
               f"({time.perf_counter() - t0:.0f} s)", flush=True)
     res = {"rows": rows, "blender": bpy.app.version_string, "samples": PL.SAMPLES,
            "rounds": PL.ROUNDS, "machine": C.machine(),
-           "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
+           "date": C.utc_date()}
     C.publish("perf_layer_choices", res, markdown(res), BEGIN, END)
 
 

@@ -28,7 +28,6 @@ docs/performance.md (between the perf_layer_edit markers).
 """
 from __future__ import annotations
 
-import datetime
 import os
 import statistics
 import sys
@@ -466,7 +465,7 @@ def main():
     C.clean_file()
     res["many_materials"] = many_materials(bpy, api, layer)
     res["machine"] = C.machine()
-    res["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    res["date"] = C.utc_date()
     C.publish("perf_layer_edit", res, markdown(res), BEGIN, END)
 
 

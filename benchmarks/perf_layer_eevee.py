@@ -25,7 +25,6 @@ and, run standalone, replaces its section of docs/performance.md (between its ma
 """
 from __future__ import annotations
 
-import datetime
 import os
 import subprocess
 import sys
@@ -247,7 +246,7 @@ def main():
     import bpy
     C.clean_file()
     res = {"blender": bpy.app.version_string, "machine": C.machine(), "materials": {},
-           "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+           "date": C.utc_date(),
            "settings": dict(plane=PLANE_RES, sphere=SPHERE_RES, noise=NOISE_SAMPLES,
                             ref=REF_SAMPLES, time=TIME_SAMPLES, rounds=ROUNDS)}
     strips = []

@@ -37,13 +37,6 @@ def count_tree(tree):
     return inner(tree)
 
 
-def count_all(tree):
-    """Every node of a tree and of its groups (recursively): frames, group inputs and outputs
-    included."""
-    return sum(1 + (count_all(n.node_tree) if n.bl_idname == "ShaderNodeGroup" and n.node_tree
-                    else 0) for n in tree.nodes)
-
-
 #: The most nodes (nested groups expanded) a layer's group holds, by the materials it is for.
 LIMITS = {"plastic": 250, "metal": 250, "textured plastic": 250, "car paint": 450,
           "every feature": 700}
@@ -108,7 +101,7 @@ def layer_rows(api):
         api.make_hazy(mat, **haze)
         node = layer.layer_node(mat)
         slots = len(layer_graph.slots_of(layer_values.graph_of(node).cycles))
-        n = count_all(node.node_tree)
+        n = layer_probe.count_nodes(node.node_tree)
         limit = LIMITS.get(label)
         rows.append(f"| {label} | {node.node_tree.name} | {n}"
                     f"{f' (<= {limit})' if limit else ''} | {layer_values.varying_math(node)} | "

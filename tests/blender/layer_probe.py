@@ -38,3 +38,10 @@ def rendered_slots(layer_values, node):
             exact[0] = False
         return count(t.a) if f == 0.0 else count(t.b) if f == 1.0 else count(t.a) + count(t.b)
     return count(lay.cycles), exact[0]
+
+
+def count_nodes(tree):
+    """Every node of a node tree and of its groups (recursively): frames, group inputs and
+    outputs included (how docs/node-groups.md and the benchmarks count a layer's group)."""
+    return sum(1 + (count_nodes(n.node_tree) if n.bl_idname == "ShaderNodeGroup" and n.node_tree
+                    else 0) for n in tree.nodes)
