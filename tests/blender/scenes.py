@@ -36,6 +36,7 @@ __all__ = (
     "plane_grid_scene",
     "furnace_sphere_scene",
     "render_exr",
+    "centre",
     "eevee_setup",
     "spherical_direction",
 )
@@ -358,6 +359,12 @@ def render_plane(material, *, engine="CYCLES", samples=1, resolution=(8, 8), lig
         setup_render("CYCLES", samples=1, resolution=resolution, bounces=0)
     flat_plane_scene(material, light_dir=light_dir, view_dir=view_dir, strength=strength)
     return render_exr()[..., :3].astype(np.float64)
+
+
+def centre(img):
+    """The mean RGB of the 2x2 pixels at the centre of ``img`` (a plane's f_r cos θi there)."""
+    h, w = img.shape[:2]
+    return img[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1, :3].reshape(-1, 3).mean(axis=0)
 
 
 def _feed(tree, sock, v):

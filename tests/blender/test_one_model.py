@@ -74,17 +74,8 @@ def glossy_anisotropy(a):
     return -(1.0 - math.sqrt(1.0 - 0.9 * a))
 
 
-def centre(img):
-    h, w = img.shape[:2]
-    return img[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1, :3].reshape(-1, 3).mean(axis=0)
-
-
 def render_plane(mat, light):
-    scenes.setup_render("CYCLES", samples=1, resolution=(4, 4), bounces=0)
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    scenes.flat_plane_scene(mat, light_dir=light, strength=1.0)
-    return centre(scenes.render_exr())
+    return scenes.centre(scenes.render_plane(mat, resolution=(4, 4), light_dir=light))
 
 
 def artists_bsdf(kind, distribution, anisotropy, extra):

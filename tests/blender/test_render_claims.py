@@ -27,17 +27,12 @@ def api(hg, clean_file):
     return importlib.import_module(hg.__name__ + ".api")
 
 
-def centre(img):
-    h, w = img.shape[:2]
-    return img[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1, :3].reshape(-1, 3).mean(axis=0)
-
-
 def render_plane(mat, light=(0.0, 0.0), strength=1.0, res=(4, 4)):
     scenes.setup_render("CYCLES", samples=1, resolution=res, bounces=0)
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     setup = scenes.flat_plane_scene(mat, light_dir=light, strength=strength)
-    return centre(scenes.render_exr()), setup
+    return scenes.centre(scenes.render_exr()), setup
 
 
 CASES = {
