@@ -62,13 +62,15 @@ def table_stops(version=None):
 
 
 class _Table:
-    """E(1, x), E_avg(x) of one lobe: m = (1-E)/E, m E_avg and E_avg - 1, so that
-    S(F) = 1 + M, M = F m E_avg / (1 - F (1 - E_avg)) (microfacet_ggx_preserve_energy)."""
+    """E(1, x), E_avg(x) of one lobe: A = m E_avg = E_avg/E - E_avg (m = (1-E)/E) and
+    B = E_avg - 1, so that S(F) = 1 + M, M = F A / (1 + F B) (microfacet_ggx_preserve_energy).
+    (A ramp holding A itself would save two nodes but interpolates A, not E: 1.2e-3 off Cycles'
+    lookup near x = 1, which moves the peak past the budget.)"""
 
     def __init__(self, g, x, stops, name):
         self.g = g
         e, a, _ = g.separate(g.ramp(x, stops, label=f"E(1,x), E_avg(x) {name}"))
-        self.ma = g.mul(g.div(g.sub(1.0, e), e), a, label=f"m E_avg {name}")
+        self.ma = g.sub(g.div(a, e), a, label=f"m E_avg {name}")
         self.am1 = g.sub(a, 1.0)
 
 
@@ -90,11 +92,11 @@ class _Lanes:
         g = self.g
         f, df = model(u)
         den = g.vmath("MULTIPLY_ADD", self.b, f, 1.0)  # 1 + F B >= E_avg > 0
-        excess = g.vmath("DIVIDE", g.vmath("SCALE", self.a, f), den)
-        slope = g.vmath("DIVIDE", self.a, g.vmath("MULTIPLY", den, den))
+        q = g.vmath("DIVIDE", self.a, den)
+        excess, slope = g.vmath("SCALE", q, f), g.vmath("DIVIDE", q, den)
         d = g.add(g.dot(weights, excess), c0)
         dp = g.mul(g.dot(weights, slope), df)
-        return g.minimum(g.div(g.mul(target, g.madd(u, dp, d)), g.madd(d, d, g.mul(target, dp))), 1.0)
+        return g.div(g.mul(target, g.madd(u, dp, d)), g.madd(d, d, g.mul(target, dp)))
 
 
 class _Ops:
@@ -110,8 +112,8 @@ class _Ops:
 def _excess(o, t, f):
     """(M = S - 1, dS/dF) of table ``t`` at Fresnel average ``f``."""
     den = o("MULTIPLY_ADD", f, t.am1, 1.0)  # 1 - F (1 - E_avg) >= E_avg > 0
-    return (o("DIVIDE", o("MULTIPLY", f, t.ma), den),
-            o("DIVIDE", t.ma, o("MULTIPLY", den, den)))
+    q = o("DIVIDE", t.ma, den)
+    return o("MULTIPLY", f, q), o("DIVIDE", q, den)
 
 
 def _fixed_beta_step(o, u, beta, T, model, tn, tw, p):
@@ -138,11 +140,11 @@ def _fixed_beta_step(o, u, beta, T, model, tn, tw, p):
 
 
 def _fit(g, u):
-    """Kulla-Conty's F_ss,d(η(u)) = 2s/(A - B s), s = √u, and its derivative A/(s (A - Bs)²)."""
+    """Kulla-Conty's F_ss,d(η(u)) = 2s/(A - B s) = s/d, d = (A - B s)/2, s = √u, and its
+    derivative A/(s (A - Bs)²) = (A/4)/(s d²)."""
     s = g.maximum(g.sqrt(u), 1e-6)
-    den = g.madd(s, -_FIT_B, _FIT_A)
-    f = g.div(g.mul(s, 2.0), den)
-    return f, g.div(_FIT_A, g.mul(s, g.mul(den, den)))
+    den = g.madd(s, -0.5 * _FIT_B, 0.5 * _FIT_A)
+    return g.div(s, den), g.div(0.25 * _FIT_A, g.mul(s, g.mul(den, den)))
 
 
 def _dielectric_max(g, u):
@@ -242,7 +244,7 @@ def correct(g, ss, *, lobe, rc, p, x_n, x_w, haziness, edge_tint=None, tint=None
         weights, c0 = g.combine(omb, bp, 0.0), g.add(omb, bp)
         for _ in range(steps["m"]):
             u = lanes.step(u, model, target, weights, c0)
-        return u
+        return g.minimum(u, 1.0) if steps["m"] else u  # (an iterate past 1 keeps the fit finite)
 
     if lobe == "COAT":  # grey: one scalar, the exact F_ss of the Coat IOR raised to r̂
         rc_m = ss["core_max"]

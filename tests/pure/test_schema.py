@@ -37,7 +37,7 @@ RANGES = {"core_reflectivity": (0.0, 1.0), "edge_tint": (0.0, 1.0), "base_color"
           "reflectivity_cap": (0.0, 1.0)}
 #: The layer group's Haze panel as it was written by hand (constants.HAZE_SOCKETS): name,
 #: default, min, max.  A change here changes every layer group: bump
-#: blender/model/layer_group.py's GROUP_VERSION with it.
+#: blender/model/layer_group.py's LAYER_GROUP_VERSION with it.
 SOCKETS = {"haziness": ("Haziness", 0.0, 0.0, K.MAX_HAZINESS),
            "haze_extent_x": ("Haze Extent X", 5.0, 0.0, 1000.0),
            "haze_extent_y": ("Haze Extent Y", 5.0, 0.0, 1000.0),

@@ -19,7 +19,9 @@ from ..nodes.lobes import build_lobes
 __all__ = ("GROUP_VERSION", "group_label", "group_name", "group_users", "restore_group_users",
            "rebuild_interface", "build_group", "fits", "ensure_group", "all_configurations")
 
-GROUP_VERSION = 5  # 5: cheaper node kinds (docs/performance.md, "What a node costs")
+#: Bumped when what an in-shader group holds changes (5: cheaper node kinds, docs/performance.md
+#: "What a node costs"; 6: a cheaper Multiscatter Newton step).
+GROUP_VERSION = 6
 
 
 # Labels from constants' vocabulary (earlier versions named it "Multi GGX": such a group is
