@@ -52,6 +52,8 @@ CASES = {
                                                {"base_color": (0.2, 0.4, 0.1)}),
     "glossy": ("LEGACY", "GGX", 0.0, {}),
     "glossy, Multiscatter GGX, anisotropic": ("LEGACY", "MULTI_GGX", 0.6, {}),
+    "glossy, anisotropic halo": ("LEGACY", "GGX", 0.8, {"haze_extent": (7.0, 2.0)}),
+    "dielectric, anisotropic halo": ("DIELECTRIC", "GGX", 0.6, {"haze_extent": (7.0, 2.0)}),
 }
 
 
@@ -161,3 +163,10 @@ def test_the_layer_renders_the_whole_hazy_material(env, case):
     if without is not None:
         assert feature_shows > 100 * TOL, feature_shows
     assert math.isfinite(worst) and worst <= TOL, (worst, list(notes))
+    # and the layer reads back the perceptual parameters the whole material was made with
+    read, made = api.read_parameters(layered), api.read_parameters(whole)
+    assert read["kind"] == made["kind"]
+    for key in ("core_reflectivity", "edge_tint", "roughness", "anisotropy", "haziness",
+                "haze_extent"):
+        np.testing.assert_allclose(np.asarray(read[key], float), np.asarray(made[key], float),
+                                   rtol=0, atol=2e-6, err_msg=key)

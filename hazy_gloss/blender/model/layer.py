@@ -28,6 +28,7 @@ import numpy as np
 
 from ... import constants as K
 from ...core import gulbrandsen_inverse
+from ...core.conventions import lobe_alphas, metallic_anisotropy
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
@@ -653,6 +654,9 @@ def read(mat):
     else:
         p["kind"] = "LEGACY"
         p["core_reflectivity"] = val("Color", (0.8,) * 3)
+        if p["anisotropy"]:  # the Glossy node's convention, read as the perceptual one
+            ax, ay, p["rotation"] = lobe_alphas(p["roughness"], p["anisotropy"], p["rotation"], glossy=True)
+            p["anisotropy"] = float(metallic_anisotropy(ay / ax)) if ax > 0 else 0.0
     p["shader_mapping"] = bool(p["textured"])
     p["notes"] = notes(mat, quick=False)  # (a bypassed layer node, haze that cannot show, ...)
     return p
