@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Every constant the add-on shares between modules, bpy-free, in one place.
 
-The numbers are Cycles' limits (BLENDER-FACTS.md, kernel/closure/bsdf_microfacet.h) and the
+The numbers are Cycles' limits (docs/blender-versions.md; kernel/closure/bsdf_microfacet.h) and the
 add-on's own choices; every path (lean material, in-shader nodes, baked maps, recomposite)
 clamps with these same values.
 """

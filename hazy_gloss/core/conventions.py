@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Blender's roughness and anisotropy conventions (BLENDER-FACTS.md, Cycles svm/closure.h),
+"""Blender's roughness and anisotropy conventions (docs/blender-versions.md; Cycles svm/closure.h),
 bpy-free so the mapping code and the tests share one definition.
 
 Roughness R -> α = R² (R clamped to [0, 1]); after anisotropy each α is clamped to <= 1.

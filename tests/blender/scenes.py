@@ -12,7 +12,7 @@ Typical use, in a test that has the ``clean_file`` fixture (an empty file)::
 
 Everything is set explicitly, because the defaults break exact tests (denoising, adaptive
 sampling, a grey world, a sun of angle 0.00918 rad, indirect clamp 10, glossy blur 1, a 1.5 px
-Blackman-Harris pixel filter, MULTI_GGX / F82 node defaults...; see docs and BLENDER-FACTS).
+Blackman-Harris pixel filter, MULTI_GGX / F82 node defaults...; docs/blender-versions.md).
 """
 from __future__ import annotations
 

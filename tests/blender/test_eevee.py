@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """EEVEE renders the same hazy node trees without errors; its difference to Cycles is measured
 (recorded in out/measurements/eevee_vs_cycles.json), not asserted equal: EEVEE approximates the
-conductor Fresnel, uses LTC lights and ignores anisotropy (BLENDER-FACTS.md).  A plain Metallic
+conductor Fresnel, uses LTC lights and ignores anisotropy (docs/blender-versions.md).  A plain Metallic
 BSDF beside them is held to the analytic BRDF (tests/blender/analytic.py): Cycles exactly,
 EEVEE within 10 % (measured 1.5 % above it).
 

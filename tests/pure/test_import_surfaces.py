@@ -44,7 +44,7 @@ def _read(name):
 
 
 def cycles_alpha(R, A):
-    """Cycles' Principled / Metallic α (BLENDER-FACTS): s = √(1-0.9A), α_x = R²/s, α_y = R² s,
+    """Cycles' Principled / Metallic α (docs/blender-versions.md): s = √(1-0.9A), α_x = R²/s, α_y = R² s,
     each at most 1."""
     s = math.sqrt(1.0 - 0.9 * min(max(A, 0.0), 1.0))
     r2 = min(max(R, 0.0), 1.0) ** 2
@@ -288,7 +288,7 @@ def test_metal_fresnel_is_the_conductor_at_82_degrees():
         rp = np.abs((n * n * mu - root) / (n * n * mu + root)) ** 2
         return 0.5 * (rs + rp)
 
-    def f82(mu):  # Cycles' F82-tint (BLENDER-FACTS): b from F(μ̄) = tint · Schlick(μ̄)
+    def f82(mu):  # Cycles' F82-tint (docs/blender-versions.md): b from F(μ̄) = tint · Schlick(μ̄)
         mb = 1.0 / 7.0
         sch = lambda m: r + (1 - r) * (1 - m) ** 5  # noqa: E731
         b = sch(mb) * (1 - tint) / (mb * (1 - mb) ** 6)
