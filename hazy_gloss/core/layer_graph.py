@@ -277,9 +277,10 @@ def _isotropic_gate(g, x, cfg, aniso):
     return g.mul(_off_where(g, aniso, 0.0), same, label="isotropic (else plain)")
 
 
-def _gain(g, m):
-    """r̂ / r̂_c (Eq. 5's raise of the brightest channel)."""
-    return g.div(m["reflectivity_max"], g.maximum(m["core_max"], _DIV_MIN))
+def _raised(g, f0, m):
+    """``f0`` raised by r̂ / r̂_c (Eq. 5's raise of the brightest channel), as r̂ (f0 / r̂_c):
+    the ratio folds into a constant where the core's F0 is not textured."""
+    return g.mul(m["reflectivity_max"], g.div(f0, g.maximum(m["core_max"], _DIV_MIN)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -327,7 +328,7 @@ def _principled_mapping(g, x, cfg, m, a_metal, b_metal):
                                title="Coat")
         _section(g, "Coat: Eq. 5, the Coat IOR raised to r")
         v["beta_c"] = g.mul(mc["beta"], coat_on, label="β coat")
-        v["coat_ior"] = g.select(coat_on, _ior_from_f0(g, g.mul(f0c, _gain(g, mc))), x("Coat IOR"),
+        v["coat_ior"] = g.select(coat_on, _ior_from_f0(g, _raised(g, f0c, mc)), x("Coat IOR"),
                                  label="Coat IOR (raised)")
         v["coat_roughness_wide"] = g.select(coat_on, mc["roughness_wide"], x("Coat Roughness"),
                                             label="coat R_w")
@@ -469,8 +470,7 @@ def _dielectric_part(g, x, cfg, v, bh, on, ior, tint, rough, aniso, rot):
                haziness=bh, affine=(keep, a_t, b_t) if a_t is not None else None,
                title="Dielectric part")
     _section(g, "Dielectric part: Eq. 5, IOR raised to r")
-    gain = _gain(g, md)
-    raised_ior = _ior_from_f0(g, g.mul(f0_user, gain))
+    raised_ior = _ior_from_f0(g, _raised(g, f0_user, md))
     v["ior_d"] = g.select(g.mul(on, g.sub(1.0, keep)), raised_ior, ior, label="IOR (raised)")
     # converted maps hold the raised IOR everywhere (they have no tint map: mapping.md §13)
     v["ior_baked"] = g.select(on, raised_ior, ior)
