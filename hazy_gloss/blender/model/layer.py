@@ -717,24 +717,21 @@ def notes(mat, quick=True):
     h = haze_of(mat)
     if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
         return out  # no haze set here: nothing it could not do
-    try:
-        vals, linked = layer_values.evaluate(node, layer_notes.outputs_for_notes(node), lazy=True)
+    vals = layer_values.LazyValues(node, layer_notes.outputs_for_notes(node))
+    linked, more = vals.linked, []
+    try:  # (the group's values are evaluated by the first note that reads one)
+        if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
+            more += layer_notes.room_notes(node, vals, linked, h)
+        if layer_values.group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
+            more.append(layer_notes.body_note(node, vals, linked))
+        more.append(layer_notes.coat_note(node, vals, linked))
+        film = layer_notes.film_peak_change(node, vals, linked)
     except (ValueError, TypeError, KeyError):
         return out
-    if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
-        out += layer_notes.room_notes(node, vals, linked, h)
-    if layer_values.group_config(node).get("body") and vals.get("beta dielectric", 0.0) > 0.0:
-        note = layer_notes.body_note(node, vals, linked)
-        if note:
-            out.append(note)
-    coat = layer_notes.coat_note(node, vals, linked)
-    if coat:
-        out.append(coat)
-    film = layer_notes.film_peak_change(node, vals, linked)
     if film is not None and abs(film) > 1e-5:
-        out.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
-                   f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
-    return out
+        more.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "
+                    f"{100 * film:+.2f}% here (lower Haziness, or thin the film)")
+    return out + [n for n in more if n]
 
 
 def summary(mat):

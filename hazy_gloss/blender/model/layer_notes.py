@@ -83,9 +83,10 @@ def _f0(ior):
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
-def _parts(node, vals, linked):
-    """(β, the core reflectivity the user set (largest channel), what it is) of each part the
-    node renders, from its unlinked values (a linked reflectivity: not judged)."""
+def _parts(node, linked):
+    """(the name of its β among the shown values, the core reflectivity the user set (largest
+    channel), what it is) of each part the node renders, from its unlinked values (a linked
+    reflectivity: None, not judged)."""
     inp = node.inputs
     cfg = layer_values.group_config(node)
     kind = cfg.get("bsdf")
@@ -96,13 +97,13 @@ def _parts(node, vals, linked):
     if kind == "PRINCIPLED":
         m = None if "Metallic" in linked else float(inp["Metallic"].default_value)
         if m is None or m > 0.0:
-            out.append((vals.get("beta metal", 0.0), colour("Base Color"), "Base Color"))
+            out.append(("beta metal", colour("Base Color"), "Base Color"))
         if (m is None or m < 1.0) and not {"IOR", "Specular IOR Level", "Specular Tint"} & set(linked):
             tint = float(max(inp["Specular Tint"].default_value[:3]))
             level = 2.0 * max(float(inp["Specular IOR Level"].default_value), 0.0)
             if float(inp["Transmission Weight"].default_value) > 1e-5:
                 level = 1.0
-            out.append((vals.get("beta dielectric", 0.0),
+            out.append(("beta dielectric",
                         _f0(float(inp["IOR"].default_value)) * level * tint, "the specular F0"))
     elif kind == "METALLIC" and cfg.get("settings", {}).get("fresnel_type") == "PHYSICAL_CONDUCTOR":
         rc = None
@@ -110,11 +111,11 @@ def _parts(node, vals, linked):
             n = np.asarray(inp["IOR"].default_value[:3], float)
             k = np.asarray(inp["Extinction"].default_value[:3], float)
             rc = float((((n - 1) ** 2 + k * k) / ((n + 1) ** 2 + k * k)).max())
-        out.append((vals.get("beta", 0.0), rc, "the F0 of its IOR and Extinction"))
+        out.append(("beta", rc, "the F0 of its IOR and Extinction"))
     elif kind == "METALLIC":
-        out.append((vals.get("beta", 0.0), colour("Base Color"), "Base Color"))
+        out.append(("beta", colour("Base Color"), "Base Color"))
     else:
-        out.append((vals.get("beta", 0.0), colour("Color"), "Color"))
+        out.append(("beta", colour("Color"), "Color"))
     return out
 
 
@@ -131,11 +132,12 @@ def room_notes(node, vals, linked, haze):
     out = []
     cap = float(haze.get("reflectivity_cap", 1.0))
     bh = haze.get("haziness")
-    for beta, rc, what in _parts(node, vals, linked):
-        if isinstance(bh, (int, float)) and 0.0 < beta < FAINT_HALO * bh and rc is not None \
+    for key, rc, what in _parts(node, linked):
+        if rc is None:  # (a linked reflectivity: not judged, its β not evaluated)
+            continue
+        beta = vals.get(key, 0.0)
+        if isinstance(bh, (int, float)) and 0.0 < beta < FAINT_HALO * bh \
                 and FAINT_CAP < rc < min(cap, 1.0) - 1e-6 and "Reflectivity Cap" not in linked:
-            key = "beta metal" if what == "Base Color" and "beta metal" in vals else \
-                "beta dielectric" if "beta dielectric" in vals else "beta"
             shown = layer_values.graph_of(node).shown
             capped = layer_values.evaluate(node, {key: shown[key]},
                                            overrides={"haze:reflectivity_cap": FAINT_CAP})[0][key]
@@ -144,7 +146,7 @@ def room_notes(node, vals, linked, haze):
                        f"bound, Eq. 6); Reflectivity Cap {FAINT_CAP:g} gives it "
                        f"{100 * capped:.0f}% (the peak then drops by "
                        f"{100 * (1 - FAINT_CAP / rc):.1f}%)")
-        if beta > 0.0 or rc is None:
+        if beta > 0.0:
             continue
         if rc >= min(cap, 1.0) - 1e-6 and cap > SUGGESTED_CAP:
             loss = 1.0 - SUGGESTED_CAP / min(rc, 1.0)
@@ -157,9 +159,8 @@ def room_notes(node, vals, linked, haze):
         elif rc >= min(cap, 1.0) - 1e-6:
             out.append(f"no haze shows: {what} ({rc:.3g}) leaves no room for a halo at this "
                        f"Reflectivity Cap ({cap:g}): lower the cap")
-    tint = vals.get("tint narrow")
-    if tint is not None and "Specular Tint" not in linked and "IOR" not in linked and \
-            vals.get("beta dielectric", 0.0) > 0.0:
+    tint = None if {"Specular Tint", "IOR"} & set(linked) else vals.get("tint narrow")
+    if tint is not None and vals.get("beta dielectric", 0.0) > 0.0:
         f0 = _f0(float(node.inputs["IOR"].default_value)) * max(tint)
         if f0 > 1.0:
             out.append(f"the peak cannot hold: keeping it would need an F0 of {f0:.3g} (above 1) "
@@ -172,8 +173,8 @@ def coat_note(node, vals, linked):
     what it leaves of the light through it at normal incidence (1 - F(0)): the base and its
     emission under the coat render that much darker.  None where small or unknown."""
     ior, weight = node.inputs.get("Coat IOR"), node.inputs.get("Coat Weight")
-    if "coat IOR" not in vals or ior is None or weight is None or "Coat IOR" in linked or \
-            "Coat Haziness" in linked or (not weight.is_linked and weight.default_value <= 0.0):
+    if ior is None or weight is None or "Coat IOR" in linked or "Coat Haziness" in linked or \
+            (not weight.is_linked and weight.default_value <= 0.0) or "coat IOR" not in vals:
         return None
     was, now = _f0(float(ior.default_value)), _f0(float(vals["coat IOR"]))
     passes = (1.0 - now) / max(1.0 - was, 1e-6)

@@ -15,7 +15,7 @@ from ...schema import HAZE_SOCKETS
 from . import layer_group, stamp
 from ..nodes import ownership
 
-__all__ = ("group_config", "inputs_of", "graph_input_name", "graph_of", "evaluate",
+__all__ = ("group_config", "inputs_of", "graph_input_name", "graph_of", "evaluate", "LazyValues",
            "cycles_closures", "varying_math", "values", "input_fingerprint", "plain", "input_record",
            "baked_changes", "converted_map_nodes")
 
@@ -87,6 +87,30 @@ def evaluate(node, outputs, lazy=False, overrides=None):
     out = evaluate_graph(outputs, inputs, lay.graph.tables, lazy=lazy)
     return {k: (tuple(float(x) for x in np.ravel(v)) if np.size(v) > 1 else float(v))
             for k, v in out.items()}, linked
+
+
+class LazyValues:
+    """:func:`evaluate` of ``outputs`` for the layer node, done on the first value read (the
+    notes of a material whose judged inputs are linked read none); ``linked``: the names of
+    its linked inputs."""
+
+    def __init__(self, node, outputs):
+        self._node, self._outputs, self._values = node, outputs, None
+        self.linked = inputs_of(node)[1]
+
+    def _all(self):
+        if self._values is None:
+            self._values = evaluate(self._node, self._outputs, lazy=True)[0]
+        return self._values
+
+    def __contains__(self, key):  # (evaluate gives every output asked for)
+        return key in self._outputs
+
+    def __getitem__(self, key):
+        return self._all()[key]
+
+    def get(self, key, default=None):
+        return self._all().get(key, default) if key in self._outputs else default
 
 
 def cycles_closures(node, per_slot):
