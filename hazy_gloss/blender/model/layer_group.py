@@ -43,7 +43,7 @@ __all__ = ("LAYER_GROUP_VERSION", "BSDF_NODES", "NODE_SETTINGS", "version_tag", 
 
 #: Bumped when what a layer group holds changes: older groups are rebuilt in place on first
 #: use (4: one flat group of the parts a material uses, each in a frame; 5: a Multiscatter
-#: Newton step of 22 math nodes, not 26).
+#: Newton step of 23 math nodes, not 26).
 LAYER_GROUP_VERSION = 5
 
 BSDF_NODES = {"PRINCIPLED": "ShaderNodeBsdfPrincipled", "METALLIC": "ShaderNodeBsdfMetallic",
