@@ -64,8 +64,8 @@ def table_stops(version=None):
 class _Table:
     """E(1, x), E_avg(x) of one lobe: A = m E_avg = E_avg/E - E_avg (m = (1-E)/E) and
     B = E_avg - 1, so that S(F) = 1 + M, M = F A / (1 + F B) (microfacet_ggx_preserve_energy).
-    (A ramp holding A itself would save two nodes but interpolates A, not E: 1.2e-3 off Cycles'
-    lookup near x = 1, which moves the peak past the budget.)"""
+    (A ramp holding A and B themselves would save three nodes but interpolates A, not E: 1.2e-3
+    off Cycles' lookup near x = 1, which moves the peak past the budget.)"""
 
     def __init__(self, g, x, stops, name):
         self.g = g

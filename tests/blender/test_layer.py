@@ -939,6 +939,37 @@ def test_a_colour_just_under_one_says_how_little_haze_shows(env):
     assert not [n for n in env.layer.notes(mat, quick=False) if n.startswith("little haze")]
 
 
+def test_notes_evaluate_the_group_only_where_a_note_reads_a_value(env, monkeypatch):
+    """The notes read the group's values (β, r, the coat's IOR) only for inputs they judge: a
+    silver whose Base Color, Metallic and Specular Tint are linked has nothing to judge (its
+    metal's colour and its dielectric's F0 vary) and costs no evaluation; the same silver with
+    constant inputs evaluates and says how little haze shows."""
+    calls = []
+    evaluate = env.layer_values.evaluate
+
+    def counted(*a, **k):
+        calls.append(a[1])
+        return evaluate(*a, **k)
+    monkeypatch.setattr(env.layer_values, "evaluate", counted)
+    inputs = {"Metallic": 1.0, "Base Color": (0.97, 0.96, 0.95, 1.0), "Roughness": 0.3}
+    linked, bsdf = principled("Linked silver", **inputs)
+    tree = linked.node_tree
+    for name, node in (("Base Color", "ShaderNodeRGB"), ("Metallic", "ShaderNodeValue"),
+                       ("Specular Tint", "ShaderNodeRGB")):
+        src = tree.nodes.new(node)
+        src.outputs[0].default_value = bsdf.inputs[name].default_value
+        tree.links.new(src.outputs[0], bsdf.inputs[name])
+    make_hazy(env, linked, haziness=0.9, haze_extent=5.0)
+    calls.clear()
+    assert not [n for n in env.layer.notes(linked, quick=False) if "haze shows" in n]
+    assert calls == []
+    plain, _ = principled("Silver", **inputs)
+    make_hazy(env, plain, haziness=0.9, haze_extent=5.0)
+    calls.clear()
+    assert [n for n in env.layer.notes(plain, quick=False) if n.startswith("little haze shows")]
+    assert calls
+
+
 @pytest.mark.parametrize("haziness", [0.6, 0.9])
 @pytest.mark.parametrize("thickness", [250.0, 400.0])
 def test_a_high_index_film_on_a_dielectric_keeps_the_peak(env, haziness, thickness):

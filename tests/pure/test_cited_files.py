@@ -14,7 +14,7 @@ def missing(text):
     """The ``*.md`` names ``text`` cites that the repository does not hold."""
     out = []
     for name in CITED.findall(text):
-        name = name.lstrip("./")
+        name = name.removeprefix("./")
         candidates = [ROOT / name, ROOT / "docs" / name, ROOT / "tests" / name]
         report = ROOT / "benchmarks" / (pathlib.Path(name).stem + ".py")
         if not any(c.is_file() for c in candidates) and not report.is_file():

@@ -28,7 +28,7 @@ import numpy as np
 
 from ... import constants as K
 from ...core import gulbrandsen_inverse
-from ...core.conventions import lobe_alphas, metallic_anisotropy
+from ...core.conventions import metallic_anisotropy
 from ...core.parameters import HAZE_DEFAULTS
 from ...schema import HAZE_SOCKETS, SCHEMA
 from .. import compat
@@ -654,9 +654,12 @@ def read(mat):
     else:
         p["kind"] = "LEGACY"
         p["core_reflectivity"] = val("Color", (0.8,) * 3)
-        if p["anisotropy"]:  # the Glossy node's convention, read as the perceptual one
-            ax, ay, p["rotation"] = lobe_alphas(p["roughness"], p["anisotropy"], p["rotation"], glossy=True)
-            p["anisotropy"] = float(metallic_anisotropy(ay / ax)) if ax > 0 else 0.0
+        glossy = p["anisotropy"]
+        if glossy:  # the Glossy node's convention (docs/blender-versions.md), read as the
+            # perceptual one: the same axis ratio (1 - |A|)², the long axis along x
+            k = 1.0 - min(abs(glossy), 0.99)
+            p["anisotropy"] = float(metallic_anisotropy(k * k))
+            p["rotation"] += 0.25 if glossy > 0 else 0.0
     p["shader_mapping"] = bool(p["textured"])
     p["notes"] = notes(mat, quick=False)  # (a bypassed layer node, haze that cannot show, ...)
     return p
@@ -717,7 +720,10 @@ def notes(mat, quick=True):
     h = haze_of(mat)
     if h.get("haziness") in (0.0, TEXTURE) and h.get("coat_haziness") in (0.0, TEXTURE, None):
         return out  # no haze set here: nothing it could not do
-    vals = layer_values.LazyValues(node, layer_notes.outputs_for_notes(node))
+    try:
+        vals = layer_values.LazyValues(node, layer_notes.outputs_for_notes(node))
+    except (ValueError, TypeError, KeyError):  # (a damaged group: no value notes)
+        return out
     linked, more = vals.linked, []
     try:  # (the group's values are evaluated by the first note that reads one)
         if h.get("haziness") not in (0.0, TEXTURE) and "Haziness" not in linked:
@@ -726,7 +732,7 @@ def notes(mat, quick=True):
             more.append(layer_notes.body_note(node, vals, linked))
         more.append(layer_notes.coat_note(node, vals, linked))
         film = layer_notes.film_peak_change(node, vals, linked)
-    except (ValueError, TypeError, KeyError):
+    except layer_values.LazyValues.Failed:
         return out
     if film is not None and abs(film) > 1e-5:
         more.append(f"thin film: the layer raises F(0) as without a film, so the peak moves by "

@@ -98,9 +98,15 @@ class LazyValues:
         self._node, self._outputs, self._values = node, outputs, None
         self.linked = inputs_of(node)[1]
 
+    class Failed(Exception):
+        """The group's values did not evaluate (a damaged group)."""
+
     def _all(self):
         if self._values is None:
-            self._values = evaluate(self._node, self._outputs, lazy=True)[0]
+            try:
+                self._values = evaluate(self._node, self._outputs, lazy=True)[0]
+            except (ValueError, TypeError, KeyError) as exc:
+                raise self.Failed(str(exc)) from exc
         return self._values
 
     def __contains__(self, key):  # (evaluate gives every output asked for)
