@@ -28,6 +28,7 @@ from mathutils import Matrix, Vector
 __all__ = (
     "eevee_engine_id",
     "new_material",
+    "empty_material",
     "metallic_material",
     "setup_render",
     "black_world",
@@ -71,6 +72,16 @@ def _output_node(tree):
     return tree.nodes.new("ShaderNodeOutputMaterial")
 
 
+def empty_material(name="Material"):
+    """A material whose tree holds only its Material Output: (material, output node)."""
+    mat = new_material(name)
+    tree = mat.node_tree
+    for node in list(tree.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            tree.nodes.remove(node)
+    return mat, _output_node(tree)
+
+
 def metallic_material(name="Metallic", *, roughness=0.3, ior=(0.2, 0.9, 1.1),
                       extinction=(3.9, 2.4, 2.2), distribution="GGX",
                       fresnel_type="PHYSICAL_CONDUCTOR", anisotropy=0.0, rotation=0.0):
@@ -79,12 +90,8 @@ def metallic_material(name="Metallic", *, roughness=0.3, ior=(0.2, 0.9, 1.1),
     The node defaults are MULTI_GGX and F82; this sets ``distribution`` and ``fresnel_type``.
     Anisotropic materials need an explicit tangent (an unlinked Tangent falls back to a radial
     tangent); link one yourself if ``anisotropy`` != 0."""
-    mat = new_material(name)
+    mat, out = empty_material(name)
     tree = mat.node_tree
-    for node in list(tree.nodes):
-        if node.bl_idname != "ShaderNodeOutputMaterial":
-            tree.nodes.remove(node)
-    out = _output_node(tree)
     bsdf = tree.nodes.new("ShaderNodeBsdfMetallic")
     bsdf.distribution = distribution
     bsdf.fresnel_type = fresnel_type

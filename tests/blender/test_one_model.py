@@ -23,7 +23,6 @@ raises F(0) through the Specular Tint (docs/mapping.md §13), so the two differ 
 import importlib
 import math
 
-import bpy
 import numpy as np
 import pytest
 
@@ -82,13 +81,8 @@ def render_plane(mat, light):
 
 def artists_bsdf(kind, distribution, anisotropy, extra):
     """The BSDF an artist builds for these perceptual parameters."""
-    mat = bpy.data.materials.new(f"artist {kind}")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
+    mat, out = scenes.empty_material(f"artist {kind}")
     tree = mat.node_tree
-    for n in [n for n in tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial"]:
-        tree.nodes.remove(n)
-    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
     if kind == "CONDUCTOR":
         b = tree.nodes.new("ShaderNodeBsdfMetallic")
         b.fresnel_type = "PHYSICAL_CONDUCTOR"
@@ -178,13 +172,8 @@ def test_a_glossy_layer_reads_back_the_perceptual_anisotropy(env, glossy, roughn
     the same axis ratio, (1 - |A|)² = 1 - 0.9 a (Glossy's A clamped to ±0.99, a to [0, 1]), the
     long axis along x (a positive A stretches y: a quarter turn more), whatever the roughness
     (Cycles clamps each α to 1 after, which the ratio does not see)."""
-    mat = bpy.data.materials.new("glossy core")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
+    mat, out = scenes.empty_material("glossy core")
     tree = mat.node_tree
-    for n in [n for n in tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial"]:
-        tree.nodes.remove(n)
-    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
     b = tree.nodes.new("ShaderNodeBsdfGlossy")
     b.inputs["Roughness"].default_value = roughness
     b.inputs["Anisotropy"].default_value = glossy
