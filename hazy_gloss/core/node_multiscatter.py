@@ -82,8 +82,9 @@ class _Lanes:
     def __init__(self, tn, tw):
         g = tn.g
         self.g = g
-        self.a = g.combine(tn.ma, tw.ma, 0.0, label="E_avg (1-E)/E: narrow, wide")
-        self.b = g.combine(tn.am1, tw.am1, 0.0, label="E_avg - 1: narrow, wide")
+        # (a table of _excess's: A as ``ma``, B as ``am1``, one lobe per lane)
+        self.ma = g.combine(tn.ma, tw.ma, 0.0, label="E_avg (1-E)/E: narrow, wide")
+        self.am1 = g.combine(tn.am1, tw.am1, 0.0, label="E_avg - 1: narrow, wide")
 
     def step(self, u, model, target, weights, c0):
         """One Newton step on u - T/D(u) with D = c0 + w · M(F(u)), M = S - 1 per lane
@@ -91,9 +92,7 @@ class _Lanes:
         u' = T (D + u D') / (D² + T D'), D' = F'(u) (w · A/(1 + F B)²)."""
         g = self.g
         f, df = model(u)
-        den = g.vmath("MULTIPLY_ADD", self.b, f, 1.0)  # 1 + F B >= E_avg > 0
-        q = g.vmath("DIVIDE", self.a, den)
-        excess, slope = g.vmath("SCALE", q, f), g.vmath("DIVIDE", q, den)
+        excess, slope = _excess(_Ops(g, True), self, f)
         d = g.add(g.dot(weights, excess), c0)
         dp = g.mul(g.dot(weights, slope), df)
         return g.div(g.mul(target, g.madd(u, dp, d)), g.madd(d, d, g.mul(target, dp)))
